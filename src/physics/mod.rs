@@ -1,0 +1,16 @@
+//! The plant of spec §1–§3 as pure, safe Rust: no FFI, no FMI words.
+//!
+//! Data flow: [`PlantParams`] → [`Plant`] (validated generic form) → [`Stepper`] (exact
+//! stepping, switches located to round-off) and [`SpeedErrorBound`] (spec §3 bounds).
+
+pub mod bound;
+pub mod linear;
+pub mod mode;
+pub mod params;
+pub mod roots;
+pub mod stepper;
+
+pub use bound::{BoundState, PiGains, SpeedErrorBound, Unbounded};
+pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
+pub use params::{dead_zone, Geometry, ParamError, Plant, PlantParams};
+pub use stepper::{Inputs, StepError, Stepper, SwitchEvent};

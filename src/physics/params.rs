@@ -1,0 +1,170 @@
+//! Plant parameters for both drive trains and their validation (spec §1).
+
+use thiserror::Error;
+
+/// Which drive train the generic plant of spec §1 describes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Geometry {
+    /// Compliant shaft + gear backlash (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Δ.
+    Shaft {
+        /// Shaft stiffness k [N·m/rad].
+        k: f64,
+        /// Half backlash gap Δ [rad].
+        delta: f64,
+    },
+    /// Belt–pulley + gear backlash (paper eqs. 20–21): r_m = R_1, r_L = α_1, K = K_b, g = α_2 Δ.
+    Belt {
+        /// Belt stiffness K_b [N/m].
+        k_b: f64,
+        /// Motor pulley radius R_1 [m].
+        r_1: f64,
+        /// Driven pulley radius R_2 [m].
+        r_2: f64,
+        /// Pitch radius of gear 1 R_g1 [m].
+        r_g1: f64,
+        /// Pitch radius of gear 2 R_g2 [m].
+        r_g2: f64,
+        /// Half backlash gap Δ [m] on the pitch circle.
+        delta: f64,
+    },
+}
+
+/// Parameters as a user gives them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantParams {
+    /// Motor inertia J_m [kg·m²].
+    pub j_m: f64,
+    /// Load inertia J_L [kg·m²].
+    pub j_l: f64,
+    /// Motor viscous friction b_m [N·m·s/rad].
+    pub b_m: f64,
+    /// Load viscous friction b_L [N·m·s/rad].
+    pub b_l: f64,
+    pub geometry: Geometry,
+}
+
+impl PlantParams {
+    /// The paper's rectilinear rig (spec §4) in shaft form, with half gap `delta`.
+    pub fn paper_rig(delta: f64) -> Self {
+        PlantParams {
+            j_m: 2.28,
+            j_l: 2.55,
+            b_m: 0.05,
+            b_l: 0.05,
+            geometry: Geometry::Shaft { k: 200.0, delta },
+        }
+    }
+}
+
+/// An invalid parameter: names it and gives the offending value.
+#[derive(Clone, Copy, Debug, PartialEq, Error)]
+pub enum ParamError {
+    #[error("parameter {name} = {value} must be finite")]
+    NotFinite { name: &'static str, value: f64 },
+    #[error("parameter {name} = {value} must be > 0")]
+    NotPositive { name: &'static str, value: f64 },
+    #[error("parameter {name} = {value} must be >= 0")]
+    Negative { name: &'static str, value: f64 },
+}
+
+fn positive(name: &'static str, value: f64) -> Result<f64, ParamError> {
+    if !value.is_finite() {
+        Err(ParamError::NotFinite { name, value })
+    } else if value <= 0.0 {
+        Err(ParamError::NotPositive { name, value })
+    } else {
+        Ok(value)
+    }
+}
+
+fn non_negative(name: &'static str, value: f64) -> Result<f64, ParamError> {
+    if !value.is_finite() {
+        Err(ParamError::NotFinite { name, value })
+    } else if value < 0.0 {
+        Err(ParamError::Negative { name, value })
+    } else {
+        Ok(value)
+    }
+}
+
+/// A validated plant in the generic form of spec §1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plant {
+    params: PlantParams,
+    /// Lever arm of the motor in the transmission coordinate, r_m.
+    r_m: f64,
+    /// Lever arm of the load, r_L.
+    r_l: f64,
+    /// Stiffness K of the compliant member.
+    stiffness: f64,
+    /// Half gap g in the transmission coordinate u.
+    half_gap: f64,
+}
+
+impl Plant {
+    /// Validates `params` (J > 0, b ≥ 0, K > 0, Δ ≥ 0, radii > 0, all finite).
+    pub fn new(params: PlantParams) -> Result<Plant, ParamError> {
+        positive("J_m", params.j_m)?;
+        positive("J_L", params.j_l)?;
+        non_negative("b_m", params.b_m)?;
+        non_negative("b_L", params.b_l)?;
+        let (r_m, r_l, stiffness, half_gap) = match params.geometry {
+            Geometry::Shaft { k, delta } => (1.0, 1.0, positive("k", k)?, non_negative("Delta", delta)?),
+            Geometry::Belt { k_b, r_1, r_2, r_g1, r_g2, delta } => {
+                let k_b = positive("K_b", k_b)?;
+                let r_1 = positive("R_1", r_1)?;
+                let r_2 = positive("R_2", r_2)?;
+                let r_g1 = positive("R_g1", r_g1)?;
+                let r_g2 = positive("R_g2", r_g2)?;
+                let delta = non_negative("Delta", delta)?;
+                // α_1 = R_2 R_g2 / R_g1, α_2 = R_2 / R_g1 (paper eq. 15).
+                (r_1, r_2 * r_g2 / r_g1, k_b, r_2 / r_g1 * delta)
+            }
+        };
+        let plant = Plant { params, r_m, r_l, stiffness, half_gap };
+        // Derived quantities can overflow although every input is finite.
+        for (name, value) in [("r_L", r_l), ("g", half_gap), ("K*r_m^2/J_m", plant.stiffness * r_m * r_m / params.j_m)] {
+            if !value.is_finite() {
+                return Err(ParamError::NotFinite { name, value });
+            }
+        }
+        Ok(plant)
+    }
+
+    pub fn params(&self) -> &PlantParams {
+        &self.params
+    }
+    pub fn r_m(&self) -> f64 {
+        self.r_m
+    }
+    pub fn r_l(&self) -> f64 {
+        self.r_l
+    }
+    /// Stiffness K [N·m/rad (shaft) or N/m (belt)].
+    pub fn stiffness(&self) -> f64 {
+        self.stiffness
+    }
+    /// Half gap g in u [rad (shaft) or m (belt)].
+    pub fn half_gap(&self) -> f64 {
+        self.half_gap
+    }
+    /// Transmission coordinate u = r_m θ_m − r_L θ_L.
+    pub fn transmission(&self, theta_m: f64, theta_l: f64) -> f64 {
+        self.r_m * theta_m - self.r_l * theta_l
+    }
+    /// Force in the compliant member ψ = K·dz(u, g) (spec §1).
+    pub fn force(&self, u: f64) -> f64 {
+        self.stiffness * dead_zone(u, self.half_gap)
+    }
+}
+
+/// dz(u, g) of spec §1: zero inside the gap, shifted identity outside.
+pub fn dead_zone(u: f64, g: f64) -> f64 {
+    if u >= g {
+        u - g
+    } else if u <= -g {
+        u + g
+    } else {
+        0.0
+    }
+}
