@@ -1,6 +1,9 @@
 //! The speed-error bounds of spec §3 for a PI loop on motor speed.
 
+use super::linear;
 use super::params::Plant;
+use super::roots::{self, series_apply, Side, SignalRows};
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use thiserror::Error;
 
 /// PI speed controller on ω_m: τ_m = Kp e + Ki ∫e, e = ω_ref − ω_m (spec §3).
@@ -43,42 +46,186 @@ pub enum BoundError {
     BadState,
 }
 
+/// Closed-loop state [θ_m, ω_m, θ_L, ω_L, x_c] (spec §3).
+const CL: usize = 5;
+/// Augmented [v, I] with v = e^{A s} D_1 and I = ∫_0^s v: y' = [A v; v].
+const BA: usize = 2 * CL;
+type BoundMatrix = SMatrix<f64, BA, BA>;
+type BoundVector = SVector<f64, BA>;
+/// ω_L: h(s) = v[OMEGA_L], ∫h = I[OMEGA_L].
+const OMEGA_L: usize = 3;
+const MAX_CROSSINGS: usize = 64;
+
+/// Exponential for the current advance length, cut into `pieces` of `len`.
+#[derive(Clone, Debug)]
+struct AdvanceCache {
+    h: f64,
+    pieces: usize,
+    len: f64,
+    phi: BoundMatrix,
+    remainder: BoundVector,
+}
+
 /// bound(t), bound_paper(t) and bound_sup of spec §3, advanced alongside the simulation.
+///
+/// h(s) = L_c e^{A s} D_1 is tracked exactly through the augmented state [v, ∫v]; ∫|h| is the
+/// sum of |∫h| between the sign changes of h, which are located like contact switches
+/// (`roots`): no quadrature.
 #[derive(Clone, Debug)]
 pub struct SpeedErrorBound {
+    /// K g [N·m or N].
+    scale: f64,
+    m: BoundMatrix,
+    h_rows: SignalRows<BA>,
+    start: BoundVector,
     state: BoundState,
+    sup: Result<f64, Unbounded>,
+    cache: Option<AdvanceCache>,
 }
 
 impl SpeedErrorBound {
     pub fn new(plant: &Plant, gains: PiGains) -> Result<SpeedErrorBound, BoundError> {
-        let _ = (plant, gains);
-        todo!()
+        for (name, value) in [("Kp", gains.kp), ("Ki", gains.ki)] {
+            if !value.is_finite() {
+                return Err(BoundError::NonFiniteGain { name, value });
+            }
+        }
+        let a = closed_loop(plant, gains);
+        let mut m = BoundMatrix::zeros();
+        m.fixed_view_mut::<CL, CL>(0, 0).copy_from(&a);
+        m.fixed_view_mut::<CL, CL>(CL, 0)
+            .copy_from(&SMatrix::<f64, CL, CL>::identity());
+        let p = plant.params();
+        let mut start = BoundVector::zeros();
+        start[1] = plant.r_m() / p.j_m;
+        start[OMEGA_L] = -plant.r_l() / p.j_l;
+        let rate = linear::fastest_rate(plant).max(spectral_radius(&a));
+        let len_ref = linear::PIECE_RATE / rate;
+        let mut c = BoundVector::zeros();
+        c[OMEGA_L] = 1.0;
+        let mut bound = SpeedErrorBound {
+            scale: plant.stiffness() * plant.half_gap(),
+            m,
+            h_rows: SignalRows::new(c, &m, len_ref),
+            start,
+            state: BoundState::default(),
+            sup: Err(Unbounded::Undamped),
+            cache: None,
+        };
+        bound.reset();
+        bound.sup = bound.compute_sup(plant, gains);
+        bound.reset();
+        Ok(bound)
     }
 
     /// Back to the experiment's start (elapsed = 0).
     pub fn reset(&mut self) {
-        todo!()
+        self.state = BoundState::default();
+        self.state.response.copy_from_slice(&self.start.as_slice()[..CL]);
     }
 
     /// Advances time since the start by `h` ≥ 0.
     pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
-        let _ = h;
-        todo!()
+        if !(h.is_finite() && h >= 0.0) {
+            return Err(BoundError::BadAdvance { h });
+        }
+        if h == 0.0 {
+            return Ok(());
+        }
+        if !self.cache.as_ref().is_some_and(|c| c.h == h) {
+            let pieces = (h / self.h_rows.len_ref()).ceil().max(1.0);
+            let len = h / pieces;
+            self.cache = Some(AdvanceCache {
+                h,
+                pieces: pieces as usize,
+                len,
+                phi: (self.m * len).exp(),
+                remainder: self.h_rows.remainder_row(&self.m, len),
+            });
+        }
+        let cache = self.cache.as_ref().expect("cache was just filled");
+        let mut y = BoundVector::zeros();
+        y.as_mut_slice()[..CL].copy_from_slice(&self.state.response);
+        y.as_mut_slice()[CL..].copy_from_slice(&self.state.integral);
+        let mut l1 = self.state.l1;
+        for _ in 0..cache.pieces {
+            let mut done = 0.0;
+            // A piece is shorter than a half period of the loop: it holds few sign changes,
+            // and past `MAX_CROSSINGS` the rest of the piece is taken whole.
+            for crossing in 0..=MAX_CROSSINGS {
+                let span = cache.len - done;
+                let whole = done == 0.0;
+                let before = y[CL + OMEGA_L];
+                let search = crossing < MAX_CROSSINGS;
+                let exact_row = whole.then_some(&cache.remainder);
+                match self.sign_change(&y, span, exact_row).filter(|_| search) {
+                    None => {
+                        y = if whole {
+                            cache.phi * y
+                        } else {
+                            series_apply(&self.m, &y, span)
+                        };
+                        l1 += (y[CL + OMEGA_L] - before).abs();
+                        break;
+                    }
+                    Some(offset) => {
+                        y = series_apply(&self.m, &y, offset);
+                        // On the root: h is 0 there to round-off, and exactly 0 keeps the
+                        // search on the new side from seeing the crossing again.
+                        y[OMEGA_L] = 0.0;
+                        l1 += (y[CL + OMEGA_L] - before).abs();
+                        done += offset;
+                        if done >= cache.len {
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        self.state.response.copy_from_slice(&y.as_slice()[..CL]);
+        self.state.integral.copy_from_slice(&y.as_slice()[CL..]);
+        self.state.l1 = l1;
+        self.state.elapsed += h;
+        Ok(())
+    }
+
+    /// The first sign change of h within `span`, if any.
+    fn sign_change(&self, y: &BoundVector, span: f64, exact_row: Option<&BoundVector>) -> Option<f64> {
+        let d = [
+            self.h_rows.derivative(0, y),
+            self.h_rows.derivative(1, y),
+            self.h_rows.derivative(2, y),
+        ];
+        // Keep to the side h is on (or, at a zero, is heading to).
+        let sign = if d[0] != 0.0 {
+            d[0].signum()
+        } else if d[1] != 0.0 {
+            d[1].signum()
+        } else {
+            d[2].signum()
+        };
+        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[OMEGA_L].abs());
+        let side = Side { offset: 0.0, sign, tol };
+        let c3 = self.h_rows.third_bound(y, span, exact_row);
+        if roots::cubic_clear(sign * d[0], sign * d[1], sign * d[2], c3, span, tol) {
+            return None;
+        }
+        roots::first_exit(&self.h_rows.taylor(y), side, span)
     }
 
     /// K g ∫_0^t |h(s)| ds: a true bound on |ω_L^b − ω_L^0| [rad/s].
     pub fn bound(&self) -> f64 {
-        todo!()
+        self.scale * self.state.l1
     }
 
     /// K g ‖∫_0^t e^{A s} D_1 ds‖₂, eq. (37)/(41) as printed: not a guarantee [rad/s].
     pub fn bound_paper(&self) -> f64 {
-        todo!()
+        self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
     /// K g ∫_0^∞ |h(s)| ds, or why it is infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
-        todo!()
+        self.sup
     }
 
     pub fn elapsed(&self) -> f64 {
@@ -89,9 +236,155 @@ impl SpeedErrorBound {
         self.state
     }
 
-    /// Restores a saved state (validated: finite, elapsed ≥ 0).
+    /// Restores a saved state (validated: finite, elapsed ≥ 0, l1 ≥ 0).
     pub fn restore(&mut self, state: &BoundState) -> Result<(), BoundError> {
-        let _ = state;
-        todo!()
+        let finite = state
+            .response
+            .iter()
+            .chain(state.integral.iter())
+            .all(|x| x.is_finite());
+        if !(finite && state.elapsed.is_finite() && state.elapsed >= 0.0 && state.l1.is_finite() && state.l1 >= 0.0) {
+            return Err(BoundError::BadState);
+        }
+        self.state = *state;
+        Ok(())
+    }
+
+    /// ∫_0^∞ |h|: integrate until a Lyapunov bound on the tail is below 1e-14 of the sum,
+    /// and return the sum plus that tail (an upper bound, tight to 1e-14 relative).
+    fn compute_sup(&mut self, plant: &Plant, gains: PiGains) -> Result<f64, Unbounded> {
+        let reduced = Reduced::new(plant, gains);
+        let lyapunov = reduced.lyapunov()?;
+        // Decay of ‖x‖_P: e^{-t/(2 λmax(P))}; advance in chunks of a fraction of that time.
+        let chunk = (lyapunov.decay_time / 8.0).max(self.h_rows.len_ref());
+        let max_chunks = 4000;
+        for _ in 0..max_chunks {
+            let tail = lyapunov.tail(&reduced.project(&self.state.response));
+            if tail <= 1e-14 * self.state.l1 {
+                return Ok(self.scale * (self.state.l1 + tail));
+            }
+            if self.advance(chunk).is_err() {
+                break;
+            }
+        }
+        let tail = lyapunov.tail(&reduced.project(&self.state.response));
+        Ok(self.scale * (self.state.l1 + tail))
+    }
+}
+
+/// A_cl of spec §3 (A_p with the PI loop on ω_m); with Kp = Ki = 0 the x_c row and column
+/// are zero, so x_c stays 0 and the 5-vector norms equal the open-loop 4-vector ones.
+fn closed_loop(plant: &Plant, gains: PiGains) -> SMatrix<f64, CL, CL> {
+    let p = plant.params();
+    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
+    let mut a = SMatrix::<f64, CL, CL>::zeros();
+    a[(0, 1)] = 1.0;
+    a[(1, 0)] = -k * r_m * r_m / p.j_m;
+    a[(1, 1)] = -(p.b_m + gains.kp) / p.j_m;
+    a[(1, 2)] = k * r_m * r_l / p.j_m;
+    a[(1, 4)] = gains.ki / p.j_m;
+    a[(2, 3)] = 1.0;
+    a[(3, 0)] = k * r_m * r_l / p.j_l;
+    a[(3, 2)] = -k * r_l * r_l / p.j_l;
+    a[(3, 3)] = -p.b_l / p.j_l;
+    if gains.kp != 0.0 || gains.ki != 0.0 {
+        a[(4, 1)] = -1.0;
+    }
+    a
+}
+
+fn spectral_radius<const N: usize>(a: &SMatrix<f64, N, N>) -> f64 {
+    let d = DMatrix::from_iterator(N, N, a.iter().copied());
+    d.complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max)
+}
+
+/// The loop in the coordinates h depends on: [u, ω_m, ω_L] and x_c when Ki ≠ 0. The angle
+/// translation (u fixed) is neither excited by D_1 nor seen by ω_L, and x_c without Ki feeds
+/// nothing back, so these are exactly the modes that h excites (spec §4 `bound_sup`).
+struct Reduced {
+    a: DMatrix<f64>,
+    out: DVector<f64>,
+    r_m: f64,
+    r_l: f64,
+}
+
+struct Lyapunov {
+    /// P of Aᵀ P + P A = −I.
+    p: DMatrix<f64>,
+    /// sqrt(L P⁻¹ Lᵀ): |h| ≤ this · ‖x‖_P.
+    out_gain: f64,
+    /// 2 λmax(P): ‖x(t)‖_P ≤ e^{−t/decay_time} ‖x(0)‖_P.
+    decay_time: f64,
+}
+
+impl Lyapunov {
+    /// ∫_t^∞ |h| ≤ out_gain · ‖x(t)‖_P · decay_time.
+    fn tail(&self, x: &DVector<f64>) -> f64 {
+        self.out_gain * (x.dot(&(&self.p * x))).max(0.0).sqrt() * self.decay_time
+    }
+}
+
+impl Reduced {
+    fn new(plant: &Plant, gains: PiGains) -> Reduced {
+        let p = plant.params();
+        let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
+        let n = if gains.ki != 0.0 { 4 } else { 3 };
+        let mut a = DMatrix::zeros(n, n);
+        a[(0, 1)] = r_m;
+        a[(0, 2)] = -r_l;
+        a[(1, 0)] = -k * r_m / p.j_m;
+        a[(1, 1)] = -(p.b_m + gains.kp) / p.j_m;
+        a[(2, 0)] = k * r_l / p.j_l;
+        a[(2, 2)] = -p.b_l / p.j_l;
+        if n == 4 {
+            a[(1, 3)] = gains.ki / p.j_m;
+            a[(3, 1)] = -1.0;
+        }
+        let mut out = DVector::zeros(n);
+        out[2] = 1.0;
+        Reduced { a, out, r_m, r_l }
+    }
+
+    /// The reduced coordinates of the full response v.
+    fn project(&self, v: &[f64; CL]) -> DVector<f64> {
+        let n = self.a.nrows();
+        let mut x = DVector::zeros(n);
+        x[0] = self.r_m * v[0] - self.r_l * v[2];
+        x[1] = v[1];
+        x[2] = v[OMEGA_L];
+        if n == 4 {
+            x[3] = v[4];
+        }
+        x
+    }
+
+    fn lyapunov(&self) -> Result<Lyapunov, Unbounded> {
+        let n = self.a.nrows();
+        let eig = self.a.complex_eigenvalues();
+        let radius = eig.iter().map(|l| l.norm()).fold(0.0, f64::max);
+        let abscissa = eig.iter().map(|l| l.re).fold(f64::NEG_INFINITY, f64::max);
+        if abscissa >= -1e-12 * radius {
+            return Err(if abscissa.abs() <= 1e-12 * radius {
+                Unbounded::Undamped
+            } else {
+                Unbounded::Unstable { abscissa }
+            });
+        }
+        // Aᵀ P + P A = −I as (I ⊗ Aᵀ + Aᵀ ⊗ I) vec(P) = −vec(I).
+        let at = self.a.transpose();
+        let eye = DMatrix::<f64>::identity(n, n);
+        let kron = eye.kronecker(&at) + at.kronecker(&eye);
+        let rhs = -DVector::from_iterator(n * n, eye.iter().copied());
+        let vec_p = kron.lu().solve(&rhs).ok_or(Unbounded::Undamped)?;
+        let p = DMatrix::from_iterator(n, n, vec_p.iter().copied());
+        let p = (&p + p.transpose()) * 0.5;
+        let lambda_max = p.clone().symmetric_eigenvalues().max();
+        let p_inv = p.clone().try_inverse().ok_or(Unbounded::Undamped)?;
+        let out_gain = self.out.dot(&(&p_inv * &self.out)).max(0.0).sqrt();
+        Ok(Lyapunov {
+            p,
+            out_gain,
+            decay_time: 2.0 * lambda_max,
+        })
     }
 }

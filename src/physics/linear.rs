@@ -1,0 +1,70 @@
+//! The affine dynamics of each contact mode as one augmented linear system (spec §1–§2).
+//!
+//! Augmented state y (`AUG` entries):
+//! `[u, ω_m, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L]` — the transmission coordinate, the
+//! speeds, the angle increments since the last reset, the inputs with their slopes and a
+//! constant 1 that carries the ∓K g offset of a contact flank. Inside one mode y' = M y
+//! exactly, with inputs that vary linearly (first-order hold) or not at all (zero-order hold),
+//! so the solution over a step is e^{M s} y.
+
+use super::mode::ContactMode;
+use super::params::Plant;
+use nalgebra::{SMatrix, SVector};
+
+pub const AUG: usize = 10;
+pub type AugMatrix = SMatrix<f64, AUG, AUG>;
+pub type AugVector = SVector<f64, AUG>;
+
+pub const U: usize = 0;
+pub const OMEGA_M: usize = 1;
+pub const OMEGA_L: usize = 2;
+pub const DTHETA_M: usize = 3;
+pub const DTHETA_L: usize = 4;
+pub const TAU_M: usize = 5;
+pub const TAU_L: usize = 6;
+pub const ONE: usize = 7;
+pub const DTAU_M: usize = 8;
+pub const DTAU_L: usize = 9;
+
+/// M for `mode`: ψ = K (u ∓ g) on a flank, 0 when free.
+pub fn mode_matrix(plant: &Plant, mode: ContactMode) -> AugMatrix {
+    let p = plant.params();
+    let (r_m, r_l, k, g) = (plant.r_m(), plant.r_l(), plant.stiffness(), plant.half_gap());
+    // ψ = ks·u + kc·1
+    let (ks, kc) = match mode {
+        ContactMode::Free => (0.0, 0.0),
+        ContactMode::Positive => (k, -k * g),
+        ContactMode::Negative => (k, k * g),
+    };
+    let mut m = AugMatrix::zeros();
+    m[(U, OMEGA_M)] = r_m;
+    m[(U, OMEGA_L)] = -r_l;
+    // J_m ω_m' = τ_m − b_m ω_m − r_m ψ
+    m[(OMEGA_M, OMEGA_M)] = -p.b_m / p.j_m;
+    m[(OMEGA_M, TAU_M)] = 1.0 / p.j_m;
+    m[(OMEGA_M, U)] = -r_m * ks / p.j_m;
+    m[(OMEGA_M, ONE)] = -r_m * kc / p.j_m;
+    // J_L ω_L' = τ_L − b_L ω_L + r_L ψ
+    m[(OMEGA_L, OMEGA_L)] = -p.b_l / p.j_l;
+    m[(OMEGA_L, TAU_L)] = 1.0 / p.j_l;
+    m[(OMEGA_L, U)] = r_l * ks / p.j_l;
+    m[(OMEGA_L, ONE)] = r_l * kc / p.j_l;
+    m[(DTHETA_M, OMEGA_M)] = 1.0;
+    m[(DTHETA_L, OMEGA_L)] = 1.0;
+    m[(TAU_M, DTAU_M)] = 1.0;
+    m[(TAU_L, DTAU_L)] = 1.0;
+    m
+}
+
+/// The fastest rate of the plant [1/s]: the contact natural frequency or a damping rate.
+/// Steps are cut into pieces of at most `PIECE_RATE / rate` so that Taylor expansions over a
+/// piece converge fast and the remainder bounds of `roots` stay tight.
+pub fn fastest_rate(plant: &Plant) -> f64 {
+    let p = plant.params();
+    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
+    let omega0 = (k * (r_m * r_m / p.j_m + r_l * r_l / p.j_l)).sqrt();
+    omega0.max(p.b_m / p.j_m).max(p.b_l / p.j_l)
+}
+
+/// Length of a piece times the fastest rate.
+pub const PIECE_RATE: f64 = 0.5;

@@ -63,11 +63,22 @@ impl PlantState {
     pub fn new(plant: &Plant, theta_m: f64, omega_m: f64, theta_l: f64, omega_l: f64) -> PlantState {
         let u = plant.transmission(theta_m, theta_l);
         let du = plant.r_m() * omega_m - plant.r_l() * omega_l;
-        PlantState { theta_m, omega_m, theta_l, omega_l, u, mode: mode_at(u, du, plant.half_gap()) }
+        PlantState {
+            theta_m,
+            omega_m,
+            theta_l,
+            omega_l,
+            u,
+            mode: mode_at(u, du, plant.half_gap()),
+        }
     }
 
     pub fn is_finite(&self) -> bool {
-        self.theta_m.is_finite() && self.omega_m.is_finite() && self.theta_l.is_finite() && self.omega_l.is_finite() && self.u.is_finite()
+        self.theta_m.is_finite()
+            && self.omega_m.is_finite()
+            && self.theta_l.is_finite()
+            && self.omega_l.is_finite()
+            && self.u.is_finite()
     }
 }
 

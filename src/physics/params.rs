@@ -110,7 +110,14 @@ impl Plant {
         non_negative("b_L", params.b_l)?;
         let (r_m, r_l, stiffness, half_gap) = match params.geometry {
             Geometry::Shaft { k, delta } => (1.0, 1.0, positive("k", k)?, non_negative("Delta", delta)?),
-            Geometry::Belt { k_b, r_1, r_2, r_g1, r_g2, delta } => {
+            Geometry::Belt {
+                k_b,
+                r_1,
+                r_2,
+                r_g1,
+                r_g2,
+                delta,
+            } => {
                 let k_b = positive("K_b", k_b)?;
                 let r_1 = positive("R_1", r_1)?;
                 let r_2 = positive("R_2", r_2)?;
@@ -121,9 +128,19 @@ impl Plant {
                 (r_1, r_2 * r_g2 / r_g1, k_b, r_2 / r_g1 * delta)
             }
         };
-        let plant = Plant { params, r_m, r_l, stiffness, half_gap };
+        let plant = Plant {
+            params,
+            r_m,
+            r_l,
+            stiffness,
+            half_gap,
+        };
         // Derived quantities can overflow although every input is finite.
-        for (name, value) in [("r_L", r_l), ("g", half_gap), ("K*r_m^2/J_m", plant.stiffness * r_m * r_m / params.j_m)] {
+        for (name, value) in [
+            ("r_L", r_l),
+            ("g", half_gap),
+            ("K*r_m^2/J_m", plant.stiffness * r_m * r_m / params.j_m),
+        ] {
             if !value.is_finite() {
                 return Err(ParamError::NotFinite { name, value });
             }

@@ -1,0 +1,299 @@
+//! Certified search for the first instant a scalar signal of a linear system leaves its
+//! admissible side (spec §2: switches located to round-off, grazing contacts not missed).
+//!
+//! Along y' = M y a linear signal s(σ) = c·y(σ) has exact derivatives s⁽ᵏ⁾ = c Mᵏ y. A piece
+//! [0, w] is cleared when the cubic lower bound f₀ + f₁σ + f₂σ²/2 − C σ³/6, with C ≥ sup|f'''|
+//! from the entrywise bound |e^{Mσ} − I| ≤ e^{|M|σ} − I, stays above the round-off floor.
+//! Otherwise the signal's Taylor polynomial on the piece is searched by bisection with the
+//! same test, and the first crossing is refined by safeguarded Newton to round-off.
+
+use nalgebra::{SMatrix, SVector};
+
+/// Taylor terms kept; with pieces of length ≤ 0.5/rate the last ones are < 1e-40 relative.
+pub const TERMS: usize = 32;
+
+const FACTORIAL: [f64; TERMS] = {
+    let mut f = [1.0; TERMS];
+    let mut k = 1;
+    while k < TERMS {
+        f[k] = f[k - 1] * k as f64;
+        k += 1;
+    }
+    f
+};
+
+/// Derivative rows of the signal s = c·y along y' = M y, and the data of its remainder bound.
+#[derive(Clone, Debug)]
+pub struct SignalRows<const N: usize> {
+    /// rows[k] = (c Mᵏ)ᵀ, so s⁽ᵏ⁾(σ) = rows[k]·y(σ).
+    rows: [SVector<f64, N>; TERMS],
+    /// |c M³|ᵀ (e^{|M| len_ref} − I)ᵀ: sup over [0, len_ref] of |s'''(σ) − s'''(0)| ≤ this·|y(0)|.
+    remainder_ref: SVector<f64, N>,
+    len_ref: f64,
+}
+
+impl<const N: usize> SignalRows<N> {
+    pub fn new(c: SVector<f64, N>, m: &SMatrix<f64, N, N>, len_ref: f64) -> Self {
+        let mut rows = [SVector::<f64, N>::zeros(); TERMS];
+        rows[0] = c;
+        let mt = m.transpose();
+        for k in 1..TERMS {
+            rows[k] = mt * rows[k - 1];
+        }
+        let remainder_ref = Self::remainder_row_for(&rows[3], m, len_ref);
+        SignalRows {
+            rows,
+            remainder_ref,
+            len_ref,
+        }
+    }
+
+    /// (|c M³| (e^{|M| len} − I))ᵀ for a given length.
+    pub fn remainder_row(&self, m: &SMatrix<f64, N, N>, len: f64) -> SVector<f64, N> {
+        Self::remainder_row_for(&self.rows[3], m, len)
+    }
+
+    fn remainder_row_for(third: &SVector<f64, N>, m: &SMatrix<f64, N, N>, len: f64) -> SVector<f64, N> {
+        let grow = exp_nonnegative(&(m.abs() * len)) - SMatrix::<f64, N, N>::identity();
+        grow.transpose() * third.abs()
+    }
+
+    pub fn len_ref(&self) -> f64 {
+        self.len_ref
+    }
+
+    /// s⁽ᵏ⁾ at y.
+    pub fn derivative(&self, k: usize, y: &SVector<f64, N>) -> f64 {
+        self.rows[k].dot(y)
+    }
+
+    /// A bound on sup |s'''| over [0, len] from y = y(0). `exact_row` is the remainder row
+    /// computed for exactly `len`; without it the reference row is scaled by len/len_ref, valid
+    /// for len ≤ len_ref because every entry of e^{|M|σ} − I is convex in σ and 0 at σ = 0.
+    pub fn third_bound(&self, y: &SVector<f64, N>, len: f64, exact_row: Option<&SVector<f64, N>>) -> f64 {
+        let ya = y.abs();
+        let growth = match exact_row {
+            Some(row) => row.dot(&ya),
+            None => self.remainder_ref.dot(&ya) * (len / self.len_ref),
+        };
+        self.rows[3].dot(y).abs() + growth
+    }
+
+    /// Taylor polynomial of s around y's instant, valid on [0, len_ref].
+    pub fn taylor(&self, y: &SVector<f64, N>) -> Poly {
+        let mut coef = [0.0; TERMS];
+        for (k, c) in coef.iter_mut().enumerate() {
+            *c = self.rows[k].dot(y) / FACTORIAL[k];
+        }
+        Poly { coef }
+    }
+}
+
+/// e^A for an entrywise non-negative A: scaling and squaring over a Taylor series. Every term
+/// is non-negative, so nothing cancels and the result is accurate to round-off.
+fn exp_nonnegative<const N: usize>(a: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    let norm = a.row_iter().map(|r| r.sum()).fold(0.0, f64::max);
+    let squarings = if norm > 0.5 {
+        (norm / 0.5).log2().ceil() as i32
+    } else {
+        0
+    };
+    let scaled = a * 0.5f64.powi(squarings);
+    let mut term = SMatrix::<f64, N, N>::identity();
+    let mut sum = term;
+    for k in 1..30 {
+        term = term * scaled / k as f64;
+        sum += term;
+    }
+    for _ in 0..squarings {
+        sum = sum * sum;
+    }
+    sum
+}
+
+/// e^{M s} y by its Taylor series, for s no longer than a piece (‖M s‖ ≲ 1: fast convergence,
+/// stopped when every component has converged to round-off).
+pub fn series_apply<const N: usize>(m: &SMatrix<f64, N, N>, y: &SVector<f64, N>, s: f64) -> SVector<f64, N> {
+    let mut term = *y;
+    let mut sum = *y;
+    for k in 1..4 * TERMS {
+        term = m * term * (s / k as f64);
+        sum += term;
+        if term.iter().zip(sum.iter()).all(|(t, v)| t.abs() <= 1e-18 * v.abs()) {
+            break;
+        }
+    }
+    sum
+}
+
+/// A polynomial Σ coef[k] σᵏ.
+#[derive(Clone, Copy, Debug)]
+pub struct Poly {
+    pub coef: [f64; TERMS],
+}
+
+impl Poly {
+    pub fn eval(&self, x: f64) -> f64 {
+        self.coef.iter().rev().fold(0.0, |acc, &c| acc * x + c)
+    }
+
+    /// Value and first derivative.
+    pub fn eval_d(&self, x: f64) -> (f64, f64) {
+        let mut p = 0.0;
+        let mut dp = 0.0;
+        for &c in self.coef.iter().rev() {
+            dp = dp * x + p;
+            p = p * x + c;
+        }
+        (p, dp)
+    }
+
+    /// The same polynomial in σ' = σ − a (Taylor shift by repeated synthetic division).
+    pub fn shifted(&self, a: f64) -> Poly {
+        let mut c = self.coef;
+        if a != 0.0 {
+            for i in 0..TERMS {
+                for j in (i..TERMS - 1).rev() {
+                    c[j] += a * c[j + 1];
+                }
+            }
+        }
+        Poly { coef: c }
+    }
+}
+
+/// Which side is admissible: f = offset + sign·s ≥ 0, with a round-off floor `tol` ≥ 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Side {
+    pub offset: f64,
+    pub sign: f64,
+    pub tol: f64,
+}
+
+impl Side {
+    pub fn value(&self, s: f64) -> f64 {
+        self.offset + self.sign * s
+    }
+}
+
+/// True when f₀ + f₁σ + f₂σ²/2 − c₃σ³/6 > −tol for all σ in [0, w]: then f (with |f'''| ≤ c₃)
+/// cannot leave the admissible side on [0, w].
+pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
+    let lower = |x: f64| f0 + x * (f1 + x * (0.5 * f2 - x * c3 / 6.0));
+    let floor = -tol;
+    if !(lower(0.0) > floor) || !(lower(w) > floor) {
+        return false;
+    }
+    // Interior minima: roots of f₁ + f₂σ − c₃σ²/2.
+    let mut ok = true;
+    let mut check = |x: f64| {
+        if x > 0.0 && x < w && !(lower(x) > floor) {
+            ok = false;
+        }
+    };
+    if c3 == 0.0 {
+        if f2 != 0.0 {
+            check(-f1 / f2);
+        }
+    } else {
+        let disc = f2 * f2 + 2.0 * c3 * f1;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            check((f2 - sq) / c3);
+            check((f2 + sq) / c3);
+        }
+    }
+    ok
+}
+
+/// Upper bound of the work in one search: intervals examined.
+const MAX_INTERVALS: usize = 4096;
+
+/// First σ in [0, w] at which `side.value(p(σ))` leaves [−tol, ∞), located as the root of
+/// side.value(p) = 0 (σ = 0 when it is already outside). `None` when it provably stays.
+pub fn first_exit(p: &Poly, side: Side, w: f64) -> Option<f64> {
+    let mut budget = MAX_INTERVALS;
+    search(p, side, 0.0, w, &mut budget)
+}
+
+fn search(p: &Poly, side: Side, lo: f64, hi: f64, budget: &mut usize) -> Option<f64> {
+    if *budget == 0 {
+        return None;
+    }
+    *budget -= 1;
+    let w = hi - lo;
+    let q = p.shifted(lo);
+    let s = side.sign;
+    let f0 = side.value(q.coef[0]);
+    if f0 < -side.tol {
+        return Some(lo);
+    }
+    let f1 = s * q.coef[1];
+    let f2 = 2.0 * s * q.coef[2];
+    // sup |f'''| on [lo, hi] from the shifted polynomial's higher coefficients.
+    let mut c3 = 0.0;
+    let mut wp = 1.0;
+    for k in 3..TERMS {
+        c3 += q.coef[k].abs() * (FACTORIAL[k] / FACTORIAL[k - 3]) * wp;
+        wp *= w;
+    }
+    if cubic_clear(f0, f1, f2, c3, w, side.tol) {
+        return None;
+    }
+    let f_hi = side.value(q.eval(w));
+    if f_hi < -side.tol {
+        // f' ≤ f₁ + f₂σ + c₃σ²/2, convex: if negative at both ends, f falls through one root.
+        let slope_end = f1 + w * (f2 + 0.5 * c3 * w);
+        if f1 < 0.0 && slope_end < 0.0 {
+            return Some(lo + refine(&q, side, w));
+        }
+    }
+    let mid = lo + 0.5 * w;
+    if mid <= lo || mid >= hi {
+        // Below the resolution of f64: the crossing, if any, is here.
+        return if f_hi < -side.tol {
+            Some(lo + refine(&q, side, w))
+        } else {
+            None
+        };
+    }
+    search(p, side, lo, mid, budget).or_else(|| search(p, side, mid, hi, budget))
+}
+
+/// The root of side.value(q(σ)) on [0, w], given f(0) ≥ −tol and f(w) < −tol: Newton
+/// safeguarded by the bracket, until the step is below one ulp. σ = 0 when f(0) ≤ 0.
+fn refine(q: &Poly, side: Side, w: f64) -> f64 {
+    let f = |x: f64| {
+        let (v, d) = q.eval_d(x);
+        (side.value(v), side.sign * d)
+    };
+    let (mut a, mut b) = (0.0, w);
+    let (fa, _) = f(a);
+    if fa <= 0.0 {
+        return 0.0;
+    }
+    let (fb, _) = f(b);
+    let mut x = a + (b - a) * (fa / (fa - fb)).clamp(0.0, 1.0);
+    for _ in 0..200 {
+        let (fx, dx) = f(x);
+        if fx == 0.0 {
+            return x;
+        }
+        if fx > 0.0 {
+            a = x;
+        } else {
+            b = x;
+        }
+        let step = fx / dx;
+        if b - a <= 2.0 * f64::EPSILON * b || step.abs() <= f64::EPSILON * x {
+            return x;
+        }
+        let newton = x - step;
+        x = if newton > a && newton < b {
+            newton
+        } else {
+            a + 0.5 * (b - a)
+        };
+    }
+    x
+}
