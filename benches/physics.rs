@@ -1,1 +1,69 @@
-fn main() {}
+//! Cost of the physics core (issue targets: an event-free step within a few 4×4 matrix–vector
+//! products, a step with a switch under 2 µs). Run: `cargo bench --bench physics`.
+
+use backlash_fmu::physics::{ContactMode, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper};
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::{Matrix4, Vector4};
+use std::hint::black_box;
+
+const H: f64 = 1e-3;
+
+fn rig() -> Plant {
+    Plant::new(PlantParams::paper_rig(0.775e-3)).expect("the paper's rig is valid")
+}
+
+fn benches(c: &mut Criterion) {
+    let plant = rig();
+    let g = plant.half_gap();
+
+    // The floor: a bare 4×4 matrix–vector product.
+    let m = Matrix4::from_fn(|i, j| 1.0 / (1.0 + i as f64 + 2.0 * j as f64));
+    let v = Vector4::new(0.1, 0.2, 0.3, 0.4);
+    c.bench_function("matvec_4x4", |b| b.iter(|| black_box(&m) * black_box(&v)));
+
+    // In contact, pressed well past the gap: no switch within the step.
+    let mut stepper = Stepper::new(plant);
+    let pressed = PlantState::new(&plant, g + 0.01, 0.0, 0.0, 0.0);
+    assert_eq!(pressed.mode, ContactMode::Positive);
+    let inputs = Inputs::held(2.0, 0.0);
+    c.bench_function("step_1ms_no_switch", |b| {
+        b.iter(|| {
+            let mut s = black_box(pressed);
+            stepper.step(&mut s, &inputs, H, &mut |_| {}).expect("valid step");
+            s
+        })
+    });
+
+    // Free, closing the gap at 0.1 rad/s from 50 µrad away: one switch half-way.
+    let closing = PlantState::new(&plant, g - 5e-5, 0.1, 0.0, 0.0);
+    assert_eq!(closing.mode, ContactMode::Free);
+    let mut check = closing;
+    let n = stepper
+        .step(&mut check, &Inputs::held(0.0, 0.0), H, &mut |_| {})
+        .expect("valid step");
+    assert_eq!(n, 1, "the benchmark state must switch exactly once");
+    c.bench_function("step_1ms_one_switch", |b| {
+        b.iter(|| {
+            let mut s = black_box(closing);
+            stepper
+                .step(&mut s, &Inputs::held(0.0, 0.0), H, &mut |_| {})
+                .expect("valid step");
+            s
+        })
+    });
+
+    // One communication-step update of bound and bound_paper.
+    let mut bound = SpeedErrorBound::new(&plant, PiGains { kp: 5.0, ki: 20.0 }).expect("valid gains");
+    bound.advance(0.123).expect("valid advance");
+    let saved = bound.state();
+    c.bench_function("bound_advance_1ms", |b| {
+        b.iter(|| {
+            bound.restore(&saved).expect("valid state");
+            bound.advance(black_box(H)).expect("valid advance");
+            bound.bound()
+        })
+    });
+}
+
+criterion_group!(physics, benches);
+criterion_main!(physics);

@@ -62,6 +62,11 @@ impl<const N: usize> SignalRows<N> {
         self.len_ref
     }
 
+    /// (c Mᵏ)ᵀ.
+    pub fn row(&self, k: usize) -> &SVector<f64, N> {
+        &self.rows[k]
+    }
+
     /// s⁽ᵏ⁾ at y.
     pub fn derivative(&self, k: usize, y: &SVector<f64, N>) -> f64 {
         self.rows[k].dot(y)
@@ -179,8 +184,12 @@ impl Side {
 /// True when f₀ + f₁σ + f₂σ²/2 − c₃σ³/6 > −tol for all σ in [0, w]: then f (with |f'''| ≤ c₃)
 /// cannot leave the admissible side on [0, w].
 pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
-    let lower = |x: f64| f0 + x * (f1 + x * (0.5 * f2 - x * c3 / 6.0));
     let floor = -tol;
+    // Sufficient and cheap: f₀ exceeds the largest possible drop over [0, w].
+    if f0 - w * (f1.abs() + w * (0.5 * f2.abs() + w * c3 / 6.0)) > floor {
+        return true;
+    }
+    let lower = |x: f64| f0 + x * (f1 + x * (0.5 * f2 - x * c3 / 6.0));
     if !(lower(0.0) > floor) || !(lower(w) > floor) {
         return false;
     }

@@ -61,16 +61,73 @@ struct ModeDynamics {
     u_rows: SignalRows<AUG>,
 }
 
+/// Everything a whole piece in one mode needs, fused into one pass over the augmented state:
+/// outputs 0–4 are e^{M len} y restricted to [u, ω_m, ω_L, δθ_m, δθ_L], 5–6 are u″ and u‴ at
+/// the piece start; `remainder`·|y| bounds how far u‴ moves over the piece. Stored by column so
+/// that the pass vectorizes across the outputs.
+#[derive(Clone, Debug)]
+struct PieceKernel {
+    cols: [[f64; KERNEL_OUT]; AUG],
+    remainder: [f64; AUG],
+}
+
+const KERNEL_OUT: usize = 7;
+
+impl PieceKernel {
+    fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
+        let mut cols = [[0.0; KERNEL_OUT]; AUG];
+        for (j, col) in cols.iter_mut().enumerate() {
+            for (r, x) in col.iter_mut().enumerate() {
+                *x = match r {
+                    0..=4 => phi[(r, j)],
+                    5 => u_rows.row(2)[j],
+                    _ => u_rows.row(3)[j],
+                };
+            }
+        }
+        PieceKernel {
+            cols,
+            remainder: remainder.as_slice().try_into().expect("AUG entries"),
+        }
+    }
+
+    /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L], u″, bound on sup |u‴| over the piece).
+    #[inline]
+    fn apply(&self, y: &AugVector) -> ([f64; 5], f64, f64) {
+        let mut acc = [0.0; KERNEL_OUT];
+        let mut growth = 0.0;
+        // The angle increments are zero at a piece start: their columns drop out.
+        for j in [
+            linear::U,
+            linear::OMEGA_M,
+            linear::OMEGA_L,
+            linear::TAU_M,
+            linear::TAU_L,
+            linear::ONE,
+            linear::DTAU_M,
+            linear::DTAU_L,
+        ] {
+            let (yj, c) = (y[j], &self.cols[j]);
+            acc[0] += c[0] * yj;
+            acc[1] += c[1] * yj;
+            acc[2] += c[2] * yj;
+            acc[3] += c[3] * yj;
+            acc[4] += c[4] * yj;
+            acc[5] += c[5] * yj;
+            acc[6] += c[6] * yj;
+            growth += self.remainder[j] * yj.abs();
+        }
+        ([acc[0], acc[1], acc[2], acc[3], acc[4]], acc[5], acc[6].abs() + growth)
+    }
+}
+
 /// Exponentials for the current step size: the step is cut into `pieces` of length `len`.
 #[derive(Clone, Debug)]
 struct StepCache {
     h: f64,
     pieces: usize,
     len: f64,
-    /// e^{M len} per mode.
-    phi: [AugMatrix; 3],
-    /// Remainder rows of u''' for exactly `len` per mode (see `roots::SignalRows`).
-    remainder: [AugVector; 3],
+    kernel: [PieceKernel; 3],
 }
 
 /// Advances the plant exactly (spec §2). Holds the exponentials for the current step size;
@@ -132,14 +189,15 @@ impl Stepper {
             1.0
         };
         let len = h / pieces;
-        let phi = [0, 1, 2].map(|i| (self.modes[i].m * len).exp());
-        let remainder = [0, 1, 2].map(|i| self.modes[i].u_rows.remainder_row(&self.modes[i].m, len));
+        let kernel = [0, 1, 2].map(|i| {
+            let ModeDynamics { m, u_rows } = &self.modes[i];
+            PieceKernel::new(&(m * len).exp(), u_rows, &u_rows.remainder_row(m, len))
+        });
         self.cache = Some(StepCache {
             h,
             pieces: pieces as usize,
             len,
-            phi,
-            remainder,
+            kernel,
         });
     }
 
@@ -156,15 +214,14 @@ impl Stepper {
         if !(h.is_finite() && h > 0.0) {
             return Err(StepError::BadStepSize { h });
         }
-        for (name, value) in [
+        let named = [
             ("tau_m", inputs.tau_m),
             ("tau_L", inputs.tau_l),
             ("der(tau_m)", inputs.dtau_m),
             ("der(tau_L)", inputs.dtau_l),
-        ] {
-            if !value.is_finite() {
-                return Err(StepError::NonFiniteInput { name, value });
-            }
+        ];
+        if let Some(&(name, value)) = named.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(StepError::NonFiniteInput { name, value });
         }
         if !state.is_finite() {
             return Err(StepError::NonFiniteState);
@@ -177,34 +234,40 @@ impl Stepper {
         let mut next = *state;
         let mut switches = 0;
         for piece in 0..pieces {
+            // Pieces all have length `len`; the last ends on h to round-off of the time grid.
             let start = piece as f64 * len;
-            let end = if piece + 1 == pieces {
-                h
-            } else {
-                (piece + 1) as f64 * len
-            };
+            let mut y = augmented(&next, inputs, start);
+            let (whole, d2, c3) = cache.kernel[next.mode.index()].apply(&y);
+            if self.clear(next.mode, &y, d2, c3, len) {
+                // The common case: no switch in this piece, one fused pass did all the work.
+                next.theta_m += whole[linear::DTHETA_M];
+                next.theta_l += whole[linear::DTHETA_L];
+                next.u = whole[linear::U];
+                next.omega_m = whole[linear::OMEGA_M];
+                next.omega_l = whole[linear::OMEGA_L];
+                continue;
+            }
+            let mut probe = Some((d2, c3));
             let mut t = start;
-            let mut y = augmented(&next, inputs, t);
+            let mut switched = false;
             loop {
-                // A whole piece uses the cached exponential; after a switch, the rest of the
-                // piece is shorter than `len_ref` and its Taylor series converges fast.
-                let whole = t == start;
-                let span = if whole { end - start } else { end - t };
+                let span = len - (t - start);
                 let mode = next.mode.index();
-                let exact_row = if whole { Some(&cache.remainder[mode]) } else { None };
-                match self.exit(&y, next.mode, span, exact_row) {
+                match self.exit(&y, next.mode, span, probe.take()) {
+                    None if !switched => {
+                        y.as_mut_slice()[..5].copy_from_slice(&whole);
+                        break;
+                    }
                     None => {
-                        y = if whole && span == len {
-                            cache.phi[mode] * y
-                        } else {
-                            series_apply(&self.modes[mode].m, &y, span)
-                        };
+                        // After a switch the rest of the piece is short: its series converges fast.
+                        y = series_apply(&self.modes[mode].m, &y, span);
                         break;
                     }
                     Some(exit) => {
                         y = series_apply(&self.modes[mode].m, &y, exit.offset);
                         y[linear::U] = exit.u;
                         t += exit.offset;
+                        switched = true;
                         // Inputs are functions of time: re-evaluate rather than carry round-off.
                         y[linear::TAU_M] = inputs.tau_m + inputs.dtau_m * t;
                         y[linear::TAU_L] = inputs.tau_l + inputs.dtau_l * t;
@@ -218,7 +281,7 @@ impl Stepper {
                         if switches > switch_limit {
                             return Err(StepError::TooManySwitches { limit: switch_limit, h });
                         }
-                        if t >= end {
+                        if t - start >= len {
                             break;
                         }
                     }
@@ -238,7 +301,26 @@ impl Stepper {
     }
 
     /// The first exit from `mode` within `span` after the state `y`, if any.
-    fn exit(&self, y: &AugVector, mode: ContactMode, span: f64, exact_row: Option<&AugVector>) -> Option<Exit> {
+    /// True when u cannot leave `mode`'s region within `span`, given u″ and the bound c3 on |u‴|.
+    #[inline]
+    fn clear(&self, mode: ContactMode, y: &AugVector, d2: f64, c3: f64, span: f64) -> bool {
+        let g = self.plant.half_gap();
+        if g == 0.0 {
+            return true;
+        }
+        let u = y[linear::U];
+        let du = self.plant.r_m() * y[linear::OMEGA_M] - self.plant.r_l() * y[linear::OMEGA_L];
+        let tol = 8.0 * f64::EPSILON * (u.abs() + g);
+        let side_clear = |f0: f64, sign: f64| roots::cubic_clear(f0, sign * du, sign * d2, c3, span, tol);
+        match mode {
+            ContactMode::Free => side_clear(g - u, -1.0) && side_clear(g + u, 1.0),
+            ContactMode::Positive => side_clear(u - g, 1.0),
+            ContactMode::Negative => side_clear(-u - g, -1.0),
+        }
+    }
+
+    /// `probe` carries u″ and the bound on |u‴| when the piece kernel computed them already.
+    fn exit(&self, y: &AugVector, mode: ContactMode, span: f64, probe: Option<(f64, f64)>) -> Option<Exit> {
         let g = self.plant.half_gap();
         if g == 0.0 {
             // No free region: both flanks carry ψ = K u, the plant is linear.
@@ -293,8 +375,8 @@ impl Stepper {
                 None,
             ],
         };
-        let d = [rows.derivative(0, y), rows.derivative(1, y), rows.derivative(2, y)];
-        let c3 = rows.third_bound(y, span, exact_row);
+        let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, span, None)));
+        let d = [u, rows.derivative(1, y), d2];
         let mut poly = None;
         let mut best: Option<Exit> = None;
         for (side, to, u_cross) in sides.into_iter().flatten() {
@@ -330,14 +412,17 @@ impl Stepper {
 
 /// The augmented vector of `state` at time `t` into the step (angle increments zero).
 fn augmented(state: &PlantState, inputs: &Inputs, t: f64) -> AugVector {
-    let mut y = AugVector::zeros();
-    y[linear::U] = state.u;
-    y[linear::OMEGA_M] = state.omega_m;
-    y[linear::OMEGA_L] = state.omega_l;
-    y[linear::TAU_M] = inputs.tau_m + inputs.dtau_m * t;
-    y[linear::TAU_L] = inputs.tau_l + inputs.dtau_l * t;
-    y[linear::ONE] = 1.0;
-    y[linear::DTAU_M] = inputs.dtau_m;
-    y[linear::DTAU_L] = inputs.dtau_l;
-    y
+    // In the order of `linear`: [u, ω_m, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L].
+    AugVector::from([
+        state.u,
+        state.omega_m,
+        state.omega_l,
+        0.0,
+        0.0,
+        inputs.tau_m + inputs.dtau_m * t,
+        inputs.tau_l + inputs.dtau_l * t,
+        1.0,
+        inputs.dtau_m,
+        inputs.dtau_l,
+    ])
 }
