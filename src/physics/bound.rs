@@ -2,7 +2,7 @@
 
 use super::linear;
 use super::params::Plant;
-use super::roots::{self, series_apply, Side, SignalRows};
+use super::roots::{self, Side, SignalRows, Sparse, TaylorModel};
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use thiserror::Error;
 
@@ -76,6 +76,7 @@ pub struct SpeedErrorBound {
     /// K g [N·m or N].
     scale: f64,
     m: BoundMatrix,
+    sparse: Sparse<BA>,
     h_rows: SignalRows<BA>,
     start: BoundVector,
     state: BoundState,
@@ -106,6 +107,7 @@ impl SpeedErrorBound {
         let mut bound = SpeedErrorBound {
             scale: plant.stiffness() * plant.half_gap(),
             m,
+            sparse: Sparse::new(&m),
             h_rows: SignalRows::new(c, &m, len_ref),
             start,
             state: BoundState::default(),
@@ -158,18 +160,19 @@ impl SpeedErrorBound {
                 let before = y[CL + OMEGA_L];
                 let search = crossing < MAX_CROSSINGS;
                 let exact_row = whole.then_some(&cache.remainder);
-                match self.sign_change(&y, span, exact_row).filter(|_| search) {
+                let mut model = None;
+                match self.sign_change(&y, span, exact_row, &mut model).filter(|_| search) {
                     None => {
-                        y = if whole {
-                            cache.phi * y
-                        } else {
-                            series_apply(&self.m, &y, span)
+                        y = match (whole, model) {
+                            (true, _) => cache.phi * y,
+                            (false, Some(model)) => model.at(span),
+                            (false, None) => TaylorModel::new(&self.sparse, &y, span).at(span),
                         };
                         l1 += (y[CL + OMEGA_L] - before).abs();
                         break;
                     }
                     Some(offset) => {
-                        y = series_apply(&self.m, &y, offset);
+                        y = model.expect("sign changes are found on the Taylor model").at(offset);
                         // On the root: h is 0 there to round-off, and exactly 0 keeps the
                         // search on the new side from seeing the crossing again.
                         y[OMEGA_L] = 0.0;
@@ -190,7 +193,14 @@ impl SpeedErrorBound {
     }
 
     /// The first sign change of h within `span`, if any.
-    fn sign_change(&self, y: &BoundVector, span: f64, exact_row: Option<&BoundVector>) -> Option<f64> {
+    /// The Taylor model of the piece, when the search needed it, is left in `model`.
+    fn sign_change(
+        &self,
+        y: &BoundVector,
+        span: f64,
+        exact_row: Option<&BoundVector>,
+        model: &mut Option<TaylorModel<BA>>,
+    ) -> Option<f64> {
         let d = [
             self.h_rows.derivative(0, y),
             self.h_rows.derivative(1, y),
@@ -210,7 +220,10 @@ impl SpeedErrorBound {
         if roots::cubic_clear(sign * d[0], sign * d[1], sign * d[2], c3, span, tol) {
             return None;
         }
-        roots::first_exit(&self.h_rows.taylor(y), side, span)
+        let poly = model
+            .get_or_insert_with(|| TaylorModel::new(&self.sparse, y, span))
+            .poly(OMEGA_L);
+        roots::first_exit(&poly, side, span)
     }
 
     /// K g ∫_0^t |h(s)| ds: a true bound on |ω_L^b − ω_L^0| [rad/s].

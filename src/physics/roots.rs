@@ -4,12 +4,13 @@
 //! Along y' = M y a linear signal s(σ) = c·y(σ) has exact derivatives s⁽ᵏ⁾ = c Mᵏ y. A piece
 //! [0, w] is cleared when the cubic lower bound f₀ + f₁σ + f₂σ²/2 − C σ³/6, with C ≥ sup|f'''|
 //! from the entrywise bound |e^{Mσ} − I| ≤ e^{|M|σ} − I, stays above the round-off floor.
-//! Otherwise the signal's Taylor polynomial on the piece is searched by bisection with the
-//! same test, and the first crossing is refined by safeguarded Newton to round-off.
+//! Otherwise the state's Taylor expansion over the piece gives the signal's polynomial, which is
+//! searched by bisection with the same test; the first crossing is refined by safeguarded
+//! Newton to round-off, and the same expansion gives the state there.
 
 use nalgebra::{SMatrix, SVector};
 
-/// Taylor terms kept; with pieces of length ≤ 0.5/rate the last ones are < 1e-40 relative.
+/// Most Taylor terms kept; over a piece (length ≤ 0.5/rate) term k is ~0.5ᵏ/k! of the first.
 pub const TERMS: usize = 32;
 
 const FACTORIAL: [f64; TERMS] = {
@@ -25,8 +26,8 @@ const FACTORIAL: [f64; TERMS] = {
 /// Derivative rows of the signal s = c·y along y' = M y, and the data of its remainder bound.
 #[derive(Clone, Debug)]
 pub struct SignalRows<const N: usize> {
-    /// rows[k] = (c Mᵏ)ᵀ, so s⁽ᵏ⁾(σ) = rows[k]·y(σ).
-    rows: [SVector<f64, N>; TERMS],
+    /// rows[k] = (c Mᵏ)ᵀ, so s⁽ᵏ⁾(σ) = rows[k]·y(σ), k ≤ 3.
+    rows: [SVector<f64, N>; 4],
     /// |c M³|ᵀ (e^{|M| len_ref} − I)ᵀ: sup over [0, len_ref] of |s'''(σ) − s'''(0)| ≤ this·|y(0)|.
     remainder_ref: SVector<f64, N>,
     len_ref: f64,
@@ -34,10 +35,10 @@ pub struct SignalRows<const N: usize> {
 
 impl<const N: usize> SignalRows<N> {
     pub fn new(c: SVector<f64, N>, m: &SMatrix<f64, N, N>, len_ref: f64) -> Self {
-        let mut rows = [SVector::<f64, N>::zeros(); TERMS];
+        let mut rows = [SVector::<f64, N>::zeros(); 4];
         rows[0] = c;
         let mt = m.transpose();
-        for k in 1..TERMS {
+        for k in 1..4 {
             rows[k] = mt * rows[k - 1];
         }
         let remainder_ref = Self::remainder_row_for(&rows[3], m, len_ref);
@@ -83,15 +84,6 @@ impl<const N: usize> SignalRows<N> {
         };
         self.rows[3].dot(y).abs() + growth
     }
-
-    /// Taylor polynomial of s around y's instant, valid on [0, len_ref].
-    pub fn taylor(&self, y: &SVector<f64, N>) -> Poly {
-        let mut coef = [0.0; TERMS];
-        for (k, c) in coef.iter_mut().enumerate() {
-            *c = self.rows[k].dot(y) / FACTORIAL[k];
-        }
-        Poly { coef }
-    }
 }
 
 /// e^A for an entrywise non-negative A: scaling and squaring over a Taylor series. Every term
@@ -116,37 +108,107 @@ fn exp_nonnegative<const N: usize>(a: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N>
     sum
 }
 
-/// e^{M s} y by its Taylor series, for s no longer than a piece (‖M s‖ ≲ 1: fast convergence,
-/// stopped when every component has converged to round-off).
-pub fn series_apply<const N: usize>(m: &SMatrix<f64, N, N>, y: &SVector<f64, N>, s: f64) -> SVector<f64, N> {
-    let mut term = *y;
-    let mut sum = *y;
-    for k in 1..4 * TERMS {
-        term = m * term * (s / k as f64);
-        sum += term;
-        if term.iter().zip(sum.iter()).all(|(t, v)| t.abs() <= 1e-18 * v.abs()) {
-            break;
-        }
-    }
-    sum
+/// A matrix kept as its non-zero entries: the augmented mode matrices have ~16 of 100, so a
+/// product with them costs a sixth of a dense one.
+#[derive(Clone, Debug)]
+pub struct Sparse<const N: usize> {
+    entries: Vec<(usize, usize, f64)>,
 }
 
-/// A polynomial Σ coef[k] σᵏ.
+impl<const N: usize> Sparse<N> {
+    pub fn new(m: &SMatrix<f64, N, N>) -> Self {
+        let entries = (0..N)
+            .flat_map(|i| (0..N).map(move |j| (i, j)))
+            .filter(|&(i, j)| m[(i, j)] != 0.0)
+            .map(|(i, j)| (i, j, m[(i, j)]))
+            .collect();
+        Sparse { entries }
+    }
+
+    #[inline]
+    pub fn apply(&self, x: &SVector<f64, N>) -> SVector<f64, N> {
+        let mut out = SVector::<f64, N>::zeros();
+        for &(i, j, v) in &self.entries {
+            out[i] += v * x[j];
+        }
+        out
+    }
+}
+
+/// The Taylor expansion y(σ) = Σ v_k σᵏ, v_k = Mᵏ y / k!, of the whole state over one piece:
+/// the polynomial of any component (a switching signal) and the state at any instant of the
+/// piece come from the same coefficients.
+#[derive(Clone, Copy, Debug)]
+pub struct TaylorModel<const N: usize> {
+    v: [SVector<f64, N>; TERMS],
+    terms: usize,
+}
+
+impl<const N: usize> TaylorModel<N> {
+    /// Expands until two successive terms are below 1e-17 of the running magnitude of every
+    /// component at σ = span (pieces are short, so this takes a dozen or so terms).
+    pub fn new(m: &Sparse<N>, y: &SVector<f64, N>, span: f64) -> Self {
+        let mut v = [SVector::<f64, N>::zeros(); TERMS];
+        v[0] = *y;
+        let mut magnitude = y.abs();
+        let mut quiet = 0;
+        let mut terms = TERMS;
+        let mut power = 1.0;
+        for k in 1..TERMS {
+            v[k] = m.apply(&v[k - 1]) / k as f64;
+            power *= span;
+            let term = v[k].abs() * power;
+            let negligible = term.iter().zip(magnitude.iter()).all(|(t, m)| *t <= 1e-17 * m);
+            magnitude += term;
+            quiet = if negligible { quiet + 1 } else { 0 };
+            // Keep at least the cubic: the search reads the first four coefficients.
+            if quiet == 2 && k >= 3 {
+                terms = k + 1;
+                break;
+            }
+        }
+        TaylorModel { v, terms }
+    }
+
+    /// The polynomial of component `i`.
+    pub fn poly(&self, i: usize) -> Poly {
+        let mut coef = [0.0; TERMS];
+        for (c, v) in coef.iter_mut().zip(&self.v[..self.terms]) {
+            *c = v[i];
+        }
+        Poly {
+            coef,
+            deg: self.terms - 1,
+        }
+    }
+
+    /// The state at σ into the piece.
+    pub fn at(&self, s: f64) -> SVector<f64, N> {
+        let mut acc = self.v[self.terms - 1];
+        for v in self.v[..self.terms - 1].iter().rev() {
+            acc = acc * s + v;
+        }
+        acc
+    }
+}
+
+/// A polynomial Σ coef[k] σᵏ of degree `deg`.
 #[derive(Clone, Copy, Debug)]
 pub struct Poly {
     pub coef: [f64; TERMS],
+    pub deg: usize,
 }
 
 impl Poly {
     pub fn eval(&self, x: f64) -> f64 {
-        self.coef.iter().rev().fold(0.0, |acc, &c| acc * x + c)
+        self.coef[..=self.deg].iter().rev().fold(0.0, |acc, &c| acc * x + c)
     }
 
     /// Value and first derivative.
     pub fn eval_d(&self, x: f64) -> (f64, f64) {
         let mut p = 0.0;
         let mut dp = 0.0;
-        for &c in self.coef.iter().rev() {
+        for &c in self.coef[..=self.deg].iter().rev() {
             dp = dp * x + p;
             p = p * x + c;
         }
@@ -156,14 +218,15 @@ impl Poly {
     /// The same polynomial in σ' = σ − a (Taylor shift by repeated synthetic division).
     pub fn shifted(&self, a: f64) -> Poly {
         let mut c = self.coef;
+        let n = self.deg;
         if a != 0.0 {
-            for i in 0..TERMS {
-                for j in (i..TERMS - 1).rev() {
+            for i in 0..n {
+                for j in (i..n).rev() {
                     c[j] += a * c[j + 1];
                 }
             }
         }
-        Poly { coef: c }
+        Poly { coef: c, deg: n }
     }
 }
 
@@ -242,7 +305,7 @@ fn search(p: &Poly, side: Side, lo: f64, hi: f64, budget: &mut usize) -> Option<
     // sup |f'''| on [lo, hi] from the shifted polynomial's higher coefficients.
     let mut c3 = 0.0;
     let mut wp = 1.0;
-    for k in 3..TERMS {
+    for k in 3..=q.deg {
         c3 += q.coef[k].abs() * (FACTORIAL[k] / FACTORIAL[k - 3]) * wp;
         wp *= w;
     }

@@ -3,7 +3,7 @@
 use super::linear::{self, AugMatrix, AugVector, AUG};
 use super::mode::{ContactMode, PlantState};
 use super::params::Plant;
-use super::roots::{self, series_apply, Side, SignalRows};
+use super::roots::{self, Side, SignalRows, Sparse, TaylorModel};
 use thiserror::Error;
 
 /// Inputs over one step: values at the step start and their slopes over the step.
@@ -58,6 +58,7 @@ pub enum StepError {
 #[derive(Clone, Debug)]
 struct ModeDynamics {
     m: AugMatrix,
+    sparse: Sparse<AUG>,
     u_rows: SignalRows<AUG>,
 }
 
@@ -164,6 +165,7 @@ impl Stepper {
             let m = linear::mode_matrix(&plant, mode);
             ModeDynamics {
                 m,
+                sparse: Sparse::new(&m),
                 u_rows: SignalRows::new(e_u, &m, len_ref),
             }
         });
@@ -190,7 +192,7 @@ impl Stepper {
         };
         let len = h / pieces;
         let kernel = [0, 1, 2].map(|i| {
-            let ModeDynamics { m, u_rows } = &self.modes[i];
+            let ModeDynamics { m, u_rows, .. } = &self.modes[i];
             PieceKernel::new(&(m * len).exp(), u_rows, &u_rows.remainder_row(m, len))
         });
         self.cache = Some(StepCache {
@@ -253,18 +255,19 @@ impl Stepper {
             loop {
                 let span = len - (t - start);
                 let mode = next.mode.index();
-                match self.exit(&y, next.mode, span, probe.take()) {
+                let mut model = None;
+                match self.exit(&y, next.mode, span, probe.take(), &mut model) {
                     None if !switched => {
                         y.as_mut_slice()[..5].copy_from_slice(&whole);
                         break;
                     }
                     None => {
-                        // After a switch the rest of the piece is short: its series converges fast.
-                        y = series_apply(&self.modes[mode].m, &y, span);
+                        let sparse = &self.modes[mode].sparse;
+                        y = model.unwrap_or_else(|| TaylorModel::new(sparse, &y, span)).at(span);
                         break;
                     }
                     Some(exit) => {
-                        y = series_apply(&self.modes[mode].m, &y, exit.offset);
+                        y = model.expect("exits are found on the Taylor model").at(exit.offset);
                         y[linear::U] = exit.u;
                         t += exit.offset;
                         switched = true;
@@ -320,7 +323,15 @@ impl Stepper {
     }
 
     /// `probe` carries u″ and the bound on |u‴| when the piece kernel computed them already.
-    fn exit(&self, y: &AugVector, mode: ContactMode, span: f64, probe: Option<(f64, f64)>) -> Option<Exit> {
+    /// The Taylor model of the piece, when the search needed it, is left in `model`.
+    fn exit(
+        &self,
+        y: &AugVector,
+        mode: ContactMode,
+        span: f64,
+        probe: Option<(f64, f64)>,
+        model: &mut Option<TaylorModel<AUG>>,
+    ) -> Option<Exit> {
         let g = self.plant.half_gap();
         if g == 0.0 {
             // No free region: both flanks carry ψ = K u, the plant is linear.
@@ -384,7 +395,15 @@ impl Stepper {
             if roots::cubic_clear(f0, f1, f2, c3, span, tol) {
                 continue;
             }
-            let p = poly.get_or_insert_with(|| rows.taylor(y));
+            if poly.is_none() {
+                let sparse = &self.modes[mode.index()].sparse;
+                poly = Some(
+                    model
+                        .get_or_insert_with(|| TaylorModel::new(sparse, y, span))
+                        .poly(linear::U),
+                );
+            }
+            let p = poly.as_ref().expect("filled above");
             let limit = best.map_or(span, |b| b.offset);
             if let Some(offset) = roots::first_exit(p, side, limit) {
                 best = Some(Exit { offset, to, u: u_cross });
