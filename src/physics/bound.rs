@@ -142,7 +142,7 @@ impl SpeedErrorBound {
                 h,
                 pieces: pieces as usize,
                 len,
-                phi: (self.m * len).exp(),
+                phi: roots::exp_series(&self.sparse, len),
                 remainder: self.h_rows.remainder_row(&self.m, len),
             });
         }

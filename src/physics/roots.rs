@@ -192,6 +192,20 @@ impl<const N: usize> TaylorModel<N> {
     }
 }
 
+/// e^{M s} column by column from the Taylor series, for s no longer than a piece. Unlike a
+/// normwise-accurate Padé exponential, every entry comes out to round-off of itself, which
+/// matters here: the augmented matrices mix units, so their exponentials hold entries of very
+/// different sizes (r_m s²/2J_m next to 1).
+pub fn exp_series<const N: usize>(m: &Sparse<N>, s: f64) -> SMatrix<f64, N, N> {
+    let mut out = SMatrix::<f64, N, N>::zeros();
+    for j in 0..N {
+        let mut e = SVector::<f64, N>::zeros();
+        e[j] = 1.0;
+        out.set_column(j, &TaylorModel::new(m, &e, s).at(s));
+    }
+    out
+}
+
 /// A polynomial Σ coef[k] σᵏ of degree `deg`.
 #[derive(Clone, Copy, Debug)]
 pub struct Poly {

@@ -192,8 +192,8 @@ impl Stepper {
         };
         let len = h / pieces;
         let kernel = [0, 1, 2].map(|i| {
-            let ModeDynamics { m, u_rows, .. } = &self.modes[i];
-            PieceKernel::new(&(m * len).exp(), u_rows, &u_rows.remainder_row(m, len))
+            let ModeDynamics { m, sparse, u_rows } = &self.modes[i];
+            PieceKernel::new(&roots::exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
         });
         self.cache = Some(StepCache {
             h,

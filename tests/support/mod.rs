@@ -1,0 +1,10 @@
+//! Independent computations the physics tests compare against (spec §1–§3).
+//! Each test binary uses a subset, hence the `dead_code` allowance.
+#![allow(dead_code)]
+
+pub mod closed_form;
+pub mod closed_loop;
+pub mod expm;
+pub mod harness;
+pub mod reference;
+pub mod taylor;
