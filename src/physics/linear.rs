@@ -1,11 +1,15 @@
 //! The affine dynamics of each contact mode as one augmented linear system (spec §1–§2).
 //!
 //! Augmented state y (`AUG` entries):
-//! `[u, ω_m, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L]` — the transmission coordinate, the
-//! speeds, the angle increments since the last reset, the inputs with their slopes and a
-//! constant 1 that carries the ∓K g offset of a contact flank. Inside one mode y' = M y
-//! exactly, with inputs that vary linearly (first-order hold) or not at all (zero-order hold),
-//! so the solution over a step is e^{M s} y.
+//! `[u, v, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L]` — the transmission coordinate u and its
+//! rate v = u' = r_m ω_m − r_L ω_L, the load speed, the angle increments since the last reset,
+//! the inputs with their slopes and a constant 1 that carries the ∓K g offset of a contact
+//! flank. Inside one mode y' = M y exactly, with inputs that vary linearly (first-order hold) or
+//! not at all (zero-order hold), so the solution over a step is e^{M s} y.
+//!
+//! v rather than ω_m is a state because the gap dynamics live in u and v: with ω_m the rate
+//! u' = r_m ω_m − r_L ω_L would cancel catastrophically whenever the drive turns fast compared
+//! with its relative motion, and u would lose eps·r|ω|·s per piece. ω_m = (v + r_L ω_L)/r_m.
 
 use super::mode::ContactMode;
 use super::params::Plant;
@@ -16,7 +20,7 @@ pub type AugMatrix = SMatrix<f64, AUG, AUG>;
 pub type AugVector = SVector<f64, AUG>;
 
 pub const U: usize = 0;
-pub const OMEGA_M: usize = 1;
+pub const V: usize = 1;
 pub const OMEGA_L: usize = 2;
 pub const DTHETA_M: usize = 3;
 pub const DTHETA_L: usize = 4;
@@ -36,20 +40,25 @@ pub fn mode_matrix(plant: &Plant, mode: ContactMode) -> AugMatrix {
         ContactMode::Positive => (k, -k * g),
         ContactMode::Negative => (k, k * g),
     };
+    let (jm, jl) = (p.j_m, p.j_l);
+    // Compliance seen by u: κ = r_m²/J_m + r_L²/J_L.
+    let kappa = r_m * r_m / jm + r_l * r_l / jl;
     let mut m = AugMatrix::zeros();
-    m[(U, OMEGA_M)] = r_m;
-    m[(U, OMEGA_L)] = -r_l;
-    // J_m ω_m' = τ_m − b_m ω_m − r_m ψ
-    m[(OMEGA_M, OMEGA_M)] = -p.b_m / p.j_m;
-    m[(OMEGA_M, TAU_M)] = 1.0 / p.j_m;
-    m[(OMEGA_M, U)] = -r_m * ks / p.j_m;
-    m[(OMEGA_M, ONE)] = -r_m * kc / p.j_m;
-    // J_L ω_L' = τ_L − b_L ω_L + r_L ψ
-    m[(OMEGA_L, OMEGA_L)] = -p.b_l / p.j_l;
-    m[(OMEGA_L, TAU_L)] = 1.0 / p.j_l;
-    m[(OMEGA_L, U)] = r_l * ks / p.j_l;
-    m[(OMEGA_L, ONE)] = r_l * kc / p.j_l;
-    m[(DTHETA_M, OMEGA_M)] = 1.0;
+    m[(U, V)] = 1.0;
+    // v' = r_m ω_m' − r_L ω_L' with J_m ω_m' = τ_m − b_m ω_m − r_m ψ, J_L ω_L' = τ_L − b_L ω_L + r_L ψ
+    // and r_m ω_m = v + r_L ω_L.
+    m[(V, TAU_M)] = r_m / jm;
+    m[(V, TAU_L)] = -r_l / jl;
+    m[(V, V)] = -p.b_m / jm;
+    m[(V, OMEGA_L)] = r_l * (p.b_l / jl - p.b_m / jm);
+    m[(V, U)] = -kappa * ks;
+    m[(V, ONE)] = -kappa * kc;
+    m[(OMEGA_L, OMEGA_L)] = -p.b_l / jl;
+    m[(OMEGA_L, TAU_L)] = 1.0 / jl;
+    m[(OMEGA_L, U)] = r_l * ks / jl;
+    m[(OMEGA_L, ONE)] = r_l * kc / jl;
+    m[(DTHETA_M, V)] = 1.0 / r_m;
+    m[(DTHETA_M, OMEGA_L)] = r_l / r_m;
     m[(DTHETA_L, OMEGA_L)] = 1.0;
     m[(TAU_M, DTAU_M)] = 1.0;
     m[(TAU_L, DTAU_L)] = 1.0;

@@ -10,7 +10,7 @@ pub mod params;
 pub mod roots;
 pub mod stepper;
 
-pub use bound::{BoundState, PiGains, SpeedErrorBound, Unbounded};
+pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded};
 pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, Geometry, ParamError, Plant, PlantParams};
 pub use stepper::{Inputs, StepError, Stepper, SwitchEvent};

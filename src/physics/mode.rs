@@ -53,6 +53,8 @@ pub struct PlantState {
     pub omega_l: f64,
     /// u = r_m θ_m − r_L θ_L, advanced exactly rather than recomputed from the angles.
     pub u: f64,
+    /// u' = r_m ω_m − r_L ω_L, likewise advanced rather than recomputed from the speeds.
+    pub du: f64,
     /// The mode in force at this instant (on ±g: the mode being entered).
     pub mode: ContactMode,
 }
@@ -69,6 +71,7 @@ impl PlantState {
             theta_l,
             omega_l,
             u,
+            du,
             mode: mode_at(u, du, plant.half_gap()),
         }
     }
@@ -79,6 +82,7 @@ impl PlantState {
             && self.theta_l.is_finite()
             && self.omega_l.is_finite()
             && self.u.is_finite()
+            && self.du.is_finite()
     }
 }
 

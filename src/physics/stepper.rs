@@ -100,7 +100,7 @@ impl PieceKernel {
         // The angle increments are zero at a piece start: their columns drop out.
         for j in [
             linear::U,
-            linear::OMEGA_M,
+            linear::V,
             linear::OMEGA_L,
             linear::TAU_M,
             linear::TAU_L,
@@ -245,8 +245,9 @@ impl Stepper {
                 next.theta_m += whole[linear::DTHETA_M];
                 next.theta_l += whole[linear::DTHETA_L];
                 next.u = whole[linear::U];
-                next.omega_m = whole[linear::OMEGA_M];
+                next.du = whole[linear::V];
                 next.omega_l = whole[linear::OMEGA_L];
+                next.omega_m = self.motor_speed(next.du, next.omega_l);
                 continue;
             }
             let mut probe = Some((d2, c3));
@@ -293,8 +294,9 @@ impl Stepper {
             next.theta_m += y[linear::DTHETA_M];
             next.theta_l += y[linear::DTHETA_L];
             next.u = y[linear::U];
-            next.omega_m = y[linear::OMEGA_M];
+            next.du = y[linear::V];
             next.omega_l = y[linear::OMEGA_L];
+            next.omega_m = self.motor_speed(next.du, next.omega_l);
         }
         if !next.is_finite() {
             return Err(StepError::Overflow);
@@ -312,7 +314,7 @@ impl Stepper {
             return true;
         }
         let u = y[linear::U];
-        let du = self.plant.r_m() * y[linear::OMEGA_M] - self.plant.r_l() * y[linear::OMEGA_L];
+        let du = y[linear::V];
         let tol = 8.0 * f64::EPSILON * (u.abs() + g);
         let side_clear = |f0: f64, sign: f64| roots::cubic_clear(f0, sign * du, sign * d2, c3, span, tol);
         match mode {
@@ -422,19 +424,24 @@ impl Stepper {
         }
         [
             y[linear::DTHETA_M],
-            y[linear::OMEGA_M],
+            self.motor_speed(y[linear::V], y[linear::OMEGA_L]),
             y[linear::DTHETA_L],
             y[linear::OMEGA_L],
         ]
+    }
+
+    /// ω_m = (v + r_L ω_L)/r_m, and likewise for any time derivative of the three.
+    fn motor_speed(&self, v: f64, omega_l: f64) -> f64 {
+        (v + self.plant.r_l() * omega_l) / self.plant.r_m()
     }
 }
 
 /// The augmented vector of `state` at time `t` into the step (angle increments zero).
 fn augmented(state: &PlantState, inputs: &Inputs, t: f64) -> AugVector {
-    // In the order of `linear`: [u, ω_m, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L].
+    // In the order of `linear`: [u, v, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L].
     AugVector::from([
         state.u,
-        state.omega_m,
+        state.du,
         state.omega_l,
         0.0,
         0.0,

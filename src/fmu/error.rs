@@ -1,0 +1,90 @@
+//! Why a call failed, and the FMI status it maps to. Every message names the offending
+//! variable, argument or value, so the importer's log says what to fix.
+
+use super::state_machine::Phase;
+use super::variables::VarType;
+use crate::physics::bound::BoundError;
+use crate::physics::{ParamError, StepError};
+use thiserror::Error;
+
+/// Outcome of a call, in FMI's order of severity (fmi2Fatal is never returned: instances
+/// share nothing, so no error can spoil another one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Status {
+    Ok,
+    Warning,
+    Discard,
+    Error,
+}
+
+#[derive(Clone, Debug, PartialEq, Error)]
+pub enum FmuError {
+    #[error("{function} is not allowed in state {phase}")]
+    IllegalCall { function: &'static str, phase: Phase },
+    #[error("{function} belongs to FMI for Model Exchange; this FMU implements Co-Simulation only")]
+    ModelExchangeOnly { function: &'static str },
+    #[error("argument {argument} is NULL but {length} values were announced")]
+    NullArgument { argument: &'static str, length: usize },
+    #[error("argument {argument} is not aligned for its element type")]
+    Misaligned { argument: &'static str },
+    #[error("argument {argument}: {length} values do not fit in memory")]
+    TooLong { argument: &'static str, length: usize },
+    #[error("{what}: {length} values given, {expected} expected")]
+    LengthMismatch {
+        what: &'static str,
+        length: usize,
+        expected: usize,
+    },
+    #[error("value reference {vr} is not a variable of {model}")]
+    UnknownValueReference { vr: u32, model: &'static str },
+    #[error("variable {name} (value reference {vr}) is of type {actual:?}, not {requested}")]
+    WrongType {
+        name: &'static str,
+        vr: u32,
+        actual: VarType,
+        requested: &'static str,
+    },
+    #[error("variable {name} cannot be set in state {phase}: {reason}")]
+    NotSettable {
+        name: &'static str,
+        phase: Phase,
+        reason: &'static str,
+    },
+    #[error("value {value} refused for {name}: it must be {range}")]
+    ValueRefused {
+        name: &'static str,
+        value: f64,
+        range: &'static str,
+    },
+    #[error("invalid parameter: {0}")]
+    Parameter(#[from] ParamError),
+    #[error("the step failed: {0}")]
+    Step(#[from] StepError),
+    #[error("the speed-error bound failed: {0}")]
+    Bound(#[from] BoundError),
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+    #[error("{0}")]
+    StatusUnavailable(String),
+    #[error("{0} is not provided by this FMU")]
+    NotProvided(&'static str),
+    #[error("FMU state refused: {0}")]
+    StateRefused(String),
+    #[error("unknown log category {0:?}; the categories are listed in modelDescription.xml")]
+    UnknownLogCategory(String),
+    #[error(
+        "internal error in {function}: {message}; the instance is in state Error, call fmi2Reset or fmi2SetFMUstate"
+    )]
+    Panic { function: &'static str, message: String },
+}
+
+impl FmuError {
+    /// fmi2Discard only where FMI 2.0 asks for it (status queries the FMU cannot answer,
+    /// FMI 2.0.4 §4.2.3); everything else is fmi2Error and puts the instance into state Error.
+    pub fn status(&self) -> Status {
+        match self {
+            FmuError::StatusUnavailable(_) => Status::Discard,
+            _ => Status::Error,
+        }
+    }
+}

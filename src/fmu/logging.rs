@@ -1,0 +1,96 @@
+//! Log categories of the model description and the filter that decides what reaches the
+//! importer's logger (FMI 2.0.4 §2.1.5 fmi2SetDebugLogging).
+
+use super::error::{FmuError, Status};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LogCategory {
+    ContactEvents,
+    Warnings,
+    Errors,
+    Calls,
+}
+
+impl LogCategory {
+    /// Same order and names as `LOG_CATEGORIES` in `modelDescription/generate.rs`.
+    pub const ALL: [LogCategory; 4] = [
+        LogCategory::ContactEvents,
+        LogCategory::Warnings,
+        LogCategory::Errors,
+        LogCategory::Calls,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LogCategory::ContactEvents => "logContactEvents",
+            LogCategory::Warnings => "logWarnings",
+            LogCategory::Errors => "logErrors",
+            LogCategory::Calls => "logCalls",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<LogCategory> {
+        LogCategory::ALL.into_iter().find(|c| c.name() == name)
+    }
+}
+
+/// Where log messages go: the importer's logger (see `ffi`) or, in Rust tests, a collector.
+pub trait LogSink {
+    fn log(&mut self, status: Status, category: LogCategory, message: &str);
+}
+
+/// A sink that keeps every message, for tests and Rust callers.
+#[derive(Clone, Debug, Default)]
+pub struct Collected(pub std::rc::Rc<std::cell::RefCell<Vec<(Status, LogCategory, String)>>>);
+
+impl LogSink for Collected {
+    fn log(&mut self, status: Status, category: LogCategory, message: &str) {
+        self.0.borrow_mut().push((status, category, message.to_string()));
+    }
+}
+
+pub struct Logging {
+    enabled: [bool; 4],
+    sink: Option<Box<dyn LogSink>>,
+}
+
+impl Logging {
+    /// Errors and warnings reach the logger from the start, so every refusal comes with its
+    /// reason; contact events and call traces only when `logging_on` (fmi2Instantiate).
+    pub fn new(sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Logging {
+        let mut enabled = [false; 4];
+        for c in LogCategory::ALL {
+            enabled[c as usize] = logging_on || matches!(c, LogCategory::Errors | LogCategory::Warnings);
+        }
+        Logging { enabled, sink }
+    }
+
+    /// fmi2SetDebugLogging: no categories means all of them. Unknown names are refused
+    /// before anything changes.
+    pub fn configure(&mut self, logging_on: bool, categories: &[&str]) -> Result<(), FmuError> {
+        let mut chosen = Vec::with_capacity(categories.len());
+        for name in categories {
+            chosen.push(LogCategory::from_name(name).ok_or_else(|| FmuError::UnknownLogCategory(name.to_string()))?);
+        }
+        if chosen.is_empty() {
+            chosen.extend(LogCategory::ALL);
+        }
+        for c in chosen {
+            self.enabled[c as usize] = logging_on;
+        }
+        Ok(())
+    }
+
+    pub fn is_enabled(&self, category: LogCategory) -> bool {
+        self.sink.is_some() && self.enabled[category as usize]
+    }
+
+    /// Formats the message only if it will be delivered.
+    pub fn emit(&mut self, status: Status, category: LogCategory, message: impl FnOnce() -> String) {
+        if self.is_enabled(category) {
+            if let Some(sink) = self.sink.as_mut() {
+                sink.log(status, category, &message());
+            }
+        }
+    }
+}

@@ -1,0 +1,21 @@
+//! The FMU instance in safe Rust: FMI 2.0 Co-Simulation state machine, value-reference
+//! dispatch over the generated variable table, stepping, and FMU states. No FFI here; the C
+//! ABI in `crate::ffi` converts pointers and calls [`Instance::run`].
+
+pub mod error;
+pub mod instance;
+pub mod logging;
+pub mod simulation;
+pub mod snapshot;
+pub mod state_machine;
+pub mod variables;
+
+pub use error::{FmuError, Status};
+pub use instance::{Experiment, Instance, StatusKind};
+pub use logging::{Collected, LogCategory, LogSink};
+pub use snapshot::Snapshot;
+pub use state_machine::{Function, Phase};
+pub use variables::{model_by_guid, model_by_identifier, ModelInfo, Symbol, Variable, MODELS};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,298 @@
+//! FMU states (fmi2GetFMUstate) and their pointer-free serialized form.
+//!
+//! Byte format, version 1, all numbers little-endian, f64 as IEEE-754 bits:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 8 | magic `BKLSHFMU` |
+//! | 8 | 2 | format version (1) |
+//! | 10 | 2 | length n of the guid |
+//! | 12 | n | guid of the model description (ASCII) |
+//! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error) |
+//! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present |
+//! | +2 | 2 | number m of stored values (24) |
+//! | +4 | 8·4 | time, startTime, stopTime, tolerance |
+//! | | 8·m | values by symbol: inputs, parameters, start values |
+//! | | 8·2 | dτ_m/dt, dτ_L/dt |
+//! | | 8·6 + 1 | θ_m, ω_m, θ_L, ω_L, u, u', mode (signed byte −1/0/+1) |
+//! | | 8·12 | bound: elapsed, response[5], integral[5], l1 |
+//! | end−8 | 8 | FNV-1a-64 checksum of all bytes before it |
+//!
+//! Loading checks, in order: length, magic, version, guid (a state of the other model is
+//! refused), exact length, checksum, then every field (phase, finiteness, parameter ranges).
+
+use super::error::FmuError;
+use super::instance::Experiment;
+use super::simulation::Values;
+use super::state_machine::Phase;
+use super::variables::{ModelInfo, Symbol};
+use crate::physics::{BoundState, ContactMode, PlantState};
+
+pub const MAGIC: &[u8; 8] = b"BKLSHFMU";
+pub const FORMAT_VERSION: u16 = 1;
+
+/// The plant and bound state of an initialized instance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhysicsSnapshot {
+    pub plant: PlantState,
+    pub bound: BoundState,
+}
+
+/// Everything needed to continue an instance bit-identically; derived objects (plant
+/// matrices, exponentials) are rebuilt from the values on restore.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Snapshot {
+    pub guid: &'static str,
+    pub phase: Phase,
+    pub time: f64,
+    pub experiment: Experiment,
+    pub values: Values,
+    pub input_slopes: [f64; 2],
+    pub physics: Option<PhysicsSnapshot>,
+}
+
+const FLAG_STOP: u8 = 1;
+const FLAG_TOLERANCE: u8 = 2;
+const FLAG_PHYSICS: u8 = 4;
+
+/// Bytes after the guid: phase, flags, count, 4 times, values, slopes, plant, bound, checksum.
+const fn body_len() -> usize {
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * 2 + (8 * 6 + 1) + 8 * 12 + 8
+}
+
+fn fnv1a_64(bytes: &[u8]) -> u64 {
+    let mut hash: u64 = 0xcbf29ce484222325;
+    for b in bytes {
+        hash ^= *b as u64;
+        hash = hash.wrapping_mul(0x100000001b3);
+    }
+    hash
+}
+
+impl Snapshot {
+    pub fn serialized_len(&self) -> usize {
+        8 + 2 + 2 + self.guid.len() + body_len()
+    }
+
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = Vec::with_capacity(self.serialized_len());
+        b.extend_from_slice(MAGIC);
+        b.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        b.extend_from_slice(&(self.guid.len() as u16).to_le_bytes());
+        b.extend_from_slice(self.guid.as_bytes());
+        b.push(self.phase.code());
+        let mut flags = 0;
+        if self.experiment.stop_time.is_some() {
+            flags |= FLAG_STOP;
+        }
+        if self.experiment.tolerance.is_some() {
+            flags |= FLAG_TOLERANCE;
+        }
+        if self.physics.is_some() {
+            flags |= FLAG_PHYSICS;
+        }
+        b.push(flags);
+        b.extend_from_slice(&(Symbol::COUNT as u16).to_le_bytes());
+        let mut put = |x: f64| b.extend_from_slice(&x.to_le_bytes());
+        put(self.time);
+        put(self.experiment.start_time);
+        put(self.experiment.stop_time.unwrap_or(0.0));
+        put(self.experiment.tolerance.unwrap_or(0.0));
+        self.values.iter().for_each(|x| put(*x));
+        self.input_slopes.iter().for_each(|x| put(*x));
+        let (plant, bound) = match &self.physics {
+            Some(p) => (Some(p.plant), p.bound),
+            None => (None, BoundState::default()),
+        };
+        let z = plant
+            .map(|s| [s.theta_m, s.omega_m, s.theta_l, s.omega_l, s.u, s.du])
+            .unwrap_or([0.0; 6]);
+        z.iter().for_each(|x| put(*x));
+        let mode = plant.map(|s| s.mode.as_i32() as i8).unwrap_or(0);
+        put_bound(&mut b, mode, &bound);
+        let checksum = fnv1a_64(&b);
+        b.extend_from_slice(&checksum.to_le_bytes());
+        debug_assert_eq!(b.len(), self.serialized_len());
+        b
+    }
+
+    /// Parses and validates bytes written by [`Snapshot::to_bytes`] for `model`.
+    pub fn from_bytes(model: &'static ModelInfo, bytes: &[u8]) -> Result<Snapshot, FmuError> {
+        let refuse = |why: String| Err(FmuError::StateRefused(why));
+        if bytes.is_empty() {
+            return refuse("the serialized state is empty (0 bytes)".into());
+        }
+        if bytes.len() < 12 {
+            return refuse(format!(
+                "{} bytes are too few for a serialized FMU state (header is 12)",
+                bytes.len()
+            ));
+        }
+        if &bytes[0..8] != MAGIC {
+            return refuse("not a serialized state of this FMU (wrong magic bytes)".into());
+        }
+        let version = u16::from_le_bytes([bytes[8], bytes[9]]);
+        if version != FORMAT_VERSION {
+            return refuse(format!(
+                "format version {version}; this binary reads version {FORMAT_VERSION}"
+            ));
+        }
+        let guid_len = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
+        let expected = 12 + guid_len + body_len();
+        if bytes.len() < 12 + guid_len {
+            return refuse(format!(
+                "truncated: {} bytes, the guid alone needs {}",
+                bytes.len(),
+                12 + guid_len
+            ));
+        }
+        let guid = &bytes[12..12 + guid_len];
+        if guid != model.guid.as_bytes() {
+            return refuse(format!(
+                "it was saved by the model with guid {:?}; this instance is {} with guid {}",
+                String::from_utf8_lossy(guid),
+                model.identifier,
+                model.guid
+            ));
+        }
+        if bytes.len() != expected {
+            return refuse(format!(
+                "{} bytes, a version-{FORMAT_VERSION} state of {} has {expected}",
+                bytes.len(),
+                model.identifier
+            ));
+        }
+        let (payload, tail) = bytes.split_at(expected - 8);
+        let stored = u64::from_le_bytes(tail.try_into().expect("8 bytes"));
+        if stored != fnv1a_64(payload) {
+            return refuse("checksum mismatch: the bytes were altered or corrupted".into());
+        }
+
+        let mut r = Reader {
+            bytes: payload,
+            at: 12 + guid_len,
+        };
+        let phase_code = r.u8();
+        let phase = Phase::from_code(phase_code)
+            .ok_or_else(|| FmuError::StateRefused(format!("unknown phase code {phase_code}")))?;
+        let flags = r.u8();
+        if flags & !(FLAG_STOP | FLAG_TOLERANCE | FLAG_PHYSICS) != 0 {
+            return refuse(format!("unknown flag bits {flags:#04x}"));
+        }
+        let count = u16::from_le_bytes([r.u8(), r.u8()]) as usize;
+        if count != Symbol::COUNT {
+            return refuse(format!("{count} stored values, expected {}", Symbol::COUNT));
+        }
+        let time = r.finite("time")?;
+        let start_time = r.finite("startTime")?;
+        let stop_time = r.finite("stopTime")?;
+        let tolerance = r.f64();
+        let experiment = Experiment {
+            start_time,
+            stop_time: (flags & FLAG_STOP != 0).then_some(stop_time),
+            tolerance: (flags & FLAG_TOLERANCE != 0).then_some(tolerance),
+        };
+        let mut values = [0.0; Symbol::COUNT];
+        for slot in values.iter_mut() {
+            *slot = r.finite("a variable value")?;
+        }
+        for v in model.variables {
+            let x = values[v.symbol.index()];
+            if v.start.is_some() && !v.range.admits(x) {
+                return refuse(format!("{} = {x} is not {}", v.name, v.range.describe()));
+            }
+        }
+        let input_slopes = [r.finite("dtau_m/dt")?, r.finite("dtau_L/dt")?];
+        let z = [
+            r.finite("theta_m")?,
+            r.finite("omega_m")?,
+            r.finite("theta_L")?,
+            r.finite("omega_L")?,
+            r.finite("u")?,
+            r.finite("du/dt")?,
+        ];
+        let mode_code = r.u8() as i8 as i32;
+        let mode = ContactMode::from_i32(mode_code)
+            .ok_or_else(|| FmuError::StateRefused(format!("unknown contact mode {mode_code}")))?;
+        let mut bound = BoundState {
+            elapsed: r.finite("bound elapsed time")?,
+            ..BoundState::default()
+        };
+        for x in bound.response.iter_mut() {
+            *x = r.finite("bound response")?;
+        }
+        for x in bound.integral.iter_mut() {
+            *x = r.finite("bound integral")?;
+        }
+        bound.l1 = r.finite("bound l1")?;
+        debug_assert_eq!(r.at, payload.len());
+
+        let has_physics = flags & FLAG_PHYSICS != 0;
+        let consistent = match phase {
+            Phase::Instantiated | Phase::InitializationMode => !has_physics,
+            Phase::StepComplete | Phase::StepFailed | Phase::Terminated => has_physics,
+            Phase::Error => true,
+        };
+        if !consistent {
+            return refuse(format!("phase {phase} does not match the presence of a plant state"));
+        }
+        let physics = has_physics.then_some(PhysicsSnapshot {
+            plant: PlantState {
+                theta_m: z[0],
+                omega_m: z[1],
+                theta_l: z[2],
+                omega_l: z[3],
+                u: z[4],
+                du: z[5],
+                mode,
+            },
+            bound,
+        });
+        Ok(Snapshot {
+            guid: model.guid,
+            phase,
+            time,
+            experiment,
+            values,
+            input_slopes,
+            physics,
+        })
+    }
+}
+
+fn put_bound(b: &mut Vec<u8>, mode: i8, bound: &BoundState) {
+    b.push(mode as u8);
+    let mut put = |x: f64| b.extend_from_slice(&x.to_le_bytes());
+    put(bound.elapsed);
+    bound.response.iter().for_each(|x| put(*x));
+    bound.integral.iter().for_each(|x| put(*x));
+    put(bound.l1);
+}
+
+/// Reads fields from a buffer whose length was checked beforehand.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn u8(&mut self) -> u8 {
+        self.at += 1;
+        self.bytes[self.at - 1]
+    }
+
+    fn f64(&mut self) -> f64 {
+        let x = f64::from_le_bytes(self.bytes[self.at..self.at + 8].try_into().expect("8 bytes"));
+        self.at += 8;
+        x
+    }
+
+    fn finite(&mut self, what: &str) -> Result<f64, FmuError> {
+        let x = self.f64();
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(FmuError::StateRefused(format!("{what} = {x} is not finite")))
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! Stepping through the FMU against independent computations: the closed-form solution of the
+//! backlash-free, undamped shaft (spec §1 with Δ = 0), the free-flight contact time, ramp
+//! inputs, and bit-identical reruns after fmi2Reset and after a serialized FMU state.
+
+use backlash_fmu::fmu::{Collected, Instance, LogCategory, Status, MODELS};
+
+const J_M: f64 = 2.28;
+const J_L: f64 = 2.55;
+const K: f64 = 200.0;
+
+fn shaft(params: &[(&str, f64)], log: Option<Collected>, logging_on: bool) -> Instance {
+    let model = &MODELS[0];
+    let mut inst = Instance::new(model, log.map(|l| Box::new(l) as _), logging_on);
+    for (name, value) in params {
+        inst.set_real(&[model.vr(name)], &[*value]).unwrap();
+    }
+    inst.setup_experiment(None, 0.0, None).unwrap();
+    inst.enter_initialization_mode().unwrap();
+    inst
+}
+
+fn get(inst: &mut Instance, names: &[&str]) -> Vec<f64> {
+    let vrs: Vec<u32> = names.iter().map(|n| inst.model().vr(n)).collect();
+    let mut out = vec![0.0; names.len()];
+    inst.get_real(&vrs, &mut out).unwrap();
+    out
+}
+
+fn close(actual: f64, expected: f64, scale: f64, what: &str) {
+    assert!(
+        (actual - expected).abs() <= 1e-11 * scale,
+        "{what}: {actual} vs {expected}"
+    );
+}
+
+#[test]
+fn backlash_free_undamped_shaft_follows_the_closed_form_solution() {
+    let log = Collected::default();
+    let mut inst = shaft(&[("Delta", 0.0), ("b_m", 0.0), ("b_L", 0.0)], Some(log.clone()), false);
+    // Undamped: h never decays, so bound_sup is +inf with a warning (spec §4).
+    assert_eq!(inst.exit_initialization_mode().unwrap(), Status::Warning);
+    assert!(log
+        .0
+        .borrow()
+        .iter()
+        .any(|(s, c, m)| *s == Status::Warning && *c == LogCategory::Warnings && m.contains("bound_sup = +inf")));
+    assert_eq!(get(&mut inst, &["bound_sup"])[0], f64::INFINITY);
+
+    let tau = 1.5;
+    inst.set_real(&[inst.model().vr("tau_m")], &[tau]).unwrap();
+    let w = (K * (1.0 / J_M + 1.0 / J_L)).sqrt();
+    let c = K * tau / (J_L * J_M * w * w);
+    let h = 0.037;
+    let mut t = 0.0;
+    for _ in 0..100 {
+        inst.do_step(t, h).unwrap();
+        t += h;
+        let u = tau / (J_M * w * w) * (1.0 - (w * t).cos());
+        let du = tau / (J_M * w) * (w * t).sin();
+        let omega_l = c * (t - (w * t).sin() / w);
+        let theta_l = c * (t * t / 2.0 - (1.0 - (w * t).cos()) / (w * w));
+        let y = get(&mut inst, &["theta_m", "omega_m", "theta_L", "omega_L", "psi"]);
+        let scale = 1.0 + theta_l.abs();
+        close(y[0], theta_l + u, scale, "theta_m");
+        close(y[1], omega_l + du, scale, "omega_m");
+        close(y[2], theta_l, scale, "theta_L");
+        close(y[3], omega_l, scale, "omega_L");
+        close(y[4], K * u, K * scale, "psi");
+
+        let vrs: Vec<u32> = ["theta_m", "omega_m", "theta_L", "omega_L", "psi"]
+            .iter()
+            .map(|n| inst.model().vr(n))
+            .collect();
+        let mut d = [0.0; 5];
+        inst.get_real_output_derivatives(&vrs, &[1; 5], &mut d).unwrap();
+        close(d[0], omega_l + du, scale, "d theta_m");
+        close(d[1], (tau - K * u) / J_M, scale, "d omega_m");
+        close(d[2], omega_l, scale, "d theta_L");
+        close(d[3], K * u / J_L, scale, "d omega_L");
+        close(d[4], K * du, K * scale, "d psi");
+    }
+}
+
+#[test]
+fn a_ramp_set_once_continues_over_later_steps() {
+    let mut inst = shaft(&[("Delta", 0.0), ("b_m", 0.0), ("b_L", 0.0)], None, false);
+    let tau_m = inst.model().vr("tau_m");
+    let r = 0.8;
+    inst.set_real_input_derivatives(&[tau_m], &[1], &[r]).unwrap();
+    inst.exit_initialization_mode().unwrap();
+    let w = (K * (1.0 / J_M + 1.0 / J_L)).sqrt();
+    let mut t = 0.0;
+    for _ in 0..40 {
+        inst.do_step(t, 0.05).unwrap();
+        t += 0.05;
+        // u'' + w² u = r t / J_m from rest.
+        let u = r / (J_M * w * w) * (t - (w * t).sin() / w);
+        let y = get(&mut inst, &["psi", "tau_m"]);
+        close(y[0], K * u, K, "psi");
+        close(y[1], r * t, 1.0, "tau_m moves along its line");
+    }
+    // Order 2 is refused: inputs are interpolated linearly.
+    assert!(inst.set_real_input_derivatives(&[tau_m], &[2], &[1.0]).is_err());
+}
+
+#[test]
+fn the_first_contact_is_logged_at_the_free_flight_time() {
+    let log = Collected::default();
+    let delta = 0.775e-3;
+    let mut inst = shaft(&[("b_m", 0.0), ("b_L", 0.0), ("tau_m", 1.5)], Some(log.clone()), false);
+    inst.set_debug_logging(true, &["logContactEvents"]).unwrap();
+    inst.exit_initialization_mode().unwrap();
+    let mut t = 0.0;
+    for _ in 0..10 {
+        inst.do_step(t, 0.01).unwrap();
+        t += 0.01;
+    }
+    // In the gap the motor accelerates alone: theta_m = tau t²/(2 J_m) reaches Delta at t*.
+    let t_star = (2.0 * delta * J_M / 1.5_f64).sqrt();
+    let events: Vec<String> = log
+        .0
+        .borrow()
+        .iter()
+        .filter(|(_, c, _)| *c == LogCategory::ContactEvents)
+        .map(|(_, _, m)| m.clone())
+        .collect();
+    let first = events.first().expect("a contact switch was logged");
+    assert!(first.contains("Free -> Positive"), "{first}");
+    let logged: f64 = first
+        .split("t = ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((logged - t_star).abs() < 1e-12, "{logged} vs {t_star}");
+    let mut contact = [0];
+    inst.get_integer(&[inst.model().vr("contact")], &mut contact).unwrap();
+    assert_eq!(contact, [1]);
+}
+
+/// Outputs after each of `steps` steps with a varying torque, as bits.
+fn run(inst: &mut Instance, steps: usize) -> Vec<u64> {
+    let names = [
+        "theta_m",
+        "omega_m",
+        "theta_L",
+        "omega_L",
+        "psi",
+        "bound",
+        "bound_paper",
+    ];
+    let mut bits = Vec::new();
+    let mut t = inst.time();
+    for _ in 0..steps {
+        let tau = 4.0 * (18.0 * t).sin();
+        inst.set_real(&[inst.model().vr("tau_m")], &[tau]).unwrap();
+        inst.do_step(t, 0.05).unwrap();
+        t += 0.05;
+        bits.extend(get(inst, &names).iter().map(|x| x.to_bits()));
+        let mut contact = [0];
+        inst.get_integer(&[inst.model().vr("contact")], &mut contact).unwrap();
+        bits.push(contact[0] as u64);
+    }
+    bits
+}
+
+#[test]
+fn reset_reruns_bit_identically() {
+    let mut inst = shaft(&[("Kp", 20.0), ("Ki", 5.0)], None, false);
+    inst.exit_initialization_mode().unwrap();
+    let first = run(&mut inst, 60);
+    inst.reset().unwrap();
+    for (name, value) in [("Kp", 20.0), ("Ki", 5.0)] {
+        inst.set_real(&[inst.model().vr(name)], &[value]).unwrap();
+    }
+    inst.setup_experiment(None, 0.0, None).unwrap();
+    inst.enter_initialization_mode().unwrap();
+    inst.exit_initialization_mode().unwrap();
+    assert_eq!(run(&mut inst, 60), first);
+}
+
+#[test]
+fn a_deserialized_state_continues_bit_identically_in_another_instance() {
+    let mut a = shaft(&[], None, false);
+    a.exit_initialization_mode().unwrap();
+    run(&mut a, 30);
+    let snap = a.get_fmu_state().unwrap();
+    let bytes = a.serialize_fmu_state(&snap).unwrap();
+    let t_snap = a.time();
+    let continued = run(&mut a, 30);
+
+    let mut b = Instance::new(&MODELS[0], None, false);
+    let restored = b.deserialize_fmu_state(&bytes).unwrap();
+    b.set_fmu_state(&restored).unwrap();
+    assert_eq!(b.time().to_bits(), t_snap.to_bits());
+    assert_eq!(run(&mut b, 30), continued);
+
+    // Restoring into the same instance rolls it back as well.
+    a.set_fmu_state(&snap).unwrap();
+    assert_eq!(run(&mut a, 30), continued);
+}
+
+#[test]
+fn bound_rates_match_central_differences() {
+    let mut inst = shaft(&[("Kp", 20.0), ("Ki", 5.0)], None, false);
+    inst.exit_initialization_mode().unwrap();
+    let (vb, vp) = (inst.model().vr("bound"), inst.model().vr("bound_paper"));
+    let delta = 1e-5;
+    inst.do_step(0.0, 0.7 - delta).unwrap();
+    let before = get(&mut inst, &["bound", "bound_paper"]);
+    inst.do_step(0.7 - delta, delta).unwrap();
+    let mut rate = [0.0; 2];
+    inst.get_real_output_derivatives(&[vb, vp], &[1, 1], &mut rate).unwrap();
+    inst.do_step(0.7, delta).unwrap();
+    let after = get(&mut inst, &["bound", "bound_paper"]);
+    for i in 0..2 {
+        let central = (after[i] - before[i]) / (2.0 * delta);
+        assert!(
+            (rate[i] - central).abs() <= 1e-6 * central.abs().max(1e-12),
+            "{i}: {} vs {central}",
+            rate[i]
+        );
+    }
+    assert!(rate[0] > 0.0);
+}

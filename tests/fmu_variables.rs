@@ -1,0 +1,238 @@
+//! The generated value-reference table, the generated modelDescription.xml and the instance
+//! agree: every variable is served by the get/set of its type, with its start value, and the
+//! wrong-type get fails. The XML is read here by a separate minimal scanner.
+
+#[path = "../modelDescription/generate.rs"]
+mod generate;
+
+use backlash_fmu::fmu::variables::{Causality, Range, VarType};
+use backlash_fmu::fmu::{model_by_identifier, FmuError, Instance, LogCategory, MODELS};
+
+/// Attribute `name` of the first tag in `text`.
+fn attr<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
+    let key = format!(" {name}=\"");
+    let start = tag.find(&key)? + key.len();
+    Some(&tag[start..start + tag[start..].find('"')?])
+}
+
+struct XmlVar {
+    name: String,
+    vr: u32,
+    causality: String,
+    element: String,
+    start: Option<String>,
+    initial: Option<String>,
+}
+
+fn xml_variables(xml: &str) -> Vec<XmlVar> {
+    xml.split("<ScalarVariable ")
+        .skip(1)
+        .map(|chunk| {
+            let head = &chunk[..chunk.find('>').unwrap()];
+            let head = format!(" {head}");
+            let body = &chunk[chunk.find('<').unwrap() + 1..];
+            let element = body[..body.find(' ').unwrap()].to_string();
+            let inner = format!(" {}", &body[..body.find("/>").unwrap()]);
+            XmlVar {
+                name: attr(&head, "name").unwrap().to_string(),
+                vr: attr(&head, "valueReference").unwrap().parse().unwrap(),
+                causality: attr(&head, "causality").unwrap().to_string(),
+                element,
+                start: attr(&inner, "start").map(str::to_string),
+                initial: attr(&head, "initial").map(str::to_string),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn xml_and_rust_table_describe_the_same_variables() {
+    assert_eq!(generate::model_identifiers(), ["BacklashShaft", "BacklashBelt"]);
+    for id in generate::model_identifiers() {
+        let xml = generate::model_description_xml(id);
+        let model = model_by_identifier(id).unwrap();
+        assert_eq!(attr(&xml, "guid"), Some(model.guid), "{id}");
+        assert!(xml.contains(&format!("modelIdentifier=\"{id}\"")));
+        let vars = xml_variables(&xml);
+        assert_eq!(vars.len(), model.variables.len(), "{id}");
+        for (x, v) in vars.iter().zip(model.variables) {
+            assert_eq!((x.name.as_str(), x.vr), (v.name, v.vr));
+            let causality = match v.causality {
+                Causality::Input => "input",
+                Causality::Output => "output",
+                Causality::Parameter => "parameter",
+                Causality::CalculatedParameter => "calculatedParameter",
+            };
+            assert_eq!(x.causality, causality, "{}", v.name);
+            assert_eq!(
+                x.element,
+                if v.ty == VarType::Real { "Real" } else { "Integer" },
+                "{}",
+                v.name
+            );
+            assert_eq!(
+                x.start.as_ref().map(|s| s.parse::<f64>().unwrap()),
+                v.start,
+                "{}",
+                v.name
+            );
+            // FMI 2.0: start is required for inputs, parameters and initial="exact".
+            let needs_start =
+                matches!(v.causality, Causality::Input | Causality::Parameter) || x.initial.as_deref() == Some("exact");
+            assert_eq!(x.start.is_some(), needs_start, "{}", v.name);
+            assert!(!v.description.is_empty());
+        }
+        for c in LogCategory::ALL {
+            assert!(
+                xml.contains(&format!("<Category name=\"{}\"", c.name())),
+                "{id} lacks {}",
+                c.name()
+            );
+        }
+        for unit in ["rpm", "deg"] {
+            assert!(
+                xml.contains(&format!("<DisplayUnit name=\"{unit}\"")),
+                "{id} lacks display unit {unit}"
+            );
+        }
+    }
+    assert!(generate::model_description_xml("BacklashBelt").contains("<DisplayUnit name=\"mm\""));
+}
+
+#[test]
+fn the_guid_is_the_hash_of_the_description_and_differs_per_model() {
+    let shaft = generate::model_description_xml("BacklashShaft");
+    let guid = attr(&shaft, "guid").unwrap();
+    // The same description gives the same guid; another description another one.
+    assert_eq!(generate::model_description_xml("BacklashShaft"), shaft);
+    assert_ne!(
+        attr(&generate::model_description_xml("BacklashBelt"), "guid").unwrap(),
+        guid
+    );
+    let blanked = shaft.replacen(guid, "", 1);
+    assert_eq!(generate::guid("BacklashShaft"), guid);
+    assert_ne!(blanked, shaft);
+    assert!(guid.len() == 38 && guid.starts_with('{') && guid.ends_with('}'));
+}
+
+/// A value in the variable's range, different from its start value.
+fn other_value(start: f64, range: Range) -> f64 {
+    match range {
+        Range::Positive | Range::NonNegative => start * 1.5 + 0.25,
+        Range::Finite => start - 0.75,
+    }
+}
+
+#[test]
+fn every_variable_is_served_by_its_typed_get_and_set() {
+    for model in &MODELS {
+        let mut inst = Instance::new(model, None, false);
+        let mut expected = Vec::new();
+        for v in model.variables {
+            let settable = v.start.is_some();
+            assert_eq!(
+                settable,
+                v.causality != Causality::CalculatedParameter
+                    && (v.causality != Causality::Output || v.is_initial_state())
+            );
+            if settable {
+                let value = other_value(v.start.unwrap(), v.range);
+                inst.set_real(&[v.vr], &[value])
+                    .unwrap_or_else(|e| panic!("{}: {e}", v.name));
+                expected.push((v, value));
+            } else {
+                let err = inst.set_real(&[v.vr], &[1.0]).unwrap_err();
+                assert!(
+                    matches!(err, FmuError::NotSettable { .. } | FmuError::WrongType { .. }),
+                    "{}: {err}",
+                    v.name
+                );
+                inst.reset().unwrap();
+                for (w, value) in &expected {
+                    inst.set_real(&[w.vr], &[*value]).unwrap();
+                }
+            }
+        }
+        inst.enter_initialization_mode().unwrap();
+        for (v, value) in &expected {
+            let mut out = [f64::NAN];
+            inst.get_real(&[v.vr], &mut out).unwrap();
+            assert_eq!(out[0].to_bits(), value.to_bits(), "{}: {}", model.identifier, v.name);
+        }
+        for v in model.variables {
+            let mut real = [0.0];
+            let mut int = [0];
+            match v.ty {
+                VarType::Real => {
+                    inst.get_real(&[v.vr], &mut real)
+                        .unwrap_or_else(|e| panic!("{}: {e}", v.name));
+                    let err = inst.get_integer(&[v.vr], &mut int).unwrap_err();
+                    assert!(matches!(err, FmuError::WrongType { .. }), "{}: {err}", v.name);
+                }
+                VarType::Integer => {
+                    inst.get_integer(&[v.vr], &mut int).unwrap();
+                    assert!(matches!(
+                        inst.get_real(&[v.vr], &mut real).unwrap_err(),
+                        FmuError::WrongType { .. }
+                    ));
+                }
+            }
+            // A wrong-type get enters Error; Error still serves debug gets, and Reset clears it.
+            inst.reset().unwrap();
+            for (w, value) in &expected {
+                inst.set_real(&[w.vr], &[*value]).unwrap();
+            }
+            inst.enter_initialization_mode().unwrap();
+        }
+    }
+}
+
+#[test]
+fn calculated_outputs_at_the_start_match_the_spec_formulas() {
+    // Shaft: psi = k dz(theta_m - theta_L, Delta) (spec §1), bounds 0 at the start (spec §4).
+    let model = &MODELS[0];
+    let mut inst = Instance::new(model, None, false);
+    inst.set_real(&[model.vr("theta_m"), model.vr("theta_L")], &[0.01, -0.002])
+        .unwrap();
+    inst.enter_initialization_mode().unwrap();
+    let vrs = [
+        model.vr("psi"),
+        model.vr("bound"),
+        model.vr("bound_paper"),
+        model.vr("bound_sup"),
+    ];
+    let mut out = [0.0; 4];
+    inst.get_real(&vrs, &mut out).unwrap();
+    let expected_psi = 200.0 * (0.012 - 0.775e-3);
+    assert!((out[0] - expected_psi).abs() <= 1e-13 * expected_psi, "{out:?}");
+    assert_eq!(&out[1..3], &[0.0, 0.0]);
+    assert!(
+        out[3].is_finite() && out[3] > 0.0,
+        "open loop with damping: finite bound_sup, {}",
+        out[3]
+    );
+    let mut contact = [9];
+    inst.get_integer(&[model.vr("contact")], &mut contact).unwrap();
+    assert_eq!(contact, [1]);
+
+    // Belt: u = R_1 theta_m - alpha_1 theta_L, g = alpha_2 Delta (spec §1 table).
+    let model = &MODELS[1];
+    let mut inst = Instance::new(model, None, false);
+    inst.set_real(&[model.vr("theta_m"), model.vr("theta_L")], &[-0.01, 0.0])
+        .unwrap();
+    inst.enter_initialization_mode().unwrap();
+    let mut psi = [0.0];
+    inst.get_real(&[model.vr("psi")], &mut psi).unwrap();
+    let (r1, r2, rg1, rg2, kb, delta) = (0.02, 0.04, 0.015, 0.045, 2e5, 5e-5);
+    let _alpha_1 = r2 * rg2 / rg1;
+    let u: f64 = r1 * -0.01;
+    let g = r2 / rg1 * delta;
+    let expected = kb * (u + g);
+    assert!(
+        (psi[0] - expected).abs() <= 1e-12 * expected.abs(),
+        "{} vs {expected}",
+        psi[0]
+    );
+    inst.get_integer(&[model.vr("contact")], &mut contact).unwrap();
+    assert_eq!(contact, [-1]);
+}
