@@ -2,6 +2,15 @@
 //! FMI 2.0 Co-Simulation units.
 //!
 //! Layers, each depending only on the one before: [`physics`] (pure numerics) ←
-//! `fmu` (instance state machine, variables, FMU state) ← `ffi` (the C ABI).
+//! [`fmu`] (instance state machine, variables, FMU state) ← [`ffi`] (the C ABI).
+//! `unsafe` is denied everywhere except in [`ffi`], where each block states why it is sound.
+
+#![deny(unsafe_code)]
 
 pub mod physics;
+
+pub mod fmu;
+
+pub mod design;
+#[allow(unsafe_code)]
+pub mod ffi;
