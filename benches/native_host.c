@@ -1,0 +1,535 @@
+/* A minimal FMI 2.0 co-simulation host, as a C user would write one: it dlopens the packaged
+ * BacklashShaft library, resolves the fmi2* functions by name and drives one or many instances.
+ * It times the calls and prints one machine-readable line per result:
+ *
+ *     @ <key> <value> [<value> ...]
+ *
+ * Built and run by `cargo xtask bench` (xtask/src/bench.rs), which also writes bench_vr.h (the
+ * value references, read from the archive's modelDescription.xml) and passes the guid.
+ *
+ * usage: native_host <lib.so> <guid> <resource-uri> <mode> [args]
+ *   suite <batches> <steps-per-batch>   per-call costs (medians over batches) and their floors
+ *   scale <steps>                       one long event-free run: time and peak RSS
+ *   instances <count> <batches> <instance-steps-per-batch>
+ *                                       many instances stepped round-robin
+ *   piloop <seconds> <repeats>          the sampled PI loop of the fmpy and scipy benchmarks
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "fmi2Functions.h"
+#include "bench_vr.h"
+
+#define H 1e-3 /* communication step [s] */
+
+/* ---- the FMI 2.0 API of one loaded library ---- */
+
+typedef struct {
+    fmi2InstantiateTYPE *instantiate;
+    fmi2FreeInstanceTYPE *free_instance;
+    fmi2SetDebugLoggingTYPE *set_debug_logging;
+    fmi2SetupExperimentTYPE *setup_experiment;
+    fmi2EnterInitializationModeTYPE *enter_init;
+    fmi2ExitInitializationModeTYPE *exit_init;
+    fmi2TerminateTYPE *terminate;
+    fmi2SetRealTYPE *set_real;
+    fmi2GetRealTYPE *get_real;
+    fmi2GetIntegerTYPE *get_integer;
+    fmi2DoStepTYPE *do_step;
+} Api;
+
+static Api api;
+static const char *guid, *resources;
+
+static void die(const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "native_host: ");
+    vfprintf(stderr, fmt, ap);
+    fprintf(stderr, "\n");
+    va_end(ap);
+    exit(1);
+}
+
+static void *symbol(void *lib, const char *name) {
+    void *f = dlsym(lib, name);
+    if (!f) die("%s not exported: %s", name, dlerror());
+    return f;
+}
+
+static void load(const char *path) {
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) die("dlopen %s: %s", path, dlerror());
+    api.instantiate = (fmi2InstantiateTYPE *)symbol(lib, "fmi2Instantiate");
+    api.free_instance = (fmi2FreeInstanceTYPE *)symbol(lib, "fmi2FreeInstance");
+    api.set_debug_logging = (fmi2SetDebugLoggingTYPE *)symbol(lib, "fmi2SetDebugLogging");
+    api.setup_experiment = (fmi2SetupExperimentTYPE *)symbol(lib, "fmi2SetupExperiment");
+    api.enter_init = (fmi2EnterInitializationModeTYPE *)symbol(lib, "fmi2EnterInitializationMode");
+    api.exit_init = (fmi2ExitInitializationModeTYPE *)symbol(lib, "fmi2ExitInitializationMode");
+    api.terminate = (fmi2TerminateTYPE *)symbol(lib, "fmi2Terminate");
+    api.set_real = (fmi2SetRealTYPE *)symbol(lib, "fmi2SetReal");
+    api.get_real = (fmi2GetRealTYPE *)symbol(lib, "fmi2GetReal");
+    api.get_integer = (fmi2GetIntegerTYPE *)symbol(lib, "fmi2GetInteger");
+    api.do_step = (fmi2DoStepTYPE *)symbol(lib, "fmi2DoStep");
+}
+
+/* Contact-switch messages seen by the logger (category logContactEvents); other messages are
+ * errors or warnings and are shown. */
+static long contact_messages;
+
+static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
+    (void)env;
+    if (category && strcmp(category, "logContactEvents") == 0) {
+        contact_messages++;
+        return;
+    }
+    va_list ap;
+    va_start(ap, message);
+    fprintf(stderr, "[%s] %s (status %d): ", instance ? instance : "?", category ? category : "?", (int)status);
+    vfprintf(stderr, message, ap);
+    fprintf(stderr, "\n");
+    va_end(ap);
+}
+
+static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+
+static void check(fmi2Status s, const char *what) {
+    if (s != fmi2OK) die("%s returned status %d", what, (int)s);
+}
+
+/* ---- clocks and statistics ---- */
+
+static double clock_ns(clockid_t id) {
+    struct timespec ts;
+    clock_gettime(id, &ts);
+    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
+}
+
+/* Both clocks: wall (CLOCK_MONOTONIC) and this thread's CPU time, which leaves out the time the
+ * thread waited for a core while other jobs ran (the machine is shared). */
+typedef struct {
+    double wall, cpu;
+} Tic;
+
+static Tic tic(void) { return (Tic){clock_ns(CLOCK_MONOTONIC), clock_ns(CLOCK_THREAD_CPUTIME_ID)}; }
+
+/* Time per item since `start` [ns] into cpu[b] and wall[b]. */
+static void toc(Tic start, double items, double *cpu, double *wall, int b) {
+    Tic end = tic();
+    cpu[b] = (end.cpu - start.cpu) / items;
+    wall[b] = (end.wall - start.wall) / items;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Quantile by linear interpolation between order statistics (q in [0, 1]). */
+static double quantile(const double *sorted, int n, double q) {
+    double pos = q * (n - 1);
+    int lo = (int)floor(pos);
+    int hi = lo + 1 < n ? lo + 1 : lo;
+    return sorted[lo] + (pos - lo) * (sorted[hi] - sorted[lo]);
+}
+
+/* Prints "@ <key> <median> <q1> <q3> <wall median> <wall q1> <wall q3>" for per-item times [ns]
+ * over n batches: CPU time first, then wall-clock time. */
+static void report(const char *key, double *cpu, double *wall, int n) {
+    qsort(cpu, n, sizeof(double), cmp_double);
+    qsort(wall, n, sizeof(double), cmp_double);
+    printf("@ %s %.6g %.6g %.6g %.6g %.6g %.6g\n", key, quantile(cpu, n, 0.5), quantile(cpu, n, 0.25),
+           quantile(cpu, n, 0.75), quantile(wall, n, 0.5), quantile(wall, n, 0.25), quantile(wall, n, 0.75));
+    fflush(stdout);
+}
+
+static long status_kb(const char *field) {
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    char line[256];
+    long kb = -1;
+    size_t len = strlen(field);
+    while (fgets(line, sizeof line, f)) {
+        if (strncmp(line, field, len) == 0 && line[len] == ':') {
+            kb = strtol(line + len + 1, NULL, 10);
+            break;
+        }
+    }
+    fclose(f);
+    return kb;
+}
+
+/* ---- instances ---- */
+
+/* The paper's rig (the FMU's start values) unless params are given; Kp, Ki from rigs.py. */
+static fmi2Component make(const char *name, const fmi2ValueReference *vr, const fmi2Real *value, size_t n,
+                          int log_contacts) {
+    fmi2Component c = api.instantiate(name, fmi2CoSimulation, guid, resources, &callbacks, fmi2False, fmi2False);
+    if (!c) die("fmi2Instantiate failed");
+    if (log_contacts) {
+        fmi2String categories[] = {"logContactEvents"};
+        check(api.set_debug_logging(c, fmi2True, 1, categories), "fmi2SetDebugLogging");
+    }
+    if (n) check(api.set_real(c, vr, n, value), "fmi2SetReal(parameters)");
+    check(api.setup_experiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment");
+    check(api.enter_init(c), "fmi2EnterInitializationMode");
+    check(api.exit_init(c), "fmi2ExitInitializationMode");
+    return c;
+}
+
+static void release(fmi2Component c) {
+    check(api.terminate(c), "fmi2Terminate");
+    api.free_instance(c);
+}
+
+/* Gains of the PI loop the bounds assume (tests/python/rigs.py SHAFT_GAINS): the bounds are
+ * then the 5-state closed-loop ones that a user of the loop reads. */
+#define KP 42.0
+#define KI 180.0
+#define DELTA_DEFAULT 0.775e-3 /* the FMU's start value of Delta [rad] */
+
+/* Event-free schedule: pressed into the positive flank near the equilibrium of a constant
+ * motor torque (psi ~ tau J_L / (J_m + J_L)), so u stays well past the gap for good. */
+#define TAU_PRESS 2.0
+static fmi2Component make_pressed(const char *name, int log_contacts) {
+    const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_theta_m};
+    const fmi2Real value[] = {KP, KI, DELTA_DEFAULT + 0.0055};
+    fmi2Component c = make(name, vr, value, 3, log_contacts);
+    const fmi2ValueReference in[] = {VR_tau_m, VR_tau_L};
+    const fmi2Real tau[] = {TAU_PRESS, 0.0};
+    check(api.set_real(c, in, 2, tau), "fmi2SetReal(inputs)");
+    return c;
+}
+
+/* Switching schedule: the motor swings inside the gap with a speed that alternates between -V
+ * and +V at every communication point (held torque +-A with A h = 2 V J_m), so that within each
+ * step u reaches past +g or -g by ~V h/4 - g and comes back: a contact made and lost in every
+ * step (2 switches), counted by the logger in an untimed run of the same schedule. */
+#define V_SWING 6.0
+#define J_M 2.28
+static fmi2Component make_swinging(const char *name, int log_contacts) {
+    const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_omega_m};
+    const fmi2Real value[] = {KP, KI, -V_SWING};
+    return make(name, vr, value, 3, log_contacts);
+}
+static double swing_torque(long k) { return (k % 2 == 0 ? 1.0 : -1.0) * 2.0 * V_SWING * J_M / H; }
+
+/* ---- floors ---- */
+
+/* A trivial "copy input to output" component with the FMI signatures, called through function
+ * pointers exactly as the real library is: the cost of the call pattern itself. */
+typedef struct {
+    double in[2], out;
+} Copy;
+
+static fmi2Status copy_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
+    Copy *s = c;
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] > 1) return fmi2Error;
+        s->in[vr[i]] = v[i];
+    }
+    return fmi2OK;
+}
+static fmi2Status copy_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
+    (void)t, (void)h, (void)no_prior;
+    Copy *s = c;
+    s->out = s->in[0];
+    return fmi2OK;
+}
+static fmi2Status copy_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+    Copy *s = c;
+    for (size_t i = 0; i < n; i++) v[i] = vr[i] == 0 ? s->out : 0.0;
+    return fmi2OK;
+}
+/* volatile: the compiler must call through the pointers, as with a dlopened library. */
+static fmi2SetRealTYPE *volatile copy_set = copy_set_real;
+static fmi2DoStepTYPE *volatile copy_step = copy_do_step;
+static fmi2GetRealTYPE *volatile copy_get = copy_get_real;
+
+static volatile double sink;
+
+/* ---- modes ---- */
+
+static void suite(int batches, long steps) {
+    double *t = malloc(sizeof(double) * batches), *tw = malloc(sizeof(double) * batches);
+    const fmi2ValueReference in[] = {VR_tau_m, VR_tau_L};
+    const fmi2ValueReference w_m[] = {VR_omega_m};
+    const fmi2ValueReference reals[] = {VR_theta_m, VR_omega_m, VR_theta_L, VR_omega_L, VR_psi, VR_bound, VR_bound_paper};
+    const fmi2ValueReference contact_vr[] = {VR_contact};
+    fmi2Real out[7];
+    fmi2Integer contact;
+
+    /* Floor: y = M x with M orthogonal (two plane rotations; built at run time so nothing
+     * folds), fed back so that each product depends on the previous one, as steps do. */
+    {
+        volatile double angle = 0.7;
+        double c1 = cos(angle), s1 = sin(angle), c2 = cos(2 * angle), s2 = sin(2 * angle);
+        double m[16] = {c1, -s1, 0, 0, s1, c1, 0, 0, 0, 0, c2, -s2, 0, 0, s2, c2};
+        double mix[16], r[16] = {1, 0, 0, 0, 0, c2, 0, -s2, 0, 0, 1, 0, 0, s2, 0, c2};
+        for (int i = 0; i < 4; i++)
+            for (int j = 0; j < 4; j++) {
+                mix[4 * i + j] = 0;
+                for (int k = 0; k < 4; k++) mix[4 * i + j] += r[4 * i + k] * m[4 * k + j];
+            }
+        double x[4] = {0.1, 0.2, 0.3, 0.4}, y[4];
+        long n = steps * 20; /* a product is ~100x cheaper than a step: longer batches */
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long k = 0; k < n; k++) {
+                for (int i = 0; i < 4; i++)
+                    y[i] = mix[4 * i] * x[0] + mix[4 * i + 1] * x[1] + mix[4 * i + 2] * x[2] + mix[4 * i + 3] * x[3];
+                memcpy(x, y, sizeof x);
+            }
+            toc(t0, n, t, tw, b);
+        }
+        sink = x[0] + x[1] + x[2] + x[3];
+        report("matvec_4x4", t, tw, batches);
+    }
+
+    /* Floor: the PI loop's call pattern (setReal of 2, doStep, getReal of 1) on the copy component. */
+    {
+        Copy copy = {{0, 0}, 0};
+        const fmi2ValueReference cin[] = {0, 1}, cout[] = {0};
+        double v = 0.5, tau[2];
+        long n = steps * 20;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long k = 0; k < n; k++) {
+                tau[0] = v, tau[1] = 0.0;
+                copy_set(&copy, cin, 2, tau);
+                copy_step(&copy, k * H, H, fmi2True);
+                copy_get(&copy, cout, 1, &v);
+                v = v * 0.999 + 0.001;
+            }
+            toc(t0, n, t, tw, b);
+        }
+        sink = v;
+        report("copy_set2_step_get1", t, tw, batches);
+    }
+
+    /* Event-free: verify first (untimed, logging on) that the schedule never switches. */
+    {
+        long total = (long)batches * steps;
+        fmi2Component c = make_pressed("check-pressed", 1);
+        contact_messages = 0;
+        for (long k = 0; k < total; k++) check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+        check(api.get_integer(c, contact_vr, 1, &contact), "fmi2GetInteger");
+        printf("@ pressed_switches %ld %ld\n", contact_messages, total);
+        printf("@ pressed_final_contact %d\n", (int)contact);
+        release(c);
+    }
+    {
+        fmi2Component c = make_pressed("set-get", 0);
+        double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long k = 0; k < steps; k++) {
+                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+                check(api.get_real(c, w_m, 1, &w), "fmi2GetReal");
+            }
+            toc(t0, steps, t, tw, b);
+        }
+        sink = w;
+        report("ours_set2_get1", t, tw, batches);
+        release(c);
+    }
+    {
+        fmi2Component c = make_pressed("step", 0);
+        long k = 0;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long i = 0; i < steps; i++, k++) check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+            toc(t0, steps, t, tw, b);
+        }
+        report("ours_step_event_free", t, tw, batches);
+        release(c);
+    }
+    {
+        fmi2Component c = make_pressed("set-step", 0);
+        double tau[2] = {TAU_PRESS, 0.0};
+        long k = 0;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long i = 0; i < steps; i++, k++) {
+                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+            }
+            toc(t0, steps, t, tw, b);
+        }
+        report("ours_set2_step", t, tw, batches);
+        release(c);
+    }
+    {
+        fmi2Component c = make_pressed("pattern", 0);
+        double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
+        long k = 0;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long i = 0; i < steps; i++, k++) {
+                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+                check(api.get_real(c, w_m, 1, &w), "fmi2GetReal");
+            }
+            toc(t0, steps, t, tw, b);
+        }
+        sink = w;
+        report("ours_set2_step_get1", t, tw, batches);
+        release(c);
+    }
+    {
+        fmi2Component c = make_pressed("all-outputs", 0);
+        double tau[2] = {TAU_PRESS, 0.0};
+        long k = 0;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long i = 0; i < steps; i++, k++) {
+                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+                check(api.get_real(c, reals, 7, out), "fmi2GetReal");
+                check(api.get_integer(c, contact_vr, 1, &contact), "fmi2GetInteger");
+            }
+            toc(t0, steps, t, tw, b);
+        }
+        sink = out[5] + out[6] + contact;
+        printf("@ all_outputs_final_bound %.17g %.17g\n", out[5], out[6]);
+        report("ours_set2_step_get_all", t, tw, batches);
+        release(c);
+    }
+
+    /* Switching: count the switches in an untimed run with logging, then time the same schedule. */
+    {
+        long total = (long)batches * steps;
+        fmi2Component c = make_swinging("check-swinging", 1);
+        contact_messages = 0;
+        for (long k = 0; k < total; k++) {
+            double tau[2] = {swing_torque(k), 0.0};
+            check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+            check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+        }
+        printf("@ swinging_switches %ld %ld\n", contact_messages, total);
+        release(c);
+    }
+    {
+        fmi2Component c = make_swinging("swinging", 0);
+        long k = 0;
+        for (int b = 0; b < batches; b++) {
+            Tic t0 = tic();
+            for (long i = 0; i < steps; i++, k++) {
+                double tau[2] = {swing_torque(k), 0.0};
+                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+            }
+            toc(t0, steps, t, tw, b);
+        }
+        report("ours_set2_step_switching", t, tw, batches);
+        release(c);
+    }
+    free(t);
+    free(tw);
+}
+
+static void scale(long steps) {
+    long rss_before = status_kb("VmRSS");
+    fmi2Component c = make_pressed("scale", 0);
+    Tic t0 = tic();
+    for (long k = 0; k < steps; k++) check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+    Tic t1 = tic();
+    double elapsed = t1.wall - t0.wall, cpu = t1.cpu - t0.cpu;
+    const fmi2ValueReference contact_vr[] = {VR_contact};
+    fmi2Integer contact;
+    check(api.get_integer(c, contact_vr, 1, &contact), "fmi2GetInteger");
+    printf("@ scale %ld %.6g %.6g %ld %ld %ld %d %.6g\n", steps, elapsed / 1e9, cpu / steps, rss_before,
+           status_kb("VmRSS"), status_kb("VmHWM"), (int)contact, elapsed / steps);
+    release(c);
+}
+
+static void instances(int count, int batches, long per_batch) {
+    fmi2Component *c = malloc(sizeof *c * count);
+    double *t = malloc(sizeof(double) * batches), *tw = malloc(sizeof(double) * batches);
+    long rss_before = status_kb("VmRSS");
+    Tic t0 = tic();
+    for (int i = 0; i < count; i++) {
+        char name[32];
+        snprintf(name, sizeof name, "instance-%d", i);
+        c[i] = make_pressed(name, 0);
+    }
+    double setup_ns = (tic().cpu - t0.cpu) / count;
+    long rss_after = status_kb("VmRSS");
+    long rounds = per_batch / count > 0 ? per_batch / count : 1;
+    long k = 0;
+    for (int b = 0; b < batches; b++) {
+        Tic s0 = tic();
+        for (long r = 0; r < rounds; r++, k++)
+            for (int i = 0; i < count; i++) check(api.do_step(c[i], k * H, H, fmi2True), "fmi2DoStep");
+        toc(s0, (double)rounds * count, t, tw, b);
+    }
+    qsort(t, batches, sizeof(double), cmp_double);
+    qsort(tw, batches, sizeof(double), cmp_double);
+    printf("@ instances %d %.6g %.6g %.6g %.6g %ld %ld %ld %.6g\n", count, quantile(t, batches, 0.5),
+           quantile(t, batches, 0.25), quantile(t, batches, 0.75), setup_ns, rss_before, rss_after,
+           status_kb("VmHWM"), quantile(tw, batches, 0.5));
+    for (int i = 0; i < count; i++) release(c[i]);
+    free(c);
+    free(t);
+    free(tw);
+}
+
+/* The closed loop of benches/python_bench.py, here in C: the sampled PI of
+ * tests/python/reference.py (SampledPI) on omega_m, reference 5 sin(2 pi 0.5 t) rad/s, load
+ * torque -2 N.m from t = 4 s, on the shaft rig of tests/python/rigs.py (SHAFT, SHAFT_GAINS). */
+static void piloop(double seconds, int repeats) {
+    const fmi2ValueReference pv[] = {VR_J_m, VR_J_L, VR_b_m, VR_b_L, VR_k, VR_Delta, VR_Kp, VR_Ki};
+    const fmi2Real pval[] = {2.28, 2.55, 0.05, 0.05, 200.0, 5.38e-3 / 2, KP, KI};
+    const fmi2ValueReference in[] = {VR_tau_m, VR_tau_L}, w_m[] = {VR_omega_m};
+    const fmi2ValueReference state[] = {VR_theta_m, VR_omega_m, VR_theta_L, VR_omega_L};
+    long n = (long)llround(seconds / H);
+    double *t = malloc(sizeof(double) * repeats), *tw = malloc(sizeof(double) * repeats), z[4];
+    for (int r = 0; r < repeats; r++) {
+        fmi2Component c = make("piloop", pv, pval, 8, 0);
+        double x = 0.0, w = 0.0;
+        Tic t0 = tic();
+        for (long k = 0; k < n; k++) {
+            double tk = k * H;
+            check(api.get_real(c, w_m, 1, &w), "fmi2GetReal");
+            double e = 5.0 * sin(2 * M_PI * 0.5 * tk) - w;
+            double tau[2] = {KP * e + KI * x, tk >= 4.0 ? -2.0 : 0.0};
+            x += H * e;
+            check(api.set_real(c, in, 2, tau), "fmi2SetReal");
+            check(api.do_step(c, tk, H, fmi2True), "fmi2DoStep");
+        }
+        toc(t0, n, t, tw, r);
+        check(api.get_real(c, state, 4, z), "fmi2GetReal");
+        release(c);
+    }
+    report("piloop_step", t, tw, repeats);
+    printf("@ piloop_final %.17g %.17g %.17g %.17g %ld\n", z[0], z[1], z[2], z[3], n);
+    free(t);
+    free(tw);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 5) die("usage: native_host <lib.so> <guid> <resource-uri> suite|scale|instances|piloop [args]");
+    load(argv[1]);
+    guid = argv[2];
+    resources = argv[3];
+    const char *mode = argv[4];
+    if (strcmp(mode, "suite") == 0 && argc == 7) {
+        suite(atoi(argv[5]), atol(argv[6]));
+    } else if (strcmp(mode, "scale") == 0 && argc == 6) {
+        scale(atol(argv[5]));
+    } else if (strcmp(mode, "instances") == 0 && argc == 8) {
+        instances(atoi(argv[5]), atoi(argv[6]), atol(argv[7]));
+    } else if (strcmp(mode, "piloop") == 0 && argc == 7) {
+        piloop(atof(argv[5]), atoi(argv[6]));
+    } else {
+        die("unknown mode or wrong argument count: %s", mode);
+    }
+    return 0;
+}

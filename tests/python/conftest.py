@@ -1,0 +1,31 @@
+"""pytest wiring: FMU fixtures (see fmu_driver.require for what happens when an FMU is missing)."""
+
+from __future__ import annotations
+
+import os
+
+# The tests multiply 4x4 and 5x5 matrices by the thousand: BLAS worker threads only add
+# synchronisation cost (30x slower on a busy 2-core machine). Must precede the numpy import.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import pytest  # noqa: E402
+
+import fmu_driver  # noqa: E402
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _remove_extracted_fmus():
+    yield
+    fmu_driver.remove_all()
+
+
+@pytest.fixture(scope="session")
+def shaft() -> fmu_driver.Extracted:
+    return fmu_driver.require("BacklashShaft")
+
+
+@pytest.fixture(scope="session", params=fmu_driver.MODELS)
+def fmu(request) -> fmu_driver.Extracted:
+    """Each of the two FMUs in turn."""
+    return fmu_driver.require(request.param)

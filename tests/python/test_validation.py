@@ -1,0 +1,104 @@
+"""The packaged FMUs as a tool sees them: fmpy's validator and the interface of spec §4."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from fmpy.validation import validate_fmu
+
+COMMON = {
+    # name: (causality, type, unit)
+    "tau_m": ("input", "Real", "N.m"),
+    "tau_L": ("input", "Real", "N.m"),
+    "omega_m": ("output", "Real", "rad/s"),
+    "omega_L": ("output", "Real", "rad/s"),
+    "theta_m": ("output", "Real", "rad"),
+    "theta_L": ("output", "Real", "rad"),
+    "contact": ("output", "Integer", None),
+    "bound": ("output", "Real", "rad/s"),
+    "bound_paper": ("output", "Real", "rad/s"),
+    "bound_sup": ("calculatedParameter", "Real", "rad/s"),
+    "J_m": ("parameter", "Real", "kg.m2"),
+    "J_L": ("parameter", "Real", "kg.m2"),
+    "b_m": ("parameter", "Real", "N.m.s/rad"),
+    "b_L": ("parameter", "Real", "N.m.s/rad"),
+    "Kp": ("parameter", "Real", "N.m.s/rad"),
+    "Ki": ("parameter", "Real", "N.m/rad"),
+}
+SPECIFIC = {
+    "BacklashShaft": {
+        "psi": ("output", "Real", "N.m"),
+        "k": ("parameter", "Real", "N.m/rad"),
+        "Delta": ("parameter", "Real", "rad"),
+    },
+    "BacklashBelt": {
+        "psi": ("output", "Real", "N"),
+        "K_b": ("parameter", "Real", "N/m"),
+        "R_1": ("parameter", "Real", "m"),
+        "R_2": ("parameter", "Real", "m"),
+        "R_g1": ("parameter", "Real", "m"),
+        "R_g2": ("parameter", "Real", "m"),
+        "Delta": ("parameter", "Real", "m"),
+    },
+}
+# SI base-unit exponents (kg, m, s, rad) of every unit the interface uses.
+BASE = {
+    "N.m": (1, 2, -2, 0),
+    "N": (1, 1, -2, 0),
+    "rad/s": (0, 0, -1, 1),
+    "rad": (0, 0, 0, 1),
+    "kg.m2": (1, 2, 0, 0),
+    "N.m.s/rad": (1, 2, -1, -1),
+    "N.m/rad": (1, 2, -2, -1),
+    "N/m": (1, 0, -2, 0),
+    "m": (0, 1, 0, 0),
+}
+# Display units users expect (spec §4): value_display = factor * value_SI.
+DISPLAY = {"rad/s": ("rpm", 30.0 / math.pi), "rad": ("deg", 180.0 / math.pi), "m": ("mm", 1000.0)}
+
+
+def _unit(v):
+    return v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+
+
+def test_fmpy_validation_finds_no_problem(fmu):
+    assert validate_fmu(str(fmu.path)) == []
+
+
+def test_fmu_is_fmi2_cosimulation(fmu):
+    assert fmu.md.fmiVersion == "2.0"
+    assert fmu.md.coSimulation is not None
+    assert fmu.md.coSimulation.modelIdentifier == fmu.model
+    assert fmu.md.coSimulation.canGetAndSetFMUstate and fmu.md.coSimulation.canSerializeFMUstate
+
+
+def test_interface_names_causalities_and_units(fmu):
+    expected = {**COMMON, **SPECIFIC[fmu.model]}
+    for name, (causality, vtype, unit) in expected.items():
+        assert name in fmu.variables, f"{fmu.model}: variable {name} missing"
+        v = fmu.variables[name]
+        assert (v.causality, v.type, _unit(v)) == (causality, vtype, unit), name
+        if causality in ("parameter", "calculatedParameter"):
+            assert v.variability == "fixed", name
+
+
+def test_units_are_defined_with_base_units_and_display_units(fmu):
+    units = {u.name: u for u in fmu.md.unitDefinitions}
+    used = {_unit(v) for v in fmu.md.modelVariables} - {None}
+    assert used <= set(units), f"undefined units {used - set(units)}"
+    for name in used:
+        b = units[name].baseUnit
+        assert b is not None, f"unit {name} has no BaseUnit"
+        assert (b.kg, b.m, b.s, b.rad) == BASE[name], name
+        assert (b.A, b.K, b.mol, b.cd, b.factor, b.offset) == (0, 0, 0, 0, 1.0, 0.0), name
+    for name, (display, factor) in DISPLAY.items():
+        if name not in used:
+            continue
+        shown = {d.name: d for d in units[name].displayUnits}
+        assert display in shown, f"{name} lacks display unit {display}"
+        assert shown[display].factor == pytest.approx(factor, rel=1e-15)
+        assert shown[display].offset == 0.0
+    # Each FMU has lengths to show in mm only if it has lengths at all: the belt does.
+    if fmu.model == "BacklashBelt":
+        assert "m" in used
