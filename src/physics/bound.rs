@@ -42,6 +42,8 @@ pub enum BoundError {
     NonFiniteGain { name: &'static str, value: f64 },
     #[error("time advance {h} must be finite and >= 0")]
     BadAdvance { h: f64 },
+    #[error("an advance of {h} s spans more than {} periods of the loop's fastest motion; advance at most {max_h:e} s at a time", super::stepper::MAX_PIECES)]
+    AdvanceTooLong { h: f64, max_h: f64 },
     #[error("bound state is not finite or has negative time")]
     BadState,
 }
@@ -148,6 +150,13 @@ impl SpeedErrorBound {
             }
             self.state.elapsed += h;
             return Ok(());
+        }
+        let len_ref = self.h_rows.len_ref();
+        if h / len_ref > super::stepper::MAX_PIECES as f64 {
+            return Err(BoundError::AdvanceTooLong {
+                h,
+                max_h: super::stepper::MAX_PIECES as f64 * len_ref,
+            });
         }
         if !self.cache.as_ref().is_some_and(|c| c.h == h) {
             let pieces = (h / self.h_rows.len_ref()).ceil().max(1.0);

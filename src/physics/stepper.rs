@@ -52,7 +52,12 @@ pub enum StepError {
     Overflow,
     #[error("more than {limit} contact switches in one step of {h} s")]
     TooManySwitches { limit: usize, h: f64 },
+    #[error("a step of {h} s spans more than {MAX_PIECES} periods of the plant's fastest motion; take steps of at most {max_h:e} s")]
+    StepTooLong { h: f64, max_h: f64 },
 }
+
+/// Most pieces one step may be cut into (bounds the work of a step: about 0.1 s of CPU).
+pub const MAX_PIECES: usize = 1 << 20;
 
 /// One contact mode: its augmented matrix and the derivative rows of u along it.
 #[derive(Clone, Debug)]
@@ -227,6 +232,12 @@ impl Stepper {
         }
         if !state.is_finite() {
             return Err(StepError::NonFiniteState);
+        }
+        if h / self.len_ref > MAX_PIECES as f64 {
+            return Err(StepError::StepTooLong {
+                h,
+                max_h: MAX_PIECES as f64 * self.len_ref,
+            });
         }
         self.ensure_cache(h);
         let cache = self.cache.as_ref().expect("cache was just filled");
