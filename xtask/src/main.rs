@@ -1,1 +1,59 @@
-fn main() {}
+//! Developer commands of the backlash-fmu workspace, run as `cargo xtask <command>`.
+
+mod abi;
+mod bench;
+mod demo;
+mod design;
+mod documentation;
+mod fmu;
+mod python;
+mod test;
+mod util;
+
+/// The single source of the model descriptions, shared with build.rs.
+#[path = "../../modelDescription/generate.rs"]
+mod generate;
+
+const USAGE: &str = "\
+usage: cargo xtask <command> [args]
+
+commands:
+  fmu       build the cdylib (release) and write target/fmu/<model>.fmu for every model
+  test      run every check in order: cargo test --workspace, fmu, Python venv, ABI check,
+            importer test (fmi crate), pytest, the README's fmpy example;
+            stops at the first failure
+  abi       check the cdylib's C ABI against the official FMI 2.0 headers and list its exports
+  pytest    the Python part alone: .venv, pytest on target/fmu/*.fmu, the README's fmpy example
+  demo      the main demonstration (see `cargo xtask demo --help`)
+  design    the design study (see `cargo xtask design --help`)
+  bench     every benchmark, and BENCHMARKS.md generated from the run
+  help      this text";
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (command, rest) = match args.split_first() {
+        Some((command, rest)) => (command.as_str(), rest),
+        None => {
+            eprintln!("{USAGE}");
+            std::process::exit(2);
+        }
+    };
+    let result = match command {
+        "fmu" => fmu::run(rest),
+        "test" => test::run(rest),
+        "abi" => abi::run(rest),
+        "pytest" => python::run(rest),
+        "demo" => demo::run(rest),
+        "design" => design::run(rest),
+        "bench" => bench::run(rest),
+        "help" | "-h" | "--help" => {
+            println!("{USAGE}");
+            Ok(())
+        }
+        other => Err(format!("unknown command `{other}`\n\n{USAGE}")),
+    };
+    if let Err(message) = result {
+        eprintln!("\nerror: {message}");
+        std::process::exit(1);
+    }
+}

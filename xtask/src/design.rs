@@ -1,0 +1,417 @@
+//! `cargo xtask design`: the paper's open question ("permissible values of compliance and
+//! backlash to yield a given accuracy") answered for one plant, from `backlash_fmu::design`.
+
+use backlash_fmu::design::{self, Crossing, GainDesign, StiffnessStudy};
+use backlash_fmu::physics::{Geometry, PiGains, Plant, PlantParams};
+
+const USAGE: &str = "\
+usage: cargo xtask design --accuracy EPS [options] [--json]
+
+For a required load-speed accuracy EPS (the bound on |omega_L with backlash - omega_L without|,
+spec section 3 bound_sup) and a PI loop on the motor speed, prints
+  delta_max  the largest half gap Delta with bound_sup <= EPS at the nominal stiffness
+             (bound_sup is linear in Delta: delta_max = EPS / bound_sup(Delta = 1));
+  k_min      the smallest stiffness reachable from the nominal one by softening while
+             bound_sup <= EPS at the given Delta (log scan, then a bracketing root
+             finder), and k_max, the largest by stiffening: with fixed gains bound_sup
+             is not monotone in k.
+The plant is the shaft form of spec section 1; defaults are the paper's rectilinear rig
+(SI units, metres as the angle unit).
+
+options:
+  --accuracy EPS  required speed accuracy [rad/s], finite and > 0 (required)
+  --delta D       half gap Delta for the stiffness search [rad] (default 0.775e-3: the paper's
+                  1.55 mm gap read as 2 Delta)
+  --k K           nominal stiffness [N.m/rad] (default 200)
+  --kp KP --ki KI PI gains [N.m.s/rad, N.m/rad] (default: the best-damped rule: the gains that
+                  maximise the smallest damping ratio of the backlash-free closed-loop poles)
+  --jm --jl       inertias [kg.m2] (defaults 2.28, 2.55)
+  --bm --bl       viscous friction [N.m.s/rad] (defaults 0.05, 0.05)
+  --json          print one JSON object instead of text
+  --help          this text";
+
+/// The inputs of one design run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Request {
+    pub accuracy: f64,
+    pub params: PlantParams,
+    /// Gains given by the user; `None` means the best-damped rule.
+    pub gains: Option<PiGains>,
+}
+
+/// The answer, with everything needed to print it or write it as JSON.
+pub struct Answer {
+    pub request: Request,
+    pub gains: PiGains,
+    /// Set when the gains came from the rule.
+    pub rule: Option<GainDesign>,
+    /// Smallest damping ratio of the backlash-free loop at `gains`.
+    pub min_damping: f64,
+    /// bound_sup at Δ = 1 and the nominal stiffness [rad/s per unit Δ].
+    pub bound_sup_per_delta: f64,
+    /// bound_sup at the requested Δ and the nominal stiffness.
+    pub bound_sup_nominal: f64,
+    pub delta_max: f64,
+    pub study: StiffnessStudy,
+}
+
+pub fn run(args: &[String]) -> Result<(), String> {
+    let Some((request, json)) = parse(args)? else {
+        println!("{USAGE}");
+        return Ok(());
+    };
+    let answer = solve(request)?;
+    if json {
+        println!("{}", to_json(&answer));
+    } else {
+        print_text(&answer);
+    }
+    Ok(())
+}
+
+/// Parses the command line; `Ok(None)` for `--help`.
+pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
+    let mut accuracy = None;
+    let mut params = PlantParams::paper_rig(0.775e-3);
+    let (mut kp, mut ki) = (None, None);
+    let mut json = false;
+    let mut seen: Vec<String> = Vec::new();
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        // Accept both `--flag value` and `--flag=value`.
+        let (flag, inline) = match arg.split_once('=') {
+            Some((f, v)) if f.starts_with("--") => (f, Some(v.to_string())),
+            _ => (arg.as_str(), None),
+        };
+        match flag {
+            "--help" | "-h" => return Ok(None),
+            "--json" => {
+                json = true;
+                continue;
+            }
+            "--accuracy" | "--delta" | "--k" | "--kp" | "--ki" | "--jm" | "--jl" | "--bm" | "--bl" => {}
+            _ => return Err(format!("unknown argument `{arg}`\n\n{USAGE}")),
+        }
+        if seen.iter().any(|s| s == flag) {
+            return Err(format!("{flag} given twice"));
+        }
+        seen.push(flag.to_string());
+        let text = match inline {
+            Some(v) => v,
+            None => it.next().cloned().ok_or_else(|| format!("{flag} needs a value"))?,
+        };
+        let value: f64 = text
+            .trim()
+            .parse()
+            .map_err(|_| format!("{flag}: `{text}` is not a number"))?;
+        if !value.is_finite() {
+            return Err(format!("{flag} = {text} must be finite"));
+        }
+        let positive = |v: f64| {
+            if v > 0.0 {
+                Ok(v)
+            } else {
+                Err(format!("{flag} = {text} must be > 0"))
+            }
+        };
+        let non_negative = |v: f64| {
+            if v >= 0.0 {
+                Ok(v)
+            } else {
+                Err(format!("{flag} = {text} must be >= 0"))
+            }
+        };
+        match flag {
+            "--accuracy" => accuracy = Some(positive(value)?),
+            "--delta" => params = design::with_half_gap(&params, positive(value)?),
+            "--k" => params = design::with_stiffness(&params, positive(value)?),
+            "--kp" => kp = Some(value),
+            "--ki" => ki = Some(value),
+            "--jm" => params.j_m = positive(value)?,
+            "--jl" => params.j_l = positive(value)?,
+            "--bm" => params.b_m = non_negative(value)?,
+            "--bl" => params.b_l = non_negative(value)?,
+            _ => unreachable!("flag list checked above"),
+        }
+    }
+    let accuracy = accuracy.ok_or_else(|| format!("--accuracy EPS is required\n\n{USAGE}"))?;
+    let gains = match (kp, ki) {
+        (Some(kp), Some(ki)) => Some(PiGains { kp, ki }),
+        (None, None) => None,
+        _ => return Err("--kp and --ki go together (or neither, for the best-damped rule)".into()),
+    };
+    Ok(Some((
+        Request {
+            accuracy,
+            params,
+            gains,
+        },
+        json,
+    )))
+}
+
+/// Runs the design computations of `backlash_fmu::design` for `request`.
+pub fn solve(request: Request) -> Result<Answer, String> {
+    let params = request.params;
+    let plant = Plant::new(design::with_half_gap(&params, 0.0)).map_err(|e| e.to_string())?;
+    let (gains, rule) = match request.gains {
+        Some(g) => (g, None),
+        None => {
+            let d = design::best_damped_gains(&plant).map_err(|e| e.to_string())?;
+            (d.gains, Some(d))
+        }
+    };
+    let min_damping = design::min_damping_ratio(&plant, gains);
+    let bound_sup_per_delta =
+        design::bound_sup(&design::with_half_gap(&params, 1.0), gains).map_err(|e| e.to_string())?;
+    let bound_sup_nominal = design::bound_sup(&params, gains).map_err(|e| e.to_string())?;
+    let delta_max = design::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+    let study = design::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+    Ok(Answer {
+        request,
+        gains,
+        rule,
+        min_damping,
+        bound_sup_per_delta,
+        bound_sup_nominal,
+        delta_max,
+        study,
+    })
+}
+
+fn shaft_k(params: &PlantParams) -> f64 {
+    match params.geometry {
+        Geometry::Shaft { k, .. } | Geometry::Belt { k_b: k, .. } => k,
+    }
+}
+
+fn describe_crossing(c: &Option<Crossing>, edge: &str) -> String {
+    match c {
+        Some(c) => format!(
+            "{:.6} (bound_sup there {:.6e}; bracket [{:.4}, {:.4}], bound_sup {} on it: {})",
+            c.k,
+            c.bound_sup,
+            c.bracket.0,
+            c.bracket.1,
+            if c.decreasing { "decreasing" } else { "increasing" },
+            if c.monotone_in_bracket {
+                "monotone, checked"
+            } else {
+                "NOT monotone"
+            }
+        ),
+        None => format!("none within the scan (feasible to its {edge} edge)"),
+    }
+}
+
+fn print_text(a: &Answer) {
+    let p = &a.request.params;
+    println!(
+        "plant (shaft form): J_m = {}, J_L = {}, b_m = {}, b_L = {}, k = {}, Delta = {}",
+        p.j_m,
+        p.j_l,
+        p.b_m,
+        p.b_l,
+        shaft_k(p),
+        design::half_gap(p)
+    );
+    match &a.rule {
+        Some(_) => println!(
+            "PI gains (best-damped rule): Kp = {:.6}, Ki = {:.6}; smallest closed-loop damping ratio {:.6}",
+            a.gains.kp, a.gains.ki, a.min_damping
+        ),
+        None => println!(
+            "PI gains (given): Kp = {}, Ki = {}; smallest closed-loop damping ratio {:.6}",
+            a.gains.kp, a.gains.ki, a.min_damping
+        ),
+    }
+    println!("required accuracy eps = {:e} rad/s", a.request.accuracy);
+    println!(
+        "bound_sup per unit Delta at k = {}: {:.9} (rad/s)/rad",
+        shaft_k(p),
+        a.bound_sup_per_delta
+    );
+    println!(
+        "delta_max = {:.9e} rad (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
+        a.delta_max,
+        2.0 * a.delta_max,
+        design::half_gap(p),
+        a.bound_sup_nominal
+    );
+    let s = &a.study;
+    println!(
+        "stiffness at Delta = {} (scan {} points, k in [{:.4}, {:.4}]): bound_sup is {}",
+        s.delta,
+        s.scan.len(),
+        s.scan.first().map_or(0.0, |x| x.0),
+        s.scan.last().map_or(0.0, |x| x.0),
+        if s.monotone() {
+            "monotone in k".to_string()
+        } else {
+            format!(
+                "NOT monotone in k (turning points near k = {})",
+                join(&s.turning_points)
+            )
+        }
+    );
+    match s.nominal_interval {
+        Some(_) => {
+            println!("  k_min = {}", describe_crossing(&s.k_min(), "lower"));
+            println!("  k_max = {}", describe_crossing(&s.k_max(), "upper"));
+        }
+        None => println!(
+            "  no: bound_sup > eps at the nominal k = {}; no k_min on its branch",
+            s.k_nominal
+        ),
+    }
+    for iv in &s.intervals {
+        println!(
+            "  feasible interval: [{}, {}]",
+            iv.lo.map_or("<scan edge".to_string(), |c| format!("{:.6}", c.k)),
+            iv.hi.map_or(">scan edge".to_string(), |c| format!("{:.6}", c.k))
+        );
+    }
+}
+
+fn join(values: &[f64]) -> String {
+    values.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", ")
+}
+
+/// A JSON number; JSON has no infinity or NaN, so those become null.
+fn num(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:?}")
+    } else {
+        "null".into()
+    }
+}
+
+fn crossing_json(c: &Option<Crossing>) -> String {
+    match c {
+        None => "null".into(),
+        Some(c) => format!(
+            "{{\"k\": {}, \"bound_sup\": {}, \"bracket\": [{}, {}], \"monotone_in_bracket\": {}, \"decreasing\": {}}}",
+            num(c.k),
+            num(c.bound_sup),
+            num(c.bracket.0),
+            num(c.bracket.1),
+            c.monotone_in_bracket,
+            c.decreasing
+        ),
+    }
+}
+
+/// The answer as one JSON object (keys documented in the README's design section).
+pub fn to_json(a: &Answer) -> String {
+    let p = &a.request.params;
+    let s = &a.study;
+    let poles = match &a.rule {
+        Some(d) => d.poles.to_vec(),
+        None => {
+            let plant = Plant::new(design::with_half_gap(p, 0.0)).expect("validated in solve");
+            design::closed_loop_poles(&plant, a.gains).to_vec()
+        }
+    };
+    let poles = poles
+        .iter()
+        .map(|z| format!("[{}, {}]", num(z.re), num(z.im)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let scan = s
+        .scan
+        .iter()
+        .map(|(k, b)| format!("[{}, {}]", num(*k), num(*b)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let intervals = s
+        .intervals
+        .iter()
+        .map(|iv| {
+            format!(
+                "[{}, {}]",
+                iv.lo.map_or("null".into(), |c| num(c.k)),
+                iv.hi.map_or("null".into(), |c| num(c.k))
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let turning = s.turning_points.iter().map(|v| num(*v)).collect::<Vec<_>>().join(", ");
+    let fields =
+        [
+            (
+                "plant",
+                format!(
+            "{{\"form\": \"shaft\", \"J_m\": {}, \"J_L\": {}, \"b_m\": {}, \"b_L\": {}, \"k\": {}, \"Delta\": {}}}",
+            num(p.j_m), num(p.j_l), num(p.b_m), num(p.b_l), num(shaft_k(p)), num(design::half_gap(p))
+        ),
+            ),
+            ("accuracy", num(a.request.accuracy)),
+            (
+                "gain_rule",
+                if a.rule.is_some() {
+                    "\"best-damped: maximise the smallest damping ratio of the backlash-free closed-loop poles\"".into()
+                } else {
+                    "\"given\"".into()
+                },
+            ),
+            ("Kp", num(a.gains.kp)),
+            ("Ki", num(a.gains.ki)),
+            ("min_damping_ratio", num(a.min_damping)),
+            ("poles", format!("[{poles}]")),
+            ("bound_sup_per_unit_delta", num(a.bound_sup_per_delta)),
+            ("bound_sup_at_delta", num(a.bound_sup_nominal)),
+            ("delta_max", num(a.delta_max)),
+            ("k_min", s.k_min().map_or("null".into(), |c| num(c.k))),
+            ("k_max", s.k_max().map_or("null".into(), |c| num(c.k))),
+            ("k_min_detail", crossing_json(&s.k_min())),
+            ("k_max_detail", crossing_json(&s.k_max())),
+            ("k_monotone", s.monotone().to_string()),
+            ("k_turning_points", format!("[{turning}]")),
+            ("k_intervals", format!("[{intervals}]")),
+            ("k_scan", format!("[{scan}]")),
+        ];
+    let body = fields
+        .iter()
+        .map(|(k, v)| format!("  \"{k}\": {v}"))
+        .collect::<Vec<_>>()
+        .join(",\n");
+    format!("{{\n{body}\n}}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn rejects_bad_arguments() {
+        for bad in [
+            &[][..],
+            &["--accuracy"],
+            &["--accuracy", "-0.1"],
+            &["--accuracy", "0"],
+            &["--accuracy", "NaN"],
+            &["--accuracy", "inf"],
+            &["--accuracy", "abc"],
+            &["--accuracy", "0.1", "--frobnicate"],
+            &["--accuracy", "0.1", "--kp", "3"],
+            &["--accuracy", "0.1", "--k", "-200"],
+            &["--accuracy", "0.1", "--accuracy", "0.2"],
+        ] {
+            assert!(parse(&args(bad)).is_err(), "{bad:?} accepted");
+        }
+    }
+
+    #[test]
+    fn parses_both_flag_forms() {
+        let (r, json) = parse(&args(&["--accuracy=0.02", "--delta", "1e-3", "--json"]))
+            .unwrap()
+            .unwrap();
+        assert_eq!(r.accuracy, 0.02);
+        assert_eq!(design::half_gap(&r.params), 1e-3);
+        assert!(json && r.gains.is_none());
+    }
+}

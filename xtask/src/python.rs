@@ -1,0 +1,119 @@
+//! The Python side of `cargo xtask test`: a virtual environment at `.venv` with the pinned
+//! requirements of tests/python, and the pytest run over the packaged FMUs.
+
+use std::fs;
+use std::path::PathBuf;
+use std::process::Command;
+
+use crate::util::{self, step};
+
+/// `cargo xtask pytest`: the venv, the suite and the README example, on the archives already in
+/// target/fmu (or $BACKLASH_FMU_DIR).
+pub fn run(args: &[String]) -> Result<(), String> {
+    if let Some(arg) = args.first() {
+        return Err(format!("`cargo xtask pytest` takes no arguments, got `{arg}`"));
+    }
+    ensure_venv()?;
+    run_pytest()?;
+    run_readme_example()
+}
+
+fn venv_dir() -> PathBuf {
+    util::repo_root().join(".venv")
+}
+
+fn venv_python() -> PathBuf {
+    venv_dir().join("bin").join("python")
+}
+
+fn requirements() -> PathBuf {
+    util::repo_root().join("tests").join("python").join("requirements.txt")
+}
+
+/// Records what the venv was installed from; pip runs again only when this text changes.
+fn stamp_path() -> PathBuf {
+    venv_dir().join("requirements.stamp")
+}
+
+/// Creates `.venv` if needed and installs the pinned requirements when they changed since the
+/// last install.
+pub fn ensure_venv() -> Result<(), String> {
+    step("Python environment (.venv)");
+    let requirements_path = requirements();
+    let pinned = fs::read_to_string(&requirements_path)
+        .map_err(|e| format!("reading {}: {e}", util::shown(&requirements_path)))?;
+
+    if !venv_python().is_file() {
+        let base = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+        util::run(Command::new(&base).args(["-m", "venv"]).arg(venv_dir())).map_err(|e| {
+            format!("{e}\ncreating the venv needs python3 with the venv module (Debian: apt-get install python3-venv)")
+        })?;
+    }
+    // The stamp also names the interpreter, so a venv built by another Python is refreshed.
+    let version = util::output(Command::new(venv_python()).arg("--version"))?;
+    let wanted = format!("{}\n{pinned}", version.trim());
+    if fs::read_to_string(stamp_path()).ok().as_deref() == Some(wanted.as_str()) {
+        println!("requirements unchanged since the last install: reusing .venv");
+        return Ok(());
+    }
+    let _ = fs::remove_file(stamp_path());
+    util::run(
+        Command::new(venv_python())
+            .args(["-m", "pip", "install", "--disable-pip-version-check", "--quiet", "-r"])
+            .arg(&requirements_path),
+    )?;
+    fs::write(stamp_path(), wanted).map_err(|e| format!("writing {}: {e}", stamp_path().display()))
+}
+
+/// Runs pytest on tests/python against the packaged FMUs. "No tests collected" (exit 5) is a
+/// failure: a suite that runs nothing proves nothing.
+pub fn run_pytest() -> Result<(), String> {
+    step("pytest tests/python (through fmpy, on the packaged FMUs)");
+    let fmu_dir = std::env::var_os("BACKLASH_FMU_DIR").map_or_else(util::fmu_dir, PathBuf::from);
+    let status = util::status(
+        Command::new(venv_python())
+            .current_dir(util::repo_root())
+            .env("BACKLASH_FMU_DIR", &fmu_dir)
+            .args(["-m", "pytest", "tests/python", "-ra"]),
+    )?;
+    match status.code() {
+        Some(0) => Ok(()),
+        Some(5) => Err("pytest collected no tests in tests/python".into()),
+        _ => Err(format!("pytest failed ({status})")),
+    }
+}
+
+/// fmpy's copy of the official FMI 2.0 headers, if the venv has fmpy.
+pub fn fmpy_header_dir() -> Option<PathBuf> {
+    let lib = venv_dir().join("lib");
+    let mut found: Vec<PathBuf> = fs::read_dir(&lib)
+        .ok()?
+        .filter_map(|entry| entry.ok())
+        .filter(|entry| entry.file_name().to_string_lossy().starts_with("python3"))
+        .map(|entry| entry.path().join("site-packages").join("fmpy").join("c-code"))
+        .filter(|dir| dir.join("fmi2Functions.h").is_file())
+        .collect();
+    found.sort();
+    found.pop()
+}
+
+/// Runs the first ```python block of README.md in the venv from the repository root, so the
+/// usage example shown to users is known to work with the packaged FMU.
+pub fn run_readme_example() -> Result<(), String> {
+    step("README.md fmpy example");
+    let readme_path = util::repo_root().join("README.md");
+    let readme = fs::read_to_string(&readme_path).map_err(|e| format!("reading README.md: {e}"))?;
+    let code = python_block(&readme).ok_or("README.md has no ```python block")?;
+    util::run(
+        Command::new(venv_python())
+            .current_dir(util::repo_root())
+            .arg("-c")
+            .arg(code),
+    )
+}
+
+fn python_block(markdown: &str) -> Option<&str> {
+    let start = markdown.find("```python\n")? + "```python\n".len();
+    let end = markdown[start..].find("```")? + start;
+    Some(&markdown[start..end])
+}
