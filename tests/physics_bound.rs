@@ -5,7 +5,7 @@
 
 mod support;
 
-use backlash_fmu::physics::{Geometry, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
+use backlash_fmu::physics::{PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
 use support::closed_loop::{worst_case_response, ImpulseResponse, LinearLoop, PiLoop};
 use support::expm::{expm, scaled};
 use support::reference::GenericForm;
@@ -130,20 +130,7 @@ fn bound_holds_for_the_backlash_loop_and_the_printed_formula_does_not() {
 
 #[test]
 fn bound_paper_and_bound_match_independent_integrals() {
-    let belt = PlantParams {
-        j_m: 0.02,
-        j_l: 0.5,
-        b_m: 0.002,
-        b_l: 0.01,
-        geometry: Geometry::Belt {
-            k_b: 2.0e4,
-            r_1: 0.05,
-            r_2: 0.1,
-            r_g1: 0.03,
-            r_g2: 0.09,
-            delta: 1e-4,
-        },
-    };
+    let belt = support::rigs::belt(1e-4);
     for (params, kp, ki) in [
         (PlantParams::paper_rig(1.78e-3), KP, KI),
         (PlantParams::paper_rig(1.78e-3), 0.0, 0.0),

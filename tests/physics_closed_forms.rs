@@ -9,38 +9,14 @@
 
 mod support;
 
-use backlash_fmu::physics::{Geometry, Inputs, Plant, PlantParams, PlantState, Stepper};
+use backlash_fmu::physics::{Inputs, Plant, PlantParams, PlantState, Stepper};
 use support::closed_form::{single_inertia_increment, undamped_contact};
 use support::expm::{a_p, linear_gap_step, linear_plant_step};
 use support::harness::RelativeErrors;
 use support::reference::GenericForm;
+use support::rigs::{belt_damped, rig};
 
 const TOL: f64 = 1e-12;
-
-fn rig(delta: f64, b: f64) -> PlantParams {
-    PlantParams {
-        b_m: b,
-        b_l: b,
-        ..PlantParams::paper_rig(delta)
-    }
-}
-
-fn belt(delta: f64, b: f64) -> PlantParams {
-    PlantParams {
-        j_m: 0.02,
-        j_l: 0.5,
-        b_m: b,
-        b_l: b,
-        geometry: Geometry::Belt {
-            k_b: 2.0e4,
-            r_1: 0.05,
-            r_2: 0.1,
-            r_g1: 0.03,
-            r_g2: 0.09,
-            delta,
-        },
-    }
-}
 
 fn sample(s: &PlantState) -> [f64; 5] {
     [s.theta_m, s.omega_m, s.theta_l, s.omega_l, s.u]
@@ -99,7 +75,7 @@ fn free_inertias_match_the_closed_form() {
     let mut cases = vec![];
     for b in [0.0, 0.05, 5.0] {
         cases.push(rig(1000.0, b));
-        cases.push(belt(300.0, b * 0.1));
+        cases.push(belt_damped(300.0, b * 0.1, b * 0.1));
     }
     for params in cases {
         let f = GenericForm::from_params(&params);
@@ -129,7 +105,12 @@ fn free_inertias_match_the_closed_form() {
 fn undamped_permanent_contact_matches_the_closed_form() {
     // b = 0; a motor torque preloads the contact and the initial oscillation is smaller than
     // the static deflection, so u − g > 0 throughout and the plant is linear.
-    for params in [rig(0.0, 0.0), rig(2e-3, 0.0), belt(0.0, 0.0), belt(1e-4, 0.0)] {
+    for params in [
+        rig(0.0, 0.0),
+        rig(2e-3, 0.0),
+        belt_damped(0.0, 0.0, 0.0),
+        belt_damped(1e-4, 0.0, 0.0),
+    ] {
         let f = GenericForm::from_params(&params);
         let w2 = f.k * (f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l);
         let tau_m = 4.0;
@@ -188,7 +169,7 @@ fn undamped_permanent_contact_matches_the_closed_form() {
 fn zero_gap_reproduces_the_linear_plant() {
     // Δ = 0 is the backlash-free plant (spec §1): z' = A_p z + B τ, stepped by e^{M h};
     // u through the same construction in gap coordinates.
-    for params in [rig(0.0, 0.05), rig(0.0, 0.0), belt(0.0, 0.01)] {
+    for params in [rig(0.0, 0.05), rig(0.0, 0.0), belt_damped(0.0, 0.01, 0.01)] {
         let f = GenericForm::from_params(&params);
         let a = a_p(f.j_m, f.j_l, f.b_m, f.b_l, f.r_m, f.r_l, f.k);
         let exact = |st: &PlantState, inp: &Inputs, h: f64| {

@@ -14,7 +14,7 @@
 
 mod support;
 
-use backlash_fmu::physics::{Geometry, Inputs, Plant, PlantParams, PlantState, Stepper};
+use backlash_fmu::physics::{Inputs, Plant, PlantParams, PlantState, Stepper};
 use support::reference::{PowerIntegrals, Reference};
 
 fn run(params: &PlantParams, init: [f64; 4], schedule: &[(Inputs, f64)]) -> (f64, f64, usize) {
@@ -43,20 +43,7 @@ fn run(params: &PlantParams, init: [f64; 4], schedule: &[(Inputs, f64)]) -> (f64
 
 #[test]
 fn energy_balance_holds_across_many_switches() {
-    let belt = PlantParams {
-        j_m: 0.02,
-        j_l: 0.5,
-        b_m: 0.002,
-        b_l: 0.01,
-        geometry: Geometry::Belt {
-            k_b: 2.0e4,
-            r_1: 0.05,
-            r_2: 0.1,
-            r_g1: 0.03,
-            r_g2: 0.09,
-            delta: 1e-4,
-        },
-    };
+    let belt = support::rigs::belt(1e-4);
     let square = |amp: f64, period: f64, h: f64, n: usize, ramp: f64| -> Vec<(Inputs, f64)> {
         (0..n)
             .map(|i| {

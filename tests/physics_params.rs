@@ -1,29 +1,15 @@
 //! Bad parameters, step sizes, inputs, states and gains give an error that names the culprit
-//! (team standard: a clear error, never a crash or a silent NaN). Expected names are the
+//! (a clear error, never a crash or a silent NaN). Expected names are the
 //! spec §4 variable names.
+
+mod support;
 
 use backlash_fmu::physics::bound::BoundError;
 use backlash_fmu::physics::{
     BoundState, Geometry, Inputs, ParamError, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, StepError,
     Stepper,
 };
-
-fn belt() -> PlantParams {
-    PlantParams {
-        j_m: 0.02,
-        j_l: 0.5,
-        b_m: 0.002,
-        b_l: 0.01,
-        geometry: Geometry::Belt {
-            k_b: 2.0e4,
-            r_1: 0.05,
-            r_2: 0.1,
-            r_g1: 0.03,
-            r_g2: 0.09,
-            delta: 1e-4,
-        },
-    }
-}
+use support::rigs;
 
 /// (name, error) for a parameter that must be > 0 (`strict`) or ≥ 0, set to `value`.
 fn expected(name: &'static str, value: f64, strict: bool) -> Option<ParamError> {
@@ -115,8 +101,8 @@ fn every_invalid_parameter_is_named() {
     let mut checked = 0;
     for (base, fields) in [
         (PlantParams::paper_rig(1e-3), &shaft_fields[..]),
-        (belt(), &shaft_fields[..4]),
-        (belt(), &belt_fields[..]),
+        (rigs::belt(1e-4), &shaft_fields[..4]),
+        (rigs::belt(1e-4), &belt_fields[..]),
     ] {
         for &(name, strict, set) in fields {
             for value in values {

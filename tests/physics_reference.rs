@@ -5,35 +5,11 @@
 
 mod support;
 
-use backlash_fmu::physics::{Geometry, Inputs, PlantParams};
+use backlash_fmu::physics::Inputs;
 use support::closed_form::{oscillator_kernels, phi, single_inertia, undamped_contact};
 use support::expm::{a_p, expm, linear_plant_step, scaled};
 use support::reference::{PowerIntegrals, Reference, TH_L, TH_M, U, W_L, W_M};
-
-fn rig(delta: f64, b: f64) -> PlantParams {
-    PlantParams {
-        b_m: b,
-        b_l: b,
-        ..PlantParams::paper_rig(delta)
-    }
-}
-
-fn belt(delta: f64, b: f64) -> PlantParams {
-    PlantParams {
-        j_m: 0.02,
-        j_l: 0.5,
-        b_m: b,
-        b_l: b,
-        geometry: Geometry::Belt {
-            k_b: 2.0e4,
-            r_1: 0.05,
-            r_2: 0.1,
-            r_g1: 0.03,
-            r_g2: 0.09,
-            delta,
-        },
-    }
-}
+use support::rigs::{belt_damped, rig};
 
 /// |a − b| / scale, componentwise maximum.
 fn rel(a: &[f64], b: &[f64], scale: f64) -> f64 {
@@ -124,7 +100,12 @@ fn reference_matches_free_inertias_in_closed_form() {
 fn reference_matches_undamped_permanent_contact_in_closed_form() {
     // b = 0 and either Δ = 0 or a preload that keeps u ≥ g: q'' + Ω² q = F(t) exactly.
     let mut worst: f64 = 0.0;
-    for params in [rig(0.0, 0.0), rig(2e-3, 0.0), belt(0.0, 0.0), belt(1e-4, 0.0)] {
+    for params in [
+        rig(0.0, 0.0),
+        rig(2e-3, 0.0),
+        belt_damped(0.0, 0.0, 0.0),
+        belt_damped(1e-4, 0.0, 0.0),
+    ] {
         let r = Reference::new(&params);
         let f = r.form;
         let w2 = f.k * (f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l);
@@ -308,7 +289,7 @@ fn reference_conserves_energy_across_many_switches() {
     // ½K dz² + ½J_m ω_m² + ½J_L ω_L² − ∫(τ_m ω_m + τ_L ω_L) + ∫(b_m ω_m² + b_L ω_L²) is constant
     // (spec §1; §5: the contact is elastic). The integrals come from the reference's own dense
     // output, integrated exactly as polynomials.
-    for params in [rig(3.56e-3, 0.05), rig(5.38e-3, 0.0), belt(1e-4, 0.01)] {
+    for params in [rig(3.56e-3, 0.05), rig(5.38e-3, 0.0), belt_damped(1e-4, 0.01, 0.01)] {
         let r = Reference::new(&params);
         let mut s = r.state(0.0, 2.0, 0.0, -1.0);
         let mut p = PowerIntegrals::default();

@@ -6,30 +6,14 @@
 
 mod support;
 
-use backlash_fmu::physics::{Geometry, Inputs, Plant, PlantParams, PlantState, Stepper};
+use backlash_fmu::physics::{Inputs, Plant, PlantParams, PlantState, Stepper};
 use support::closed_form::single_inertia_increment;
 use support::harness::{compare_run, compare_steps, sine_schedule, square_wave_schedule};
 use support::reference::{GenericForm, Reference};
+use support::rigs::belt;
 
 const TOL_STATE: f64 = 1e-9;
 const TOL_TIME: f64 = 1e-10;
-
-fn belt(delta: f64) -> PlantParams {
-    PlantParams {
-        j_m: 0.02,
-        j_l: 0.5,
-        b_m: 0.002,
-        b_l: 0.01,
-        geometry: Geometry::Belt {
-            k_b: 2.0e4,
-            r_1: 0.05,
-            r_2: 0.1,
-            r_g1: 0.03,
-            r_g2: 0.09,
-            delta,
-        },
-    }
-}
 
 /// The paper's gaps (spec §4): 1.55, 3.56, 5.38 mm, read as Δ = gap/2 and as Δ = gap.
 const PAPER_DELTAS: [f64; 4] = [0.775e-3, 1.78e-3, 3.56e-3, 5.38e-3];

@@ -253,12 +253,7 @@ impl Stepper {
             let (whole, d2, c3) = cache.kernel[next.mode.index()].apply(&y);
             if self.clear(next.mode, &y, d2, c3, len) {
                 // The common case: no switch in this piece, one fused pass did all the work.
-                next.theta_m += whole[linear::DTHETA_M];
-                next.theta_l += whole[linear::DTHETA_L];
-                next.u = whole[linear::U];
-                next.du = whole[linear::V];
-                next.omega_l = whole[linear::OMEGA_L];
-                next.omega_m = self.motor_speed(next.du, next.omega_l);
+                self.finish_piece(&mut next, &whole);
                 continue;
             }
             let mut probe = Some((d2, c3));
@@ -302,12 +297,7 @@ impl Stepper {
                     }
                 }
             }
-            next.theta_m += y[linear::DTHETA_M];
-            next.theta_l += y[linear::DTHETA_L];
-            next.u = y[linear::U];
-            next.du = y[linear::V];
-            next.omega_l = y[linear::OMEGA_L];
-            next.omega_m = self.motor_speed(next.du, next.omega_l);
+            self.finish_piece(&mut next, &y.as_slice()[..5]);
         }
         if !next.is_finite() {
             return Err(StepError::Overflow);
@@ -439,6 +429,17 @@ impl Stepper {
             y[linear::DTHETA_L],
             y[linear::OMEGA_L],
         ]
+    }
+
+    /// Takes the end of a piece, [u, v, ω_L, δθ_m, δθ_L], into the state.
+    #[inline]
+    fn finish_piece(&self, next: &mut PlantState, end: &[f64]) {
+        next.theta_m += end[linear::DTHETA_M];
+        next.theta_l += end[linear::DTHETA_L];
+        next.u = end[linear::U];
+        next.du = end[linear::V];
+        next.omega_l = end[linear::OMEGA_L];
+        next.omega_m = self.motor_speed(next.du, next.omega_l);
     }
 
     /// ω_m = (v + r_L ω_L)/r_m, and likewise for any time derivative of the three.

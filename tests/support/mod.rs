@@ -7,4 +7,5 @@ pub mod closed_loop;
 pub mod expm;
 pub mod harness;
 pub mod reference;
+pub mod rigs;
 pub mod taylor;

@@ -1,0 +1,35 @@
+//! Parameter sets shared by the physics tests.
+
+use backlash_fmu::physics::{Geometry, PlantParams};
+
+/// The paper's rig (spec §4) with both viscous coefficients set to `b`.
+pub fn rig(delta: f64, b: f64) -> PlantParams {
+    PlantParams {
+        b_m: b,
+        b_l: b,
+        ..PlantParams::paper_rig(delta)
+    }
+}
+
+/// A small geared belt drive (r_m = 0.05 m, r_L = α₁ = 0.3 m) with viscous coefficients b_m, b_L.
+pub fn belt_damped(delta: f64, b_m: f64, b_l: f64) -> PlantParams {
+    PlantParams {
+        j_m: 0.02,
+        j_l: 0.5,
+        b_m,
+        b_l,
+        geometry: Geometry::Belt {
+            k_b: 2.0e4,
+            r_1: 0.05,
+            r_2: 0.1,
+            r_g1: 0.03,
+            r_g2: 0.09,
+            delta,
+        },
+    }
+}
+
+/// The belt drive lightly damped (b_m = 0.002, b_L = 0.01).
+pub fn belt(delta: f64) -> PlantParams {
+    belt_damped(delta, 0.002, 0.01)
+}
