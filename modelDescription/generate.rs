@@ -1,7 +1,8 @@
 //! The single source of truth for the variables of both FMUs (spec `model.md` §4).
 //!
-//! Compiled twice, with std only: by `build.rs` (which writes the Rust value-reference table
-//! that `src/fmu` includes) and by the xtask packager (which writes `modelDescription.xml`).
+//! Compiled three times, with std only: by `build.rs` (which writes the Rust value-reference
+//! table that `src/fmu` includes), by the library (for the kinds of variables that table is
+//! written in) and by the xtask packager (which writes `modelDescription.xml`).
 //! Both outputs come from the tables below, so the XML and the Rust code cannot disagree.
 //! The guid is a hash of the description itself: a changed description gets a new guid, and
 //! a binary built from the old one refuses to instantiate it.

@@ -44,41 +44,11 @@ impl Symbol {
 
 const _: () = assert!(Symbol::Rg2 as usize + 1 == Symbol::COUNT);
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum VarType {
-    Real,
-    Integer,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Causality {
-    Input,
-    Output,
-    Parameter,
-    CalculatedParameter,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Variability {
-    Fixed,
-    Discrete,
-    Continuous,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Initial {
-    Unset,
-    Exact,
-    Calculated,
-}
-
-/// Admissible values of a settable variable.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Range {
-    Finite,
-    NonNegative,
-    Positive,
-}
+// The kinds of variables are those the model description is generated with: one definition.
+#[allow(dead_code)]
+#[path = "../../modelDescription/generate.rs"]
+mod description;
+pub use description::{Causality, DriveTrain, Initial, Range, Type as VarType, Variability};
 
 impl Range {
     pub fn admits(self, value: f64) -> bool {
@@ -97,12 +67,6 @@ impl Range {
             Range::Positive => "finite and > 0",
         }
     }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DriveTrain {
-    Shaft,
-    Belt,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
