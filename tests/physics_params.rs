@@ -19,6 +19,8 @@ fn expected(name: &'static str, value: f64, strict: bool) -> Option<ParamError> 
         Some(ParamError::NotPositive { name, value })
     } else if !strict && value < 0.0 {
         Some(ParamError::Negative { name, value })
+    } else if value != 0.0 && !(1e-100..=1e100).contains(&value.abs()) {
+        Some(ParamError::OutOfScale { name, value })
     } else {
         None
     }
@@ -29,6 +31,8 @@ fn same(a: &ParamError, b: &ParamError) -> bool {
         ParamError::NotFinite { name, value } => (0, name, value),
         ParamError::NotPositive { name, value } => (1, name, value),
         ParamError::Negative { name, value } => (2, name, value),
+        ParamError::OutOfScale { name, value } => (3, name, value),
+        ParamError::DerivedOutOfScale { name, value } => (4, name, value),
     };
     let (ka, na, va) = parts(a);
     let (kb, nb, vb) = parts(b);
@@ -96,6 +100,7 @@ fn every_invalid_parameter_is_named() {
         f64::INFINITY,
         f64::NEG_INFINITY,
         1e-300,
+        1e101,
         2.5,
     ];
     let mut checked = 0;
@@ -126,20 +131,21 @@ fn every_invalid_parameter_is_named() {
 
 #[test]
 fn derived_constants_that_overflow_are_rejected() {
-    // Every input finite, K r_m²/J_m is not: the plant must refuse rather than step NaN.
-    let p = PlantParams {
-        j_m: 1e-300,
-        ..PlantParams::paper_rig(1e-3)
-    };
-    let p = PlantParams {
-        geometry: Geometry::Shaft { k: 1e300, delta: 1e-3 },
-        ..p
-    };
-    assert!(
-        matches!(Plant::new(p), Err(ParamError::NotFinite { .. })),
-        "{:?}",
-        Plant::new(p)
-    );
+    // Every input finite and in scale, K r_m²/J_m = 1e100·(1e60)²/1 = 1e220 is not: the plant
+    // must refuse rather than step with rates that products take out of f64.
+    let mut p = rigs::belt(1e-4);
+    p.j_m = 1.0;
+    if let Geometry::Belt { k_b, r_1, .. } = &mut p.geometry {
+        *k_b = 1e100;
+        *r_1 = 1e60;
+    }
+    match Plant::new(p) {
+        Err(ParamError::DerivedOutOfScale { name, value }) => {
+            assert_eq!(name, "K*r_m^2/J_m");
+            assert_eq!(value, 1e100 * 1e60 * 1e60);
+        }
+        other => panic!("{other:?}"),
+    }
 }
 
 #[test]

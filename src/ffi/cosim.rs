@@ -138,10 +138,19 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(
     })
 }
 
+/// # Safety
+/// Pointer arguments as FMI 2.0 defines them: NULL, or valid for the announced number of
+/// elements (strings NUL-terminated) for the duration of the call.
 #[no_mangle]
-pub extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2String) -> fmi2Status {
-    let _ = value;
+pub unsafe extern "C" fn fmi2GetStringStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2String,
+) -> fmi2Status {
     guard(c, Function::GetStringStatus, |inst| {
+        // SAFETY: FMI 2.0 passes a pointer to the importer's fmi2String. Checked like every
+        // other out-pointer, although no String status exists to be written through it.
+        let _value = unsafe { output_pointer(value, "value") }?;
         inst.get_string_status_body(status_kind(s)?)?;
         Ok(Status::Ok)
     })

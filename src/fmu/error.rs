@@ -64,6 +64,10 @@ pub enum FmuError {
     Bound(#[from] BoundError),
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+    /// Finite inputs, parameters or start values whose consequences exceed f64: refused
+    /// rather than letting ∞ or NaN into the state or the outputs.
+    #[error("floating-point overflow: {0}")]
+    Overflow(String),
     #[error("{0}")]
     StatusUnavailable(String),
     #[error("{0} is not provided by this FMU")]

@@ -463,7 +463,13 @@ impl Instance {
         Self::same_length("fmi2GetReal values", out.len(), vrs.len())?;
         for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
             let v = self.typed_variable(*vr, VarType::Real)?;
-            *slot = self.real_value(v)?;
+            let x = self.real_value(v)?;
+            // bound_sup is +∞ by definition when the loop is unstable (spec §4); nothing else
+            // may leave the FMU as ∞ or NaN.
+            if x.is_nan() || (x.is_infinite() && v.symbol != Symbol::BoundSup) {
+                return Err(FmuError::Overflow(format!("{} evaluates to {x}", v.name)));
+            }
+            *slot = x;
         }
         Ok(Status::Ok)
     }
@@ -669,6 +675,9 @@ impl Instance {
                 Symbol::BoundPaper => sim.bound_paper_rate(),
                 _ => unreachable!("every Real output is listed"),
             };
+            if !slot.is_finite() {
+                return Err(FmuError::Overflow(format!("d{}/dt evaluates to {slot}", v.name)));
+            }
         }
         Ok(Status::Ok)
     }
@@ -711,6 +720,18 @@ impl Instance {
             }
         }
         let inputs = inputs(&self.values, self.input_slopes);
+        // The input lines at the end of the step (see below); refused before stepping if they
+        // leave f64, so that a refused step changes nothing.
+        let tau_end = [
+            inputs.tau_m + h * self.input_slopes[0],
+            inputs.tau_l + h * self.input_slopes[1],
+        ];
+        if !tau_end.iter().all(|x| x.is_finite()) {
+            return Err(FmuError::Overflow(format!(
+                "the input ramps reach tau_m = {:e}, tau_L = {:e} at the end of the step",
+                tau_end[0], tau_end[1]
+            )));
+        }
         let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
         let max_step = Self::max_step(sim);
         if h > max_step {
@@ -729,7 +750,17 @@ impl Instance {
                 switches.push(event)
             }
         })?;
+        sim.check_state(&state, &format!("the step to t = {end} overflows"))?;
+        let bound_before = sim.bound.state();
         sim.bound.advance(h)?;
+        let bounds = [sim.bound.bound(), sim.bound.bound_paper()];
+        if !bounds.iter().all(|b| b.is_finite()) {
+            sim.bound.restore(&bound_before)?;
+            return Err(FmuError::Overflow(format!(
+                "the step to t = {end} overflows the bounds: bound = {:e}, bound_paper = {:e}",
+                bounds[0], bounds[1]
+            )));
+        }
         sim.state = state;
         let half_gap = sim.plant().half_gap();
         for e in switches {
@@ -743,8 +774,8 @@ impl Instance {
         }
         // The input lines continue over the next step unless set again (see
         // `set_real_input_derivatives_body`).
-        self.values[Symbol::TauM.index()] += h * self.input_slopes[0];
-        self.values[Symbol::TauL.index()] += h * self.input_slopes[1];
+        self.values[Symbol::TauM.index()] = tau_end[0];
+        self.values[Symbol::TauL.index()] = tau_end[1];
         // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
         self.time = end;
         Ok(Status::Ok)

@@ -66,7 +66,23 @@ impl Simulation {
             at(Symbol::ThetaL),
             at(Symbol::OmegaL),
         );
+        sim.check_state(&sim.state, "the initial state overflows")?;
         Ok(sim)
+    }
+
+    /// Refuses a plant state that is not finite or whose force ψ = K·dz(u, g) overflows:
+    /// finite but huge angles, speeds or parameters must not turn into ∞/NaN outputs.
+    pub fn check_state(&self, state: &PlantState, what: &str) -> Result<(), FmuError> {
+        let psi = self.plant().force(state.u);
+        if state.is_finite() && psi.is_finite() {
+            Ok(())
+        } else {
+            Err(FmuError::Overflow(format!(
+                "{what}: theta_m = {:e}, omega_m = {:e}, theta_L = {:e}, omega_L = {:e}, u = {:e}, psi = {psi:e}; \
+                 reduce the start values, inputs or parameters",
+                state.theta_m, state.omega_m, state.theta_l, state.omega_l, state.u
+            )))
+        }
     }
 
     /// Rebuilds from saved values and continues from a saved plant and bound state.
@@ -80,6 +96,7 @@ impl Simulation {
         if !state.is_finite() {
             return Err(FmuError::StateRefused("the plant state is not finite".into()));
         }
+        sim.check_state(&state, "the saved plant state overflows")?;
         sim.state = state;
         sim.bound.restore(bound)?;
         Ok(sim)

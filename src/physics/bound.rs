@@ -21,6 +21,8 @@ pub enum Unbounded {
     Unstable { abscissa: f64 },
     #[error("the loop is undamped in the modes the backlash disturbance excites: the impulse response never decays")]
     Undamped,
+    #[error("the eigenvalues of the loop could not be computed (parameters too far apart in scale)")]
+    Indeterminate,
 }
 
 /// Everything that evolves in [`SpeedErrorBound`], as plain numbers (for FMU-state saving).
@@ -40,6 +42,8 @@ pub struct BoundState {
 pub enum BoundError {
     #[error("gain {name} = {value} must be finite")]
     NonFiniteGain { name: &'static str, value: f64 },
+    #[error("gain {name} = {value} is outside the range this model integrates: 0 or 1e-100 ..= 1e100 in magnitude")]
+    GainOutOfScale { name: &'static str, value: f64 },
     #[error("time advance {h} must be finite and >= 0")]
     BadAdvance { h: f64 },
     #[error("an advance of {h} s spans more than {} periods of the loop's fastest motion; advance at most {max_h:e} s at a time", super::stepper::MAX_PIECES)]
@@ -94,6 +98,9 @@ impl SpeedErrorBound {
         for (name, value) in [("Kp", gains.kp), ("Ki", gains.ki)] {
             if !value.is_finite() {
                 return Err(BoundError::NonFiniteGain { name, value });
+            }
+            if super::params::in_scale(name, value).is_err() {
+                return Err(BoundError::GainOutOfScale { name, value });
             }
         }
         let a = closed_loop(plant, gains);
@@ -355,9 +362,22 @@ fn closed_loop(plant: &Plant, gains: PiGains) -> SMatrix<f64, CL, CL> {
     a
 }
 
+/// ρ(A) from a Schur decomposition with a capped iteration count; if that fails to converge,
+/// the Frobenius norm, which bounds ρ(A) from above (pieces then come out shorter, not wrong).
 fn spectral_radius<const N: usize>(a: &SMatrix<f64, N, N>) -> f64 {
     let d = DMatrix::from_iterator(N, N, a.iter().copied());
-    d.complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max)
+    match eigenvalues(&d) {
+        Some(eig) => eig.iter().map(|l| l.norm()).fold(0.0, f64::max),
+        None => d.norm(),
+    }
+}
+
+/// Eigenvalues by a Schur decomposition of at most `SCHUR_ITERATIONS` sweeps: None if it does
+/// not converge (nalgebra's default would iterate without limit).
+fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<nalgebra::Complex<f64>>> {
+    const SCHUR_ITERATIONS: usize = 10_000;
+    let schur = a.clone().try_schur(f64::EPSILON, SCHUR_ITERATIONS)?;
+    Some(schur.complex_eigenvalues().iter().copied().collect())
 }
 
 /// The loop in the coordinates h depends on: [u, ω_m, ω_L] and x_c when Ki ≠ 0. The angle
@@ -417,7 +437,7 @@ impl Reduced {
 
     fn tail_bound(&self) -> Result<TailBound, Unbounded> {
         let n = self.a.nrows();
-        let eig = self.a.complex_eigenvalues();
+        let eig = eigenvalues(&self.a).ok_or(Unbounded::Indeterminate)?;
         let radius = eig.iter().map(|l| l.norm()).fold(0.0, f64::max);
         let abscissa = eig.iter().map(|l| l.re).fold(f64::NEG_INFINITY, f64::max);
         if abscissa >= -1e-12 * radius {

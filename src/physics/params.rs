@@ -65,6 +65,27 @@ pub enum ParamError {
     NotPositive { name: &'static str, value: f64 },
     #[error("parameter {name} = {value} must be >= 0")]
     Negative { name: &'static str, value: f64 },
+    #[error(
+        "parameter {name} = {value} is outside the range this model integrates: 0 or 1e-100 ..= 1e100 in magnitude"
+    )]
+    OutOfScale { name: &'static str, value: f64 },
+    #[error("{name} = {value:e}, derived from the parameters, is outside 1e-200 ..= 1e200: the time scales of the plant are too far apart to integrate")]
+    DerivedOutOfScale { name: &'static str, value: f64 },
+}
+
+/// Non-zero parameters must lie within [1/SCALE_LIMIT, SCALE_LIMIT] in magnitude: past it
+/// products of two or three of them leave f64, and the plant's time scales drift so far apart
+/// that no step could resolve them.
+pub const SCALE_LIMIT: f64 = 1e100;
+
+/// Checks the magnitude of a finite parameter (0 is always admissible).
+pub(crate) fn in_scale(name: &'static str, value: f64) -> Result<f64, ParamError> {
+    let a = value.abs();
+    if a != 0.0 && !(a >= 1.0 / SCALE_LIMIT && a <= SCALE_LIMIT) {
+        Err(ParamError::OutOfScale { name, value })
+    } else {
+        Ok(value)
+    }
 }
 
 fn positive(name: &'static str, value: f64) -> Result<f64, ParamError> {
@@ -73,7 +94,7 @@ fn positive(name: &'static str, value: f64) -> Result<f64, ParamError> {
     } else if value <= 0.0 {
         Err(ParamError::NotPositive { name, value })
     } else {
-        Ok(value)
+        in_scale(name, value)
     }
 }
 
@@ -83,7 +104,7 @@ fn non_negative(name: &'static str, value: f64) -> Result<f64, ParamError> {
     } else if value < 0.0 {
         Err(ParamError::Negative { name, value })
     } else {
-        Ok(value)
+        in_scale(name, value)
     }
 }
 
@@ -135,14 +156,24 @@ impl Plant {
             stiffness,
             half_gap,
         };
-        // Derived quantities can overflow although every input is finite.
-        for (name, value) in [
-            ("r_L", r_l),
+        // The rates and forces the integration works with, all from parameters in scale: a
+        // square rate K·r²/J, a damping rate b/J, an input acceleration r/J, the gap force K·g
+        // and the lever ratio r_L/r_m. Outside 1e±200 they over- or underflow in products.
+        let p = &params;
+        let derived = [
+            ("K*r_m^2/J_m", stiffness * r_m * r_m / p.j_m),
+            ("K*r_L^2/J_L", stiffness * r_l * r_l / p.j_l),
+            ("r_m/J_m", r_m / p.j_m),
+            ("r_L/J_L", r_l / p.j_l),
+            ("b_m/J_m", p.b_m / p.j_m),
+            ("b_L/J_L", p.b_l / p.j_l),
+            ("K*g", stiffness * half_gap),
             ("g", half_gap),
-            ("K*r_m^2/J_m", plant.stiffness * r_m * r_m / params.j_m),
-        ] {
-            if !value.is_finite() {
-                return Err(ParamError::NotFinite { name, value });
+            ("r_L/r_m", r_l / r_m),
+        ];
+        for (name, value) in derived {
+            if value != 0.0 && !(value.abs() >= 1e-200 && value.abs() <= 1e200) {
+                return Err(ParamError::DerivedOutOfScale { name, value });
             }
         }
         Ok(plant)

@@ -90,6 +90,10 @@ impl<const N: usize> SignalRows<N> {
 /// is non-negative, so nothing cancels and the result is accurate to round-off.
 fn exp_nonnegative<const N: usize>(a: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     let norm = a.row_iter().map(|r| r.sum()).fold(0.0, f64::max);
+    if !norm.is_finite() || norm > 1e300 {
+        // Past f64: +∞ is still an upper bound, and the searches treat it as "cannot clear".
+        return SMatrix::<f64, N, N>::from_element(f64::INFINITY);
+    }
     let squarings = if norm > 0.5 {
         (norm / 0.5).log2().ceil() as i32
     } else {

@@ -1,0 +1,373 @@
+//! Shared by the robustness tests: an instance driven only through the C ABI, with a logger
+//! that records every message, and the check that a refusal comes with a logged reason.
+#![allow(dead_code)]
+
+pub mod fuzz;
+
+use backlash_fmu::ffi::*;
+use backlash_fmu::fmu::{ModelInfo, MODELS};
+use std::ffi::{CStr, CString};
+use std::ptr::{null, null_mut};
+use std::sync::Mutex;
+
+/// One logger call: status, category, format, message.
+#[derive(Clone, Debug)]
+pub struct Entry {
+    pub status: fmi2Status,
+    pub category: String,
+    pub format: String,
+    pub message: String,
+}
+
+pub type Log = Mutex<Vec<Entry>>;
+
+/// The logger with its one variadic argument spelled out. On the Linux x86-64 and AArch64
+/// ABIs a variadic call passes these pointer arguments exactly as a fixed-arity call does.
+unsafe extern "C" fn record(
+    env: fmi2ComponentEnvironment,
+    _name: fmi2String,
+    status: fmi2Status,
+    category: fmi2String,
+    format: fmi2String,
+    message: fmi2String,
+) {
+    // SAFETY: `env` is the `Log` passed in `callbacks`, alive as long as its instance; the
+    // strings are NUL-terminated for the duration of the call.
+    let log = unsafe { &*(env as *const Log) };
+    let text = |p: fmi2String| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned();
+    log.lock().unwrap_or_else(|p| p.into_inner()).push(Entry {
+        status,
+        category: text(category),
+        format: text(format),
+        message: text(message),
+    });
+}
+
+pub fn callbacks(log: *const Log) -> fmi2CallbackFunctions {
+    type Fixed =
+        unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, fmi2String);
+    // SAFETY: see `record`.
+    let logger: fmi2CallbackLogger = unsafe { std::mem::transmute::<Fixed, fmi2CallbackLogger>(record) };
+    fmi2CallbackFunctions {
+        logger: Some(logger),
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: log as *mut _,
+    }
+}
+
+pub const SHAFT: usize = 0;
+pub const BELT: usize = 1;
+
+/// An instance with its own log; freed on drop.
+pub struct Fmu {
+    pub c: fmi2Component,
+    pub model: &'static ModelInfo,
+    // Boxed: the logger environment pointer must not move.
+    pub log: Box<Log>,
+}
+
+impl Fmu {
+    pub fn new(model: usize) -> Fmu {
+        Fmu::named(model, "robust")
+    }
+
+    pub fn named(model: usize, name: &str) -> Fmu {
+        let log: Box<Log> = Box::default();
+        let info = &MODELS[model];
+        let name = CString::new(name).unwrap();
+        let guid = CString::new(info.guid).unwrap();
+        let cb = callbacks(&*log);
+        // SAFETY: every pointer is a live local; strings are NUL-terminated.
+        let c = unsafe {
+            fmi2Instantiate(
+                name.as_ptr(),
+                fmi2CoSimulation,
+                guid.as_ptr(),
+                c"file:///tmp/r".as_ptr(),
+                &cb,
+                fmi2False,
+                fmi2False,
+            )
+        };
+        assert!(!c.is_null(), "instantiation of {} failed", info.identifier);
+        Fmu { c, model: info, log }
+    }
+
+    /// Instantiated, experiment from 0 with the given stop time, initialized (StepComplete).
+    pub fn initialized(model: usize, stop: Option<f64>) -> Fmu {
+        let f = Fmu::new(model);
+        assert_eq!(
+            fmi2SetupExperiment(f.c, 0, 0.0, 0.0, stop.is_some() as i32, stop.unwrap_or(0.0)),
+            fmi2Status::fmi2OK
+        );
+        assert_eq!(fmi2EnterInitializationMode(f.c), fmi2Status::fmi2OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), fmi2Status::fmi2OK);
+        f
+    }
+
+    pub fn vr(&self, name: &str) -> u32 {
+        self.model.vr(name)
+    }
+
+    pub fn entries(&self) -> Vec<Entry> {
+        self.log.lock().unwrap().clone()
+    }
+
+    pub fn log_len(&self) -> usize {
+        self.log.lock().unwrap().len()
+    }
+
+    pub fn set_real(&self, name: &str, value: f64) -> fmi2Status {
+        let vr = [self.vr(name)];
+        // SAFETY: arrays of length 1.
+        unsafe { fmi2SetReal(self.c, vr.as_ptr(), 1, [value].as_ptr()) }
+    }
+
+    pub fn get_real(&self, name: &str) -> (fmi2Status, f64) {
+        let vr = [self.vr(name)];
+        let mut y = [f64::NAN];
+        // SAFETY: arrays of length 1.
+        let s = unsafe { fmi2GetReal(self.c, vr.as_ptr(), 1, y.as_mut_ptr()) };
+        (s, y[0])
+    }
+
+    /// Every Real variable's value (outputs, calculated parameter, parameters, inputs) and
+    /// the contact indicator, read in one call each.
+    pub fn all_values(&self) -> (fmi2Status, Vec<(&'static str, f64)>) {
+        let reals: Vec<_> = self.model.variables.iter().filter(|v| v.name != "contact").collect();
+        let vrs: Vec<u32> = reals.iter().map(|v| v.vr).collect();
+        let mut y = vec![f64::NAN; vrs.len()];
+        // SAFETY: both arrays have vrs.len() elements.
+        let s = unsafe { fmi2GetReal(self.c, vrs.as_ptr(), vrs.len(), y.as_mut_ptr()) };
+        let mut out: Vec<_> = reals.iter().map(|v| v.name).zip(y).collect();
+        let mut contact = [i32::MIN];
+        let cvr = [self.vr("contact")];
+        // SAFETY: arrays of length 1.
+        let s2 = unsafe { fmi2GetInteger(self.c, cvr.as_ptr(), 1, contact.as_mut_ptr()) };
+        out.push(("contact", contact[0] as f64));
+        (if s2 != fmi2Status::fmi2OK { s2 } else { s }, out)
+    }
+
+    /// Reads every variable and asserts the read succeeds and nothing is NaN (bound_sup may
+    /// be +∞ by spec §4; nothing else may be infinite), and contact ∈ {−1, 0, 1}.
+    pub fn assert_all_finite(&self, context: &str) {
+        let (s, values) = self.all_values();
+        assert_eq!(
+            s,
+            fmi2Status::fmi2OK,
+            "{context}: reading all variables failed: {:?}",
+            self.entries().last()
+        );
+        for (name, x) in values {
+            assert!(!x.is_nan(), "{context}: {name} is NaN");
+            if name != "bound_sup" {
+                assert!(x.is_finite(), "{context}: {name} = {x}");
+            }
+            if name == "contact" {
+                assert!([-1.0, 0.0, 1.0].contains(&x), "{context}: contact = {x}");
+            }
+        }
+    }
+
+    pub fn time(&self) -> f64 {
+        let mut t = f64::NAN;
+        // SAFETY: pointer to a local.
+        let s = unsafe { fmi2GetRealStatus(self.c, fmi2LastSuccessfulTime, &mut t) };
+        assert_eq!(s, fmi2Status::fmi2OK);
+        t
+    }
+
+    /// Asserts that `status` is a refusal (fmi2Error or fmi2Discard), and that the call logged
+    /// exactly one new message in category logErrors with that status, through "%s",
+    /// containing `reason`.
+    #[track_caller]
+    pub fn assert_refused(&self, status: fmi2Status, log_before: usize, reason: &str) {
+        assert!(
+            matches!(status, fmi2Status::fmi2Error | fmi2Status::fmi2Discard),
+            "expected a refusal with reason {reason:?}, got {status:?}"
+        );
+        let entries = self.entries();
+        let new: Vec<_> = entries[log_before..]
+            .iter()
+            .filter(|e| e.category == "logErrors")
+            .collect();
+        assert_eq!(
+            new.len(),
+            1,
+            "expected one logged reason containing {reason:?}, got {new:?}"
+        );
+        let e = new[0];
+        assert_eq!(e.status, status, "logged status differs from the returned one: {e:?}");
+        assert_eq!(e.format, "%s");
+        assert!(
+            e.message.to_lowercase().contains(&reason.to_lowercase()),
+            "reason {reason:?} not in {:?}",
+            e.message
+        );
+    }
+
+    /// Runs `call`, then asserts it was refused with a logged reason containing `reason`.
+    #[track_caller]
+    pub fn refuses(&self, reason: &str, call: impl FnOnce(fmi2Component) -> fmi2Status) -> fmi2Status {
+        let before = self.log_len();
+        let status = call(self.c);
+        self.assert_refused(status, before, reason);
+        status
+    }
+
+    /// fmi2Reset, then the standard run: the instance must behave like a new one.
+    pub fn reset_and_check(&self) {
+        assert_eq!(fmi2Reset(self.c), fmi2Status::fmi2OK);
+        assert_eq!(standard_run_on(self), standard_run(self.model_index()));
+    }
+
+    pub fn model_index(&self) -> usize {
+        MODELS.iter().position(|m| std::ptr::eq(m, self.model)).unwrap()
+    }
+}
+
+impl Drop for Fmu {
+    fn drop(&mut self) {
+        fmi2FreeInstance(self.c);
+    }
+}
+
+/// A short open-loop run from the start values (τ_m = 2, τ_L = 0.5, 20 steps of 5 ms), as the
+/// bits of every variable at the end. Used to prove an instance works normally: a fresh one,
+/// or one reset after misuse, must reproduce the run of an untouched instance bit for bit.
+pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
+    assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), fmi2Status::fmi2OK);
+    assert_eq!(fmi2EnterInitializationMode(f.c), fmi2Status::fmi2OK);
+    assert_eq!(f.set_real("tau_m", 2.0), fmi2Status::fmi2OK);
+    assert_eq!(f.set_real("tau_L", 0.5), fmi2Status::fmi2OK);
+    assert_eq!(fmi2ExitInitializationMode(f.c), fmi2Status::fmi2OK);
+    let h = 5e-3;
+    for k in 0..20 {
+        assert_eq!(fmi2DoStep(f.c, k as f64 * h, h, fmi2True), fmi2Status::fmi2OK);
+    }
+    f.assert_all_finite("standard run");
+    let (_, values) = f.all_values();
+    let at = |name: &str| values.iter().find(|(n, _)| *n == name).map(|(_, x)| *x).unwrap();
+    // Spec §1: (J_m ω_m' + b_m ω_m − τ_m)/r_m + (J_L ω_L' + b_L ω_L − τ_L)/r_L = 0 in every
+    // mode (ψ cancels), so from rest at θ = 0 the integral
+    //   (J_m ω_m + b_m θ_m − τ_m t)/r_m + (J_L ω_L + b_L θ_L − τ_L t)/r_L
+    // stays 0 whatever the contact history: an independent check that the run is physical.
+    let (r_m, r_l) = match f.model.identifier {
+        "BacklashShaft" => (1.0, 1.0),
+        _ => (at("R_1"), at("R_2") * at("R_g2") / at("R_g1")),
+    };
+    let t = 20.0 * h;
+    let motor = [at("J_m") * at("omega_m"), at("b_m") * at("theta_m"), -2.0 * t];
+    let load = [at("J_L") * at("omega_L"), at("b_L") * at("theta_L"), -0.5 * t];
+    let balance = motor.iter().sum::<f64>() / r_m + load.iter().sum::<f64>() / r_l;
+    let scale = motor.iter().map(|x| x.abs()).sum::<f64>() / r_m + load.iter().map(|x| x.abs()).sum::<f64>() / r_l;
+    assert!(
+        balance.abs() <= 1e-9 * scale,
+        "momentum balance violated: {balance:e} (scale {scale:e}) in {values:?}"
+    );
+    assert!(at("omega_m") > 0.0, "the motor did not move: {values:?}");
+    values.into_iter().map(|(_, x)| x.to_bits()).collect()
+}
+
+/// The standard run on a brand-new instance.
+pub fn standard_run(model: usize) -> Vec<u64> {
+    let f = Fmu::new(model);
+    standard_run_on(&f)
+}
+
+/// A fresh instance works normally after whatever came before: same bits as a second fresh one
+/// (both runs happen now, so this also catches state shared between instances).
+pub fn fresh_instance_works(model: usize) {
+    let a = standard_run(model);
+    let b = standard_run(model);
+    assert_eq!(a, b);
+}
+
+pub fn no_args() -> (*const u32, *mut f64) {
+    (null(), null_mut())
+}
+
+// ---- FMU states as bytes (format documented in src/fmu/snapshot.rs) ----
+
+/// fmi2GetFMUstate + serialize; the state is freed again.
+pub fn serialized(f: &Fmu) -> Vec<u8> {
+    let mut s: fmi2FMUstate = null_mut();
+    // SAFETY: pointers to locals and a buffer of the size the FMU reported.
+    unsafe {
+        assert_eq!(fmi2GetFMUstate(f.c, &mut s), fmi2Status::fmi2OK);
+        let mut size = 0;
+        assert_eq!(fmi2SerializedFMUstateSize(f.c, s, &mut size), fmi2Status::fmi2OK);
+        let mut bytes = vec![0u8; size];
+        assert_eq!(
+            fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr().cast(), size),
+            fmi2Status::fmi2OK
+        );
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s), fmi2Status::fmi2OK);
+        bytes
+    }
+}
+
+/// FNV-1a 64, the checksum of the byte format.
+pub fn fnv1a_64(bytes: &[u8]) -> u64 {
+    let mut hash: u64 = 0xcbf29ce484222325;
+    for b in bytes {
+        hash ^= *b as u64;
+        hash = hash.wrapping_mul(0x100000001b3);
+    }
+    hash
+}
+
+/// Recomputes the trailing checksum after a deliberate edit, so that the edit reaches the
+/// field checks behind the checksum.
+pub fn reseal(bytes: &mut [u8]) {
+    let n = bytes.len() - 8;
+    let sum = fnv1a_64(&bytes[..n]);
+    bytes[n..].copy_from_slice(&sum.to_le_bytes());
+}
+
+/// Offset of the phase byte: after magic (8), version (2), guid length (2) and the guid.
+pub fn phase_offset(bytes: &[u8]) -> usize {
+    12 + u16::from_le_bytes([bytes[10], bytes[11]]) as usize
+}
+
+/// Offset of the first f64 of the plant state (θ_m, ω_m, θ_L, ω_L, u, ...).
+pub fn plant_offset(bytes: &[u8]) -> usize {
+    phase_offset(bytes) + 4 + 8 * 4 + 8 * backlash_fmu::fmu::Symbol::COUNT + 8 * 2
+}
+
+/// Offset of the contact-mode byte: counted from the end, before the bound (12 f64) and the
+/// checksum (8 bytes).
+pub fn mode_offset(bytes: &[u8]) -> usize {
+    bytes.len() - 8 - 8 * 12 - 1
+}
+
+/// fmi2DeSerializeFMUstate + fmi2SetFMUstate: (status of deserialize, status of set).
+pub fn load(f: &Fmu, bytes: &[u8]) -> (fmi2Status, fmi2Status) {
+    let mut s: fmi2FMUstate = null_mut();
+    // SAFETY: `bytes` has the announced length; `s` is a local.
+    unsafe {
+        let d = fmi2DeSerializeFMUstate(f.c, bytes.as_ptr().cast(), bytes.len(), &mut s);
+        if d != fmi2Status::fmi2OK {
+            return (d, d);
+        }
+        let set = fmi2SetFMUstate(f.c, s);
+        fmi2FreeFMUstate(f.c, &mut s);
+        (d, set)
+    }
+}
+
+/// An instance put into state StepFailed, which no call of this FMU enters by itself (every
+/// step completes or fails with fmi2Error): through an FMU state whose phase byte says so.
+pub fn in_step_failed(model: usize) -> Fmu {
+    let donor = Fmu::initialized(model, None);
+    assert_eq!(fmi2DoStep(donor.c, 0.0, 1e-3, 1), fmi2Status::fmi2OK);
+    let mut bytes = serialized(&donor);
+    let at = phase_offset(&bytes);
+    bytes[at] = 3; // StepFailed in the documented numbering
+    reseal(&mut bytes);
+    let f = Fmu::new(model);
+    assert_eq!(load(&f, &bytes), (fmi2Status::fmi2OK, fmi2Status::fmi2OK));
+    f
+}
