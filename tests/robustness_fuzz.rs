@@ -7,8 +7,9 @@
 //!     FUZZ_SECONDS=180 cargo test --release --test robustness_fuzz -- --nocapture
 //!     FUZZ_SEED=12345 cargo test --test robustness_fuzz   # replay one seed
 //!
-//! FUZZ_EXTREME=1 also gives parameters extreme finite magnitudes (1e±300, f64::MAX); off by
-//! default because some such plants still make the physics hang (tests/robustness_extremes.rs).
+//! FUZZ_EXTREME=1 also gives parameters extreme finite magnitudes (1e±300, f64::MAX), which
+//! the plant refuses by scale (tests/robustness_extremes.rs); off by default to keep most calls
+//! on plants that step.
 #![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 
 mod robustness_common;
