@@ -42,7 +42,7 @@ pub struct BoundState {
 pub enum BoundError {
     #[error("gain {name} = {value} must be finite")]
     NonFiniteGain { name: &'static str, value: f64 },
-    #[error("gain {name} = {value} is outside the range this model integrates: 0 or 1e-100 ..= 1e100 in magnitude")]
+    #[error("gain {name} = {value:e} is outside the range this model integrates: 0 or 1e-100 ..= 1e100 in magnitude")]
     GainOutOfScale { name: &'static str, value: f64 },
     #[error("time advance {h} must be finite and >= 0")]
     BadAdvance { h: f64 },

@@ -66,7 +66,7 @@ pub enum ParamError {
     #[error("parameter {name} = {value} must be >= 0")]
     Negative { name: &'static str, value: f64 },
     #[error(
-        "parameter {name} = {value} is outside the range this model integrates: 0 or 1e-100 ..= 1e100 in magnitude"
+        "parameter {name} = {value:e} is outside the range this model integrates: 0 or 1e-100 ..= 1e100 in magnitude"
     )]
     OutOfScale { name: &'static str, value: f64 },
     #[error("{name} = {value:e}, derived from the parameters, is outside 1e-200 ..= 1e200: the time scales of the plant are too far apart to integrate")]
