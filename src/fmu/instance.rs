@@ -750,7 +750,7 @@ impl Instance {
                 switches.push(event)
             }
         })?;
-        sim.check_state(&state, &format!("the step to t = {end} overflows"))?;
+        sim.check_state(&state, format_args!("the step to t = {end} overflows"))?;
         let bound_before = sim.bound.state();
         sim.bound.advance(h)?;
         let bounds = [sim.bound.bound(), sim.bound.bound_paper()];

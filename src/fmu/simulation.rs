@@ -66,13 +66,14 @@ impl Simulation {
             at(Symbol::ThetaL),
             at(Symbol::OmegaL),
         );
-        sim.check_state(&sim.state, "the initial state overflows")?;
+        sim.check_state(&sim.state, format_args!("the initial state overflows"))?;
         Ok(sim)
     }
 
     /// Refuses a plant state that is not finite or whose force ψ = K·dz(u, g) overflows:
     /// finite but huge angles, speeds or parameters must not turn into ∞/NaN outputs.
-    pub fn check_state(&self, state: &PlantState, what: &str) -> Result<(), FmuError> {
+    /// `what` is formatted only when the check fails (it runs on every fmi2DoStep).
+    pub fn check_state(&self, state: &PlantState, what: std::fmt::Arguments<'_>) -> Result<(), FmuError> {
         let psi = self.plant().force(state.u);
         if state.is_finite() && psi.is_finite() {
             Ok(())
@@ -96,7 +97,7 @@ impl Simulation {
         if !state.is_finite() {
             return Err(FmuError::StateRefused("the plant state is not finite".into()));
         }
-        sim.check_state(&state, "the saved plant state overflows")?;
+        sim.check_state(&state, format_args!("the saved plant state overflows"))?;
         sim.state = state;
         sim.bound.restore(bound)?;
         Ok(sim)
