@@ -2,7 +2,7 @@
 
 use super::linear;
 use super::params::Plant;
-use super::roots::{self, Side, SignalRows, Sparse, TaylorModel};
+use super::roots::{self, Side, SignalRows, Sparse, TaylorModel, Undecided};
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use thiserror::Error;
 
@@ -143,11 +143,19 @@ impl SpeedErrorBound {
 
     /// Advances time since the start by `h` ≥ 0.
     pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
+        self.advance_within(h, None).map(|_| ())
+    }
+
+    /// `advance`, with the sign-change searches charged to `budget` when given (else to a
+    /// budget of their own). Returns how much of the growth of ∫|h| is an upper bound taken
+    /// where the search gave up, beyond the net |∫h| over those spans: the most by which l1
+    /// may exceed the exact ∫|h| from this advance.
+    fn advance_within(&mut self, h: f64, budget: Option<&mut usize>) -> Result<f64, BoundError> {
         if !(h.is_finite() && h >= 0.0) {
             return Err(BoundError::BadAdvance { h });
         }
         if h == 0.0 {
-            return Ok(());
+            return Ok(0.0);
         }
         if self.settled() {
             // bound is final; what remains of e^{As}D_1 is the constant rigid-body part, so
@@ -156,7 +164,7 @@ impl SpeedErrorBound {
                 *total += v * h;
             }
             self.state.elapsed += h;
-            return Ok(());
+            return Ok(0.0);
         }
         let len_ref = self.h_rows.len_ref();
         if h / len_ref > super::stepper::MAX_PIECES as f64 {
@@ -180,22 +188,31 @@ impl SpeedErrorBound {
         let mut y = BoundVector::zeros();
         y.as_mut_slice()[..CL].copy_from_slice(&self.state.response);
         let mut l1 = self.state.l1;
+        let mut excess = 0.0;
+        let mut own_budget = roots::work_budget(cache.pieces);
+        let budget = budget.unwrap_or(&mut own_budget);
         for _ in 0..cache.pieces {
             // Each piece integrates from zero, so ∫h over it keeps full precision however large
             // the running integral has grown.
             y.as_mut_slice()[CL..].fill(0.0);
             let mut done = 0.0;
-            // A piece is shorter than a half period of the loop: it holds few sign changes,
-            // and past `MAX_CROSSINGS` the rest of the piece is taken whole.
+            // A piece is shorter than a half period of the loop: it holds few sign changes.
+            // Past `MAX_CROSSINGS`, or where the search cannot decide (h within round-off of 0
+            // over much of the span), the rest of the piece adds an upper bound of ∫|h|, so
+            // that `bound` stays a guarantee.
             for crossing in 0..=MAX_CROSSINGS {
                 let span = cache.len - done;
                 let whole = done == 0.0;
                 let before = y[CL + OMEGA_L];
-                let search = crossing < MAX_CROSSINGS;
                 let exact_row = whole.then_some(&cache.remainder);
                 let mut model = None;
-                match self.sign_change(&y, span, exact_row, &mut model).filter(|_| search) {
-                    None => {
+                let found = if crossing < MAX_CROSSINGS {
+                    self.sign_change(&y, span, exact_row, &mut model, budget)
+                } else {
+                    Err(Undecided)
+                };
+                match found {
+                    Ok(None) => {
                         y = match (whole, model) {
                             (true, _) => cache.phi * y,
                             (false, Some(model)) => model.at(span),
@@ -204,7 +221,7 @@ impl SpeedErrorBound {
                         l1 += (y[CL + OMEGA_L] - before).abs();
                         break;
                     }
-                    Some(offset) => {
+                    Ok(Some(offset)) => {
                         y = model.expect("sign changes are found on the Taylor model").at(offset);
                         // On the root: h is 0 there to round-off, and exactly 0 keeps the
                         // search on the new side from seeing the crossing again.
@@ -215,6 +232,15 @@ impl SpeedErrorBound {
                             break;
                         }
                     }
+                    Err(Undecided) => {
+                        let model = model.unwrap_or_else(|| TaylorModel::new(&self.sparse, &y, span));
+                        y = model.at(span);
+                        let net = (y[CL + OMEGA_L] - before).abs();
+                        let upper = roots::abs_integral_bound(&model.poly(OMEGA_L), span).max(net);
+                        l1 += upper;
+                        excess += upper - net;
+                        break;
+                    }
                 }
             }
             for (total, piece) in self.state.integral.iter_mut().zip(&y.as_slice()[CL..]) {
@@ -224,10 +250,10 @@ impl SpeedErrorBound {
         self.state.response.copy_from_slice(&y.as_slice()[..CL]);
         self.state.l1 = l1;
         self.state.elapsed += h;
-        Ok(())
+        Ok(excess)
     }
 
-    /// The first sign change of h within `span`, if any.
+    /// The first sign change of h within `span`, if any, or `Undecided`.
     /// The Taylor model of the piece, when the search needed it, is left in `model`.
     fn sign_change(
         &self,
@@ -235,7 +261,8 @@ impl SpeedErrorBound {
         span: f64,
         exact_row: Option<&BoundVector>,
         model: &mut Option<TaylorModel<BA>>,
-    ) -> Option<f64> {
+        budget: &mut usize,
+    ) -> Result<Option<f64>, Undecided> {
         let d = [
             self.h_rows.derivative(0, y),
             self.h_rows.derivative(1, y),
@@ -249,16 +276,18 @@ impl SpeedErrorBound {
         } else {
             d[2].signum()
         };
-        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[OMEGA_L].abs());
+        // The smallest positive floor keeps an h that is zero to the last bit (no response
+        // left) on its side, rather than searched for a sign it does not have.
+        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[OMEGA_L].abs()) + f64::MIN_POSITIVE;
         let side = Side { offset: 0.0, sign, tol };
         let c3 = self.h_rows.third_bound(y, span, exact_row);
         if roots::cubic_clear(sign * d[0], sign * d[1], sign * d[2], c3, span, tol) {
-            return None;
+            return Ok(None);
         }
         let poly = model
             .get_or_insert_with(|| TaylorModel::new(&self.sparse, y, span))
             .poly(OMEGA_L);
-        roots::first_exit(&poly, side, span)
+        roots::first_exit(&poly, side, span, budget)
     }
 
     /// K g ∫_0^t |h(s)| ds: a true bound on |ω_L^b − ω_L^0| [rad/s].
@@ -315,11 +344,17 @@ impl SpeedErrorBound {
         };
         let chunk = SUP_CHECK_PIECES as f64 * self.h_rows.len_ref();
         let mut pieces = 0;
+        // One budget for all searches: where h hovers at 0 they give up, and the sum takes
+        // upper bounds of ∫|h| there (counted in the slack) rather than searching on.
+        let mut budget = roots::work_budget(SUP_SEARCH_PIECES);
+        let mut excess = 0.0;
         loop {
             let rest = tail.of(&self.state.response);
             let l1 = self.state.l1;
-            if rest <= SUP_TOLERANCE * l1 || pieces >= SUP_MAX_PIECES || self.advance(chunk).is_err() {
-                return Ok((self.scale * (l1 + rest), rest / l1));
+            let done = rest <= SUP_TOLERANCE * l1 || pieces >= SUP_MAX_PIECES;
+            match (!done).then(|| self.advance_within(chunk, Some(&mut budget))) {
+                Some(Ok(more)) => excess += more,
+                _ => return Ok((self.scale * (l1 + rest), (rest + excess) / l1)),
             }
             pieces += SUP_CHECK_PIECES;
         }
@@ -340,6 +375,8 @@ const SETTLED: f64 = 1.0 / (1u64 << 60) as f64;
 const SUP_TOLERANCE: f64 = 1e-13;
 const SUP_CHECK_PIECES: usize = 256;
 const SUP_MAX_PIECES: usize = 1 << 21;
+/// The sign-change searches of the whole sup computation get the budget of this many pieces.
+const SUP_SEARCH_PIECES: usize = 1 << 12;
 
 /// A_cl of spec §3 (A_p with the PI loop on ω_m); with Kp = Ki = 0 the x_c row and column
 /// are zero, so x_c stays 0 and the 5-vector norms equal the open-loop 4-vector ones.

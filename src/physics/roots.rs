@@ -262,8 +262,10 @@ impl Side {
     }
 }
 
-/// True when f₀ + f₁σ + f₂σ²/2 − c₃σ³/6 > −tol for all σ in [0, w]: then f (with |f'''| ≤ c₃)
-/// cannot leave the admissible side on [0, w].
+/// True when f₀ + f₁σ + f₂σ²/2 − c₃σ³/6 > −tol for all σ in (0, w] and f₀ ≥ −tol: then f
+/// (with |f'''| ≤ c₃) cannot leave the admissible side on [0, w]. A start on the floor itself
+/// (f₀ = −tol, as after a located crossing with tol = 0) is admissible: the search asks where
+/// f goes below it.
 pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
     let floor = -tol;
     // Sufficient and cheap: f₀ exceeds the largest possible drop over [0, w].
@@ -271,7 +273,11 @@ pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool
         return true;
     }
     let lower = |x: f64| f0 + x * (f1 + x * (0.5 * f2 - x * c3 / 6.0));
-    if !(lower(0.0) > floor) || !(lower(w) > floor) {
+    if !(f0 >= floor) || !(lower(w) > floor) {
+        return false;
+    }
+    // On the floor at the start, f must leave it upwards.
+    if f0 == floor && !(f1 > 0.0 || (f1 == 0.0 && f2 > 0.0)) {
         return false;
     }
     // Interior minima: roots of f₁ + f₂σ − c₃σ²/2.
@@ -296,17 +302,55 @@ pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool
     ok
 }
 
-/// Upper bound of the work in one search: intervals examined.
-const MAX_INTERVALS: usize = 4096;
+/// Upper bound of the work in one search: intervals examined. A search for one or two
+/// crossings descends ~50 levels at most (to `RESOLUTION`), with one sibling per level.
+const MAX_INTERVALS: usize = 512;
 
-/// First σ in [0, w] at which `side.value(p(σ))` leaves [−tol, ∞), located as the root of
-/// side.value(p) = 0 (σ = 0 when it is already outside). `None` when it provably stays.
-pub fn first_exit(p: &Poly, side: Side, w: f64) -> Option<f64> {
-    let mut budget = MAX_INTERVALS;
-    search(p, side, 0.0, w, &mut budget)
+/// A search that spent its work budget without certifying either way: the signal hovers
+/// within round-off of the threshold over much of the span.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Undecided;
+
+/// The intervals all searches of one step or advance of `pieces` pieces may examine together:
+/// plenty for the few crossings per piece a real motion has, and a cap on the work when the
+/// signal hovers at its threshold through a long step (each piece then gives up early).
+pub fn work_budget(pieces: usize) -> usize {
+    4 * MAX_INTERVALS + 64 * pieces
 }
 
-fn search(p: &Poly, side: Side, lo: f64, hi: f64, budget: &mut usize) -> Option<f64> {
+/// First σ in [0, w] at which `side.value(p(σ))` leaves [−tol, ∞), located as the root of
+/// side.value(p) = 0 (σ = 0 when it is already outside). `Ok(None)` when it provably stays;
+/// `Err(Undecided)` when the work ran out (`MAX_INTERVALS`, or what is left of `budget`,
+/// which is charged with the intervals examined) before either was certified.
+pub fn first_exit(p: &Poly, side: Side, w: f64, budget: &mut usize) -> Result<Option<f64>, Undecided> {
+    let allowed = MAX_INTERVALS.min(*budget);
+    let mut left = allowed;
+    // Depth first, left to right: a crossing found before the work ran out is the first.
+    let found = search(p, side, 0.0, w, RESOLUTION * w, &mut left);
+    *budget -= allowed - left;
+    match found {
+        None if left == 0 => Err(Undecided),
+        found => Ok(found),
+    }
+}
+
+/// An upper bound on ∫_0^w |p(σ)| dσ: Σ |c_k| w^(k+1)/(k+1), for spans the search gave up on.
+pub fn abs_integral_bound(p: &Poly, w: f64) -> f64 {
+    let mut wp = w;
+    let mut total = 0.0;
+    for (k, c) in p.coef[..=p.deg].iter().enumerate() {
+        total += c.abs() * wp / (k + 1) as f64;
+        wp *= w;
+    }
+    total
+}
+
+/// Intervals narrower than this fraction of the searched span are not split: offsets that
+/// small vanish when added to the span's start time, and halving on down to the subnormal
+/// range would take ~1000 levels of slow arithmetic per search.
+const RESOLUTION: f64 = f64::EPSILON / 4.0;
+
+fn search(p: &Poly, side: Side, lo: f64, hi: f64, resolution: f64, budget: &mut usize) -> Option<f64> {
     if *budget == 0 {
         return None;
     }
@@ -339,15 +383,15 @@ fn search(p: &Poly, side: Side, lo: f64, hi: f64, budget: &mut usize) -> Option<
         }
     }
     let mid = lo + 0.5 * w;
-    if mid <= lo || mid >= hi {
-        // Below the resolution of f64: the crossing, if any, is here.
+    if w <= resolution || mid <= lo || mid >= hi {
+        // At the resolution of the span: the crossing, if any, is here.
         return if f_hi < -side.tol {
             Some(lo + refine(&q, side, w))
         } else {
             None
         };
     }
-    search(p, side, lo, mid, budget).or_else(|| search(p, side, mid, hi, budget))
+    search(p, side, lo, mid, resolution, budget).or_else(|| search(p, side, mid, hi, resolution, budget))
 }
 
 /// The root of side.value(q(σ)) on [0, w], given f(0) ≥ −tol and f(w) < −tol: Newton
@@ -386,4 +430,111 @@ fn refine(q: &Poly, side: Side, w: f64) -> f64 {
         };
     }
     x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn poly(coefs: &[f64]) -> Poly {
+        let mut coef = [0.0; TERMS];
+        coef[..coefs.len()].copy_from_slice(coefs);
+        Poly {
+            coef,
+            deg: coefs.len() - 1,
+        }
+    }
+
+    /// Intervals one search examines, and what it found.
+    fn work(p: &Poly, side: Side, w: f64) -> (Option<f64>, usize) {
+        let mut budget = MAX_INTERVALS;
+        let found = search(p, side, 0.0, w, RESOLUTION * w, &mut budget);
+        (found, MAX_INTERVALS - budget)
+    }
+
+    #[test]
+    fn a_signal_on_its_threshold_throughout_is_undecided_within_the_budget() {
+        // f ≡ 0 with a floor of 0 and a non-zero cubic bound from round-off-sized higher
+        // coefficients: nothing can be certified anywhere; the search must give up, not hang.
+        let p = poly(&[0.0, 0.0, 0.0, 1e-300, -1e-300]);
+        let side = Side {
+            offset: 0.0,
+            sign: 1.0,
+            tol: 0.0,
+        };
+        let (_, intervals) = work(&p, side, 0.5);
+        assert!(intervals <= MAX_INTERVALS);
+        let mut budget = 3 * MAX_INTERVALS;
+        assert!(matches!(
+            first_exit(&p, side, 0.5, &mut budget),
+            Err(Undecided) | Ok(None)
+        ));
+        assert_eq!(budget, 3 * MAX_INTERVALS - intervals, "the shared budget is charged");
+        // With the shared budget spent, a search gives up at once.
+        let mut spent = 0;
+        assert_eq!(first_exit(&p, side, 0.5, &mut spent), Err(Undecided));
+    }
+
+    #[test]
+    fn the_fallback_integral_bounds_the_absolute_integral() {
+        // p = 1 − 3σ + σ² changes sign on [0, 1]; ∫|p| by fine midpoint sums stays below.
+        let p = poly(&[1.0, -3.0, 1.0]);
+        let n = 100_000;
+        let exact: f64 = (0..n)
+            .map(|i| p.eval((i as f64 + 0.5) / n as f64).abs() / n as f64)
+            .sum();
+        let bound = abs_integral_bound(&p, 1.0);
+        assert!(bound >= exact, "{bound} < {exact}");
+        assert!((bound - (1.0 + 1.5 + 1.0 / 3.0)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_start_on_the_floor_heading_inside_is_clear_at_once() {
+        // h = σ − 2σ² + σ³ on a located root with a zero round-off floor: the state the
+        // bound's sign-change search restarts from after each crossing.
+        let p = poly(&[0.0, 1.0, -2.0, 1.0]);
+        let side = Side {
+            offset: 0.0,
+            sign: 1.0,
+            tol: 0.0,
+        };
+        let (found, intervals) = work(&p, side, 0.5);
+        assert_eq!(found, None);
+        assert!(intervals <= 4, "{intervals} intervals");
+        assert!(cubic_clear(0.0, 1.0, -4.0, 6.0, 0.25, 0.0));
+        // Heading out of the admissible side, or flat with nothing to lift it: not clear.
+        assert!(!cubic_clear(0.0, -1.0, 0.0, 0.0, 0.5, 0.0));
+        assert!(!cubic_clear(0.0, 0.0, 0.0, 1.0, 0.5, 0.0));
+    }
+
+    #[test]
+    fn bisection_stops_at_the_resolution_of_the_span() {
+        // f touches the floor at σ = 0 from inside with f1 = 0 and f2 = 0; c3 > 0 keeps every
+        // interval starting at 0 from being cleared, so only the resolution ends the descent.
+        let p = poly(&[0.0, 0.0, 0.0, 1.0, -1.0]);
+        let side = Side {
+            offset: 0.0,
+            sign: 1.0,
+            tol: 0.0,
+        };
+        let (found, intervals) = work(&p, side, 0.5);
+        // ~f64::EPSILON / 4 of the span in halvings, and one sibling per level.
+        assert!(intervals <= 2 * 60, "{intervals} intervals");
+        // The only exit of f = σ³ − σ⁴ from [0, ∞) in (0, 0.5] would be at σ = 1: none.
+        assert!(found.is_none_or(|x| x <= RESOLUTION * 0.5), "{found:?}");
+    }
+
+    #[test]
+    fn a_crossing_is_still_located_to_the_last_bit() {
+        // f = 0.3 − σ crosses 0 at 0.3: the resolution floor does not coarsen the root.
+        let p = poly(&[0.3, -1.0, 0.0, 1e-3]);
+        let side = Side {
+            offset: 0.0,
+            sign: 1.0,
+            tol: 0.0,
+        };
+        let (found, _) = work(&p, side, 0.5);
+        let root = found.expect("a crossing");
+        assert!(p.eval(root).abs() <= 4.0 * f64::EPSILON, "f({root}) = {}", p.eval(root));
+    }
 }
