@@ -2,57 +2,44 @@
 //! legal-state check → argument conversion → one mapping from error to `fmi2Status`, with the
 //! reason logged through the importer's logger. Plus the C logger and pointer conversions.
 
+use super::registry;
 use super::types::*;
 use crate::fmu::{FmuError, Function, Instance, LogCategory, LogSink, Status};
-use std::collections::BTreeMap;
 use std::ffi::{CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, MutexGuard};
 
 /// What an `fmi2Component` points to.
 pub struct Component {
     pub instance: Instance,
 }
 
-/// Live components by handle. The handle given to the importer is a serial number, not the
-/// address: a handle not in this table (NULL, freed, foreign) is refused before anything is
-/// dereferenced, and a stale handle can never reach an instance created later at the same
-/// address, so a double fmi2FreeInstance cannot corrupt memory.
-static LIVE: Mutex<BTreeMap<usize, usize>> = Mutex::new(BTreeMap::new());
-
-/// Handles look like aligned addresses to importers that print them.
+/// Handles of FMU states: serial numbers that look like aligned addresses to importers that
+/// print them.
 static NEXT_HANDLE: AtomicUsize = AtomicUsize::new(0x1000);
 
 pub fn next_handle() -> usize {
     NEXT_HANDLE.fetch_add(0x10, Ordering::Relaxed)
 }
 
-fn live() -> MutexGuard<'static, BTreeMap<usize, usize>> {
-    // A panic while holding the lock cannot leave the map half-updated (single insert/remove).
-    LIVE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
-pub fn register(component: Box<Component>) -> fmi2Component {
-    let handle = next_handle();
-    live().insert(handle, Box::into_raw(component) as usize);
-    handle as fmi2Component
+/// Makes `component` live and returns its handle; gives it back when
+/// [`registry::CAPACITY`] instances are live already.
+pub fn register(component: Box<Component>) -> Result<fmi2Component, Box<Component>> {
+    registry::insert(component).map(|handle| handle as fmi2Component)
 }
 
 /// Removes `c` from the live table and returns ownership of its component, if it is live.
 pub fn unregister(c: fmi2Component) -> Option<Box<Component>> {
-    let address = live().remove(&(c as usize))?;
-    // SAFETY: the address was stored by `register` from `Box::into_raw` and removed from the
-    // table just now, so it is live and this is its only owner.
-    Some(unsafe { Box::from_raw(address as *mut Component) })
+    registry::remove(c as usize)
 }
 
+#[inline]
 fn component<'a>(c: fmi2Component) -> Option<&'a mut Component> {
-    let address = *live().get(&(c as usize))?;
+    let address = registry::get(c as usize)?;
     // SAFETY: `address` is live (stored by `register`, not yet unregistered). FMI 2.0.4
     // §2.1.5 forbids calling functions of one instance concurrently, so no other reference to
     // this component exists while the call runs.
-    Some(unsafe { &mut *(address as *mut Component) })
+    Some(unsafe { &mut *address })
 }
 
 impl From<Status> for fmi2Status {

@@ -135,7 +135,18 @@ fn instantiate(
     instance.log(Status::Ok, LogCategory::Calls, || {
         format!("fmi2Instantiate: instance {name:?} of {}", model.identifier)
     });
-    register(Box::new(Component { instance }))
+    match register(Box::new(Component { instance })) {
+        Ok(handle) => handle,
+        Err(mut component) => {
+            component.instance.log(Status::Error, LogCategory::Errors, || {
+                format!(
+                    "fmi2Instantiate: {} instances are live, the most this library serves at once; free one first",
+                    super::registry::CAPACITY
+                )
+            });
+            std::ptr::null_mut()
+        }
+    }
 }
 
 /// Frees the instance and every FMU state it allocated. Unknown or already freed pointers are

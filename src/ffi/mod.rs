@@ -13,6 +13,7 @@ pub mod fmu_state;
 pub mod guard;
 pub mod lifecycle;
 pub mod model_exchange;
+mod registry;
 pub mod types;
 pub mod values;
 

@@ -6,12 +6,12 @@
 
 use super::error::{FmuError, Status};
 use super::logging::{LogCategory, LogSink, Logging};
-use super::simulation::{inputs, Simulation, Values};
+use super::simulation::{inputs, Simulation, Values, MAX_PERIODS_PER_STEP};
 use super::snapshot::{PhysicsSnapshot, Snapshot};
 use super::state_machine::{Function, Phase};
 use super::variables::{model_by_guid, Causality, ModelInfo, Symbol, VarType, Variable};
-use crate::physics::contact_indicator;
 use crate::physics::ContactMode;
+use crate::physics::{contact_indicator, BoundError};
 
 /// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
 /// exitInitializationMode warns.
@@ -48,10 +48,6 @@ pub enum StatusKind {
 /// Relative tolerance for "the communication point equals the current time": steps are
 /// accumulated by the importer in floating point, so they drift by a few ulps per step.
 const TIME_TOLERANCE: f64 = 1e-9;
-
-/// The largest step, in periods of the fastest contact oscillation: bounds the number of
-/// contact switches one step can contain, so no step runs for long.
-const MAX_PERIODS_PER_STEP: f64 = 1e4;
 
 pub struct Instance {
     model: &'static ModelInfo,
@@ -566,7 +562,7 @@ impl Instance {
     /// All values are checked before any is stored, so a refused call changes nothing.
     pub(crate) fn set_real_body(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
         Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
-        let mut targets = Vec::with_capacity(vrs.len());
+        // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
             let v = self.typed_variable(*vr, VarType::Real)?;
             self.check_settable(v)?;
@@ -577,10 +573,10 @@ impl Instance {
                     range: v.range.describe(),
                 });
             }
-            targets.push(v.symbol);
         }
-        for (symbol, value) in targets.into_iter().zip(values) {
-            self.values[symbol.index()] = *value;
+        for (vr, value) in vrs.iter().zip(values) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            self.values[v.symbol.index()] = *value;
         }
         if self.sim.is_none() {
             self.preview = None;
@@ -682,15 +678,6 @@ impl Instance {
         Ok(Status::Ok)
     }
 
-    /// The largest admissible step: [`MAX_PERIODS_PER_STEP`] periods of the undamped contact
-    /// oscillation, ω² = K (r_m²/J_m + r_L²/J_L).
-    fn max_step(sim: &Simulation) -> f64 {
-        let p = sim.plant();
-        let params = p.params();
-        let omega_sq = p.stiffness() * (p.r_m() * p.r_m() / params.j_m + p.r_l() * p.r_l() / params.j_l);
-        MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / omega_sq.sqrt()
-    }
-
     pub(crate) fn do_step_body(&mut self, communication_point: f64, h: f64) -> Result<Status, FmuError> {
         let bad = |reason: String| Err(FmuError::InvalidArgument(reason));
         if !communication_point.is_finite() {
@@ -733,7 +720,7 @@ impl Instance {
             )));
         }
         let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
-        let max_step = Self::max_step(sim);
+        let max_step = sim.max_step;
         if h > max_step {
             return bad(format!(
                 "communicationStepSize {h} exceeds {max_step:e} s ({MAX_PERIODS_PER_STEP:e} periods of the contact \
@@ -751,16 +738,13 @@ impl Instance {
             }
         })?;
         sim.check_state(&state, format_args!("the step to t = {end} overflows"))?;
-        let bound_before = sim.bound.state();
-        sim.bound.advance(h)?;
-        let bounds = [sim.bound.bound(), sim.bound.bound_paper()];
-        if !bounds.iter().all(|b| b.is_finite()) {
-            sim.bound.restore(&bound_before)?;
-            return Err(FmuError::Overflow(format!(
-                "the step to t = {end} overflows the bounds: bound = {:e}, bound_paper = {:e}",
-                bounds[0], bounds[1]
-            )));
-        }
+        // Fails before changing anything (a bad h is excluded above).
+        sim.bound.advance(h).map_err(|e| match e {
+            BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
+                "the step to t = {end} overflows the bounds: bound = {bound:e}, bound_paper = {bound_paper:e}"
+            )),
+            e => e.into(),
+        })?;
         sim.state = state;
         let half_gap = sim.plant().half_gap();
         for e in switches {

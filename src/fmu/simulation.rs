@@ -51,6 +51,20 @@ pub struct Simulation {
     pub bound: SpeedErrorBound,
     /// bound_sup, or why it is +∞ (spec §3).
     pub bound_sup: Result<f64, Unbounded>,
+    /// The longest step accepted, see [`max_step`].
+    pub max_step: f64,
+}
+
+/// The largest step, in periods of the fastest contact oscillation: bounds the number of
+/// contact switches one step can contain, so no step runs for long.
+pub const MAX_PERIODS_PER_STEP: f64 = 1e4;
+
+/// The largest admissible step: [`MAX_PERIODS_PER_STEP`] periods of the undamped contact
+/// oscillation, ω² = K (r_m²/J_m + r_L²/J_L).
+fn max_step(p: &Plant) -> f64 {
+    let params = p.params();
+    let omega_sq = p.stiffness() * (p.r_m() * p.r_m() / params.j_m + p.r_l() * p.r_l() / params.j_l);
+    MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / omega_sq.sqrt()
 }
 
 impl Simulation {
@@ -170,6 +184,7 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let bound_sup = bound.sup();
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
     let sim = Simulation {
+        max_step: max_step(&plant),
         stepper: Stepper::new(plant),
         state,
         bound,

@@ -111,7 +111,12 @@ pub struct ModelInfo {
 
 impl ModelInfo {
     pub fn by_vr(&self, vr: u32) -> Option<&'static Variable> {
-        self.variables.iter().find(|v| v.vr == vr)
+        // Value references are numbered from 1 in the order of the list: try that place
+        // first, then search (a hot path: every fmi2GetReal/fmi2SetReal element).
+        let direct = (vr as usize).checked_sub(1).and_then(|i| self.variables.get(i));
+        direct
+            .filter(|v| v.vr == vr)
+            .or_else(|| self.variables.iter().find(|v| v.vr == vr))
     }
 
     pub fn by_symbol(&self, symbol: Symbol) -> Option<&'static Variable> {

@@ -50,6 +50,8 @@ pub enum BoundError {
     AdvanceTooLong { h: f64, max_h: f64 },
     #[error("bound state is not finite or has negative time")]
     BadState,
+    #[error("the bounds overflow: bound = {bound:e}, bound_paper = {bound_paper:e}")]
+    Overflow { bound: f64, bound_paper: f64 },
 }
 
 /// Closed-loop state [θ_m, ω_m, θ_L, ω_L, x_c] (spec §3).
@@ -91,6 +93,9 @@ pub struct SpeedErrorBound {
     /// Bounds what is left of ∫|h|; None when the loop does not decay.
     tail: Option<TailBound>,
     cache: Option<AdvanceCache>,
+    /// `settled_now()` of `state`, kept with it: in the settled regime the response no longer
+    /// moves, so the answer cannot change until the state is replaced.
+    settled: bool,
 }
 
 impl SpeedErrorBound {
@@ -126,6 +131,7 @@ impl SpeedErrorBound {
             sup: Err(Unbounded::Undamped),
             tail: None,
             cache: None,
+            settled: false,
         };
         let reduced = Reduced::new(plant, gains);
         bound.tail = reduced.tail_bound().ok();
@@ -139,11 +145,31 @@ impl SpeedErrorBound {
     pub fn reset(&mut self) {
         self.state = BoundState::default();
         self.state.response.copy_from_slice(&self.start.as_slice()[..CL]);
+        self.settled = self.settled_now();
     }
 
-    /// Advances time since the start by `h` ≥ 0.
+    /// Advances time since the start by `h` ≥ 0. On error nothing changes; `Overflow` when
+    /// `bound` or `bound_paper` would not be finite after it.
     pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
-        self.advance_within(h, None).map(|_| ())
+        if self.settled && h > 0.0 && h.is_finite() {
+            // The common case once the response has decayed, with the overflow test of
+            // `outputs_finite` done on the new values before they are stored.
+            let (integral, peak) = self.drift(h);
+            if (self.scale * peak * 2.25).is_finite() {
+                self.state.integral = integral;
+                self.state.elapsed += h;
+                return Ok(());
+            }
+        }
+        let before = self.state;
+        self.advance_within(h, None)?;
+        if self.outputs_finite() {
+            return Ok(());
+        }
+        let (bound, bound_paper) = (self.bound(), self.bound_paper());
+        self.state = before;
+        self.settled = self.settled_now();
+        Err(BoundError::Overflow { bound, bound_paper })
     }
 
     /// `advance`, with the sign-change searches charged to `budget` when given (else to a
@@ -157,12 +183,8 @@ impl SpeedErrorBound {
         if h == 0.0 {
             return Ok(0.0);
         }
-        if self.settled() {
-            // bound is final; what remains of e^{As}D_1 is the constant rigid-body part, so
-            // ∫ e^{As}D_1 grows by it linearly (the rest is below round-off of the bound).
-            for (total, v) in self.state.integral.iter_mut().zip(&self.state.response) {
-                *total += v * h;
-            }
+        if self.settled {
+            self.state.integral = self.drift(h).0;
             self.state.elapsed += h;
             return Ok(0.0);
         }
@@ -213,7 +235,7 @@ impl SpeedErrorBound {
                 };
                 match found {
                     Ok(None) => {
-                        y = match (whole, model) {
+                        y = match (whole, &model) {
                             (true, _) => cache.phi * y,
                             (false, Some(model)) => model.at(span),
                             (false, None) => TaylorModel::new(&self.sparse, &y, span).at(span),
@@ -222,7 +244,10 @@ impl SpeedErrorBound {
                         break;
                     }
                     Ok(Some(offset)) => {
-                        y = model.expect("sign changes are found on the Taylor model").at(offset);
+                        y = model
+                            .as_ref()
+                            .expect("sign changes are found on the Taylor model")
+                            .at(offset);
                         // On the root: h is 0 there to round-off, and exactly 0 keeps the
                         // search on the new side from seeing the crossing again.
                         y[OMEGA_L] = 0.0;
@@ -249,6 +274,7 @@ impl SpeedErrorBound {
         }
         self.state.response.copy_from_slice(&y.as_slice()[..CL]);
         self.state.l1 = l1;
+        self.settled = self.settled_now();
         self.state.elapsed += h;
         Ok(excess)
     }
@@ -295,6 +321,33 @@ impl SpeedErrorBound {
         self.scale * self.state.l1
     }
 
+    /// ∫ e^{As}D_1 after `h` more in the settled regime, and its largest magnitude (NaN if
+    /// any entry is): bound is final, and what remains of e^{As}D_1 is the constant
+    /// rigid-body part, so the integral grows by it linearly (the rest is below round-off).
+    fn drift(&self, h: f64) -> ([f64; CL], f64) {
+        let mut integral = self.state.integral;
+        let mut peak = 0.0;
+        for (total, v) in integral.iter_mut().zip(&self.state.response) {
+            *total += v * h;
+            peak = if total.abs() <= peak { peak } else { total.abs() };
+        }
+        (integral, peak)
+    }
+
+    /// Whether `bound()` and `bound_paper()` are both finite, without the square root in the
+    /// common case: ‖I‖₂ ≤ √5 max|I_i| < 2.25 max|I_i|.
+    fn outputs_finite(&self) -> bool {
+        let peak = self
+            .state
+            .integral
+            .iter()
+            .fold(0.0, |m: f64, x| if x.abs() <= m { m } else { x.abs() });
+        if (self.scale * self.state.l1).is_finite() && (self.scale * peak * 2.25).is_finite() {
+            return true;
+        }
+        self.bound().is_finite() && self.bound_paper().is_finite()
+    }
+
     /// K g ‖∫_0^t e^{A s} D_1 ds‖₂, eq. (37)/(41) as printed: not a guarantee [rad/s].
     pub fn bound_paper(&self) -> f64 {
         self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
@@ -331,6 +384,7 @@ impl SpeedErrorBound {
             return Err(BoundError::BadState);
         }
         self.state = *state;
+        self.settled = self.settled_now();
         Ok(())
     }
 
@@ -362,7 +416,7 @@ impl SpeedErrorBound {
 
     /// True once what is left of ∫|h| cannot change `bound` in double precision: the response
     /// has decayed for good, and stepping it on would only walk it into subnormal numbers.
-    fn settled(&self) -> bool {
+    fn settled_now(&self) -> bool {
         self.tail
             .as_ref()
             .is_some_and(|t| t.of(&self.state.response) <= SETTLED * self.state.l1)

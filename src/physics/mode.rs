@@ -76,6 +76,17 @@ impl PlantState {
         }
     }
 
+    /// 0 when every field is finite, NaN otherwise: one comparison for hot paths.
+    #[inline]
+    pub fn finite_probe(&self) -> f64 {
+        (self.theta_m - self.theta_m)
+            + (self.omega_m - self.omega_m)
+            + (self.theta_l - self.theta_l)
+            + (self.omega_l - self.omega_l)
+            + (self.u - self.u)
+            + (self.du - self.du)
+    }
+
     pub fn is_finite(&self) -> bool {
         self.theta_m.is_finite()
             && self.omega_m.is_finite()

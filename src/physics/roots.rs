@@ -266,12 +266,19 @@ impl Side {
 /// (with |f'''| ≤ c₃) cannot leave the admissible side on [0, w]. A start on the floor itself
 /// (f₀ = −tol, as after a located crossing with tol = 0) is admissible: the search asks where
 /// f goes below it.
+#[inline]
 pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
-    let floor = -tol;
     // Sufficient and cheap: f₀ exceeds the largest possible drop over [0, w].
-    if f0 - w * (f1.abs() + w * (0.5 * f2.abs() + w * c3 / 6.0)) > floor {
+    if f0 - w * (f1.abs() + w * (0.5 * f2.abs() + w * c3 * (1.0 / 6.0))) > -tol {
         return true;
     }
+    cubic_clear_exactly(f0, f1, f2, c3, w, tol)
+}
+
+/// `cubic_clear` past its cheap test: the cubic's minimum over [0, w].
+#[inline(never)]
+fn cubic_clear_exactly(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
+    let floor = -tol;
     let lower = |x: f64| f0 + x * (f1 + x * (0.5 * f2 - x * c3 / 6.0));
     if !(f0 >= floor) || !(lower(w) > floor) {
         return false;

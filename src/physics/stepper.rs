@@ -69,15 +69,14 @@ struct ModeDynamics {
 
 /// Everything a whole piece in one mode needs, fused into one pass over the augmented state:
 /// outputs 0–4 are e^{M len} y restricted to [u, ω_m, ω_L, δθ_m, δθ_L], 5–6 are u″ and u‴ at
-/// the piece start; `remainder`·|y| bounds how far u‴ moves over the piece. Stored by column so
-/// that the pass vectorizes across the outputs.
+/// the piece start, and 7 is `remainder`·|y|, which bounds how far u‴ moves over the piece.
+/// Stored by column, eight outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel {
     cols: [[f64; KERNEL_OUT]; AUG],
-    remainder: [f64; AUG],
 }
 
-const KERNEL_OUT: usize = 7;
+const KERNEL_OUT: usize = 8;
 
 impl PieceKernel {
     fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
@@ -87,22 +86,35 @@ impl PieceKernel {
                 *x = match r {
                     0..=4 => phi[(r, j)],
                     5 => u_rows.row(2)[j],
-                    _ => u_rows.row(3)[j],
+                    6 => u_rows.row(3)[j],
+                    _ => remainder[j],
                 };
             }
         }
-        PieceKernel {
-            cols,
-            remainder: remainder.as_slice().try_into().expect("AUG entries"),
-        }
+        PieceKernel { cols }
     }
 
     /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L], u″, bound on sup |u‴| over the piece).
-    #[inline]
+    #[inline(always)]
     fn apply(&self, y: &AugVector) -> ([f64; 5], f64, f64) {
+        let acc = self.sums(y);
+        ([acc[0], acc[1], acc[2], acc[3], acc[4]], acc[5], acc[6].abs() + acc[7])
+    }
+
+    /// The eight column sums. Not inlined: inlined into the piece loop, its 80 coefficients
+    /// get hoisted out of it and spilled to the stack.
+    #[inline(never)]
+    fn sums(&self, y: &AugVector) -> [f64; KERNEL_OUT] {
         let mut acc = [0.0; KERNEL_OUT];
-        let mut growth = 0.0;
-        // The angle increments are zero at a piece start: their columns drop out.
+        let mut add = |j: usize| {
+            let (yj, c) = (y[j], &self.cols[j]);
+            let by = [yj, yj, yj, yj, yj, yj, yj, yj.abs()];
+            for r in 0..KERNEL_OUT {
+                acc[r] += c[r] * by[r];
+            }
+        };
+        // The angle increments are zero at a piece start: their columns drop out; so do the
+        // input slopes under a zero-order hold (the sums are the same but for the sign of a 0).
         for j in [
             linear::U,
             linear::V,
@@ -110,20 +122,14 @@ impl PieceKernel {
             linear::TAU_M,
             linear::TAU_L,
             linear::ONE,
-            linear::DTAU_M,
-            linear::DTAU_L,
         ] {
-            let (yj, c) = (y[j], &self.cols[j]);
-            acc[0] += c[0] * yj;
-            acc[1] += c[1] * yj;
-            acc[2] += c[2] * yj;
-            acc[3] += c[3] * yj;
-            acc[4] += c[4] * yj;
-            acc[5] += c[5] * yj;
-            acc[6] += c[6] * yj;
-            growth += self.remainder[j] * yj.abs();
+            add(j);
         }
-        ([acc[0], acc[1], acc[2], acc[3], acc[4]], acc[5], acc[6].abs() + growth)
+        if y[linear::DTAU_M] != 0.0 || y[linear::DTAU_L] != 0.0 {
+            add(linear::DTAU_M);
+            add(linear::DTAU_L);
+        }
+        acc
     }
 }
 
@@ -144,6 +150,8 @@ pub struct Stepper {
     modes: [ModeDynamics; 3],
     /// Longest piece [s]: PIECE_RATE over the fastest rate of the plant.
     len_ref: f64,
+    /// Longest step: `MAX_PIECES` pieces.
+    max_h: f64,
     cache: Option<StepCache>,
 }
 
@@ -178,6 +186,7 @@ impl Stepper {
             plant,
             modes,
             len_ref,
+            max_h: MAX_PIECES as f64 * len_ref,
             cache: None,
         }
     }
@@ -186,10 +195,16 @@ impl Stepper {
         &self.plant
     }
 
+    #[inline(always)]
     fn ensure_cache(&mut self, h: f64) {
-        if self.cache.as_ref().is_some_and(|c| c.h == h) {
-            return;
+        if !self.cache.as_ref().is_some_and(|c| c.h == h) {
+            self.fill_cache(h);
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn fill_cache(&mut self, h: f64) {
         let pieces = if self.len_ref.is_finite() {
             (h / self.len_ref).ceil().max(1.0)
         } else {
@@ -218,8 +233,44 @@ impl Stepper {
         h: f64,
         on_switch: &mut dyn FnMut(SwitchEvent),
     ) -> Result<usize, StepError> {
+        // One test for the common case (x − x is 0 for finite x, NaN otherwise); the reason
+        // is sorted out only when it fails.
+        let finite = (h - h)
+            + (inputs.tau_m - inputs.tau_m)
+            + (inputs.tau_l - inputs.tau_l)
+            + (inputs.dtau_m - inputs.dtau_m)
+            + (inputs.dtau_l - inputs.dtau_l)
+            + state.finite_probe();
+        if !(finite == 0.0 && h > 0.0 && h <= self.max_h) {
+            return Err(self.refusal(state, inputs, h));
+        }
+        self.ensure_cache(h);
+        let cache = self.cache.as_ref().expect("cache was just filled");
+        // The common case, kept small so that it stays in registers: every piece is certified
+        // free of switches by one fused pass. The first piece that is not goes to `step_from`.
+        let mut next = *state;
+        let kernel = &cache.kernel[next.mode.index()];
+        for piece in 0..cache.pieces {
+            let y = augmented(&next, inputs, piece as f64 * cache.len);
+            let (whole, d2, c3) = kernel.apply(&y);
+            if !self.clear(next.mode, &y, d2, c3, cache.len) {
+                return self.step_from(piece, next, state, inputs, h, on_switch);
+            }
+            self.finish_piece(&mut next, &whole);
+        }
+        if next.finite_probe() != 0.0 {
+            return Err(StepError::Overflow);
+        }
+        *state = next;
+        Ok(0)
+    }
+
+    /// Why `step` refuses its arguments (called only when it does).
+    #[cold]
+    #[inline(never)]
+    fn refusal(&self, state: &PlantState, inputs: &Inputs, h: f64) -> StepError {
         if !(h.is_finite() && h > 0.0) {
-            return Err(StepError::BadStepSize { h });
+            return StepError::BadStepSize { h };
         }
         let named = [
             ("tau_m", inputs.tau_m),
@@ -228,32 +279,39 @@ impl Stepper {
             ("der(tau_L)", inputs.dtau_l),
         ];
         if let Some(&(name, value)) = named.iter().find(|(_, v)| !v.is_finite()) {
-            return Err(StepError::NonFiniteInput { name, value });
+            return StepError::NonFiniteInput { name, value };
         }
         if !state.is_finite() {
-            return Err(StepError::NonFiniteState);
+            return StepError::NonFiniteState;
         }
-        if h / self.len_ref > MAX_PIECES as f64 {
-            return Err(StepError::StepTooLong {
-                h,
-                max_h: MAX_PIECES as f64 * self.len_ref,
-            });
-        }
-        self.ensure_cache(h);
-        let cache = self.cache.as_ref().expect("cache was just filled");
+        StepError::StepTooLong { h, max_h: self.max_h }
+    }
+
+    /// The rest of `step` from the start of `first` (the state there is `next`), for a step
+    /// in which some piece may hold a switch.
+    #[cold]
+    #[inline(never)]
+    fn step_from(
+        &self,
+        first: usize,
+        mut next: PlantState,
+        state: &mut PlantState,
+        inputs: &Inputs,
+        h: f64,
+        on_switch: &mut dyn FnMut(SwitchEvent),
+    ) -> Result<usize, StepError> {
+        let cache = self.cache.as_ref().expect("`step` filled the cache");
         let (pieces, len) = (cache.pieces, cache.len);
         let switch_limit = 64 + 16 * pieces;
         let mut budget = roots::work_budget(pieces);
-
-        let mut next = *state;
         let mut switches = 0;
-        for piece in 0..pieces {
+        for piece in first..pieces {
             // Pieces all have length `len`; the last ends on h to round-off of the time grid.
             let start = piece as f64 * len;
             let mut y = augmented(&next, inputs, start);
             let (whole, d2, c3) = cache.kernel[next.mode.index()].apply(&y);
             if self.clear(next.mode, &y, d2, c3, len) {
-                // The common case: no switch in this piece, one fused pass did all the work.
+                // No switch in this piece: one fused pass did all the work.
                 self.finish_piece(&mut next, &whole);
                 continue;
             }
@@ -271,11 +329,17 @@ impl Stepper {
                     }
                     None => {
                         let sparse = &self.modes[mode].sparse;
-                        y = model.unwrap_or_else(|| TaylorModel::new(sparse, &y, span)).at(span);
+                        y = match &model {
+                            Some(model) => model.at(span),
+                            None => TaylorModel::new(sparse, &y, span).at(span),
+                        };
                         break;
                     }
                     Some(exit) => {
-                        y = model.expect("exits are found on the Taylor model").at(exit.offset);
+                        y = model
+                            .as_ref()
+                            .expect("exits are found on the Taylor model")
+                            .at(exit.offset);
                         y[linear::U] = exit.u;
                         t += exit.offset;
                         switched = true;
@@ -307,9 +371,8 @@ impl Stepper {
         Ok(switches)
     }
 
-    /// The first exit from `mode` within `span` after the state `y`, if any.
     /// True when u cannot leave `mode`'s region within `span`, given u″ and the bound c3 on |u‴|.
-    #[inline]
+    #[inline(always)]
     fn clear(&self, mode: ContactMode, y: &AugVector, d2: f64, c3: f64, span: f64) -> bool {
         let g = self.plant.half_gap();
         if g == 0.0 {
@@ -326,6 +389,7 @@ impl Stepper {
         }
     }
 
+    /// The first exit from `mode` within `span` after the state `y`, if any.
     /// `probe` carries u″ and the bound on |u‴| when the piece kernel computed them already.
     /// The Taylor model of the piece, when the search needed it, is left in `model`.
     fn exit(
