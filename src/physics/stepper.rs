@@ -97,37 +97,40 @@ impl PieceKernel {
     /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L], u″, bound on sup |u‴| over the piece).
     #[inline(always)]
     fn apply(&self, y: &AugVector) -> ([f64; 5], f64, f64) {
-        let acc = self.sums(y);
+        use linear::*;
+        let entries = [U, V, OMEGA_L, TAU_M, TAU_L, DTAU_M, DTAU_L].map(|j| y[j]);
+        debug_assert!(y[DTHETA_M] == 0.0 && y[DTHETA_L] == 0.0 && y[ONE] == 1.0);
+        let [u, v, w, tm, tl, dtm, dtl] = entries;
+        let acc = self.sums(u, v, w, tm, tl, dtm, dtl);
         ([acc[0], acc[1], acc[2], acc[3], acc[4]], acc[5], acc[6].abs() + acc[7])
     }
 
-    /// The eight column sums. Not inlined: inlined into the piece loop, its 80 coefficients
-    /// get hoisted out of it and spilled to the stack.
+    /// The eight column sums at a piece start y = [u, v, ω_L, 0, 0, τ_m, τ_L, 1, τ̇_m, τ̇_L]
+    /// (the angle increments are zero there: their columns drop out), in the column order
+    /// of `linear`. The entries come as scalars, in registers: read back from a vector just
+    /// stored, they would stall on store forwarding. Not inlined: inlined into the piece loop,
+    /// its 80 coefficients get hoisted out of it and spilled to the stack.
+    #[allow(clippy::too_many_arguments)]
     #[inline(never)]
-    fn sums(&self, y: &AugVector) -> [f64; KERNEL_OUT] {
+    fn sums(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64) -> [f64; KERNEL_OUT] {
         let mut acc = [0.0; KERNEL_OUT];
-        let mut add = |j: usize| {
-            let (yj, c) = (y[j], &self.cols[j]);
+        let mut add = |j: usize, yj: f64| {
+            let c = &self.cols[j];
             let by = [yj, yj, yj, yj, yj, yj, yj, yj.abs()];
             for r in 0..KERNEL_OUT {
                 acc[r] += c[r] * by[r];
             }
         };
-        // The angle increments are zero at a piece start: their columns drop out; so do the
-        // input slopes under a zero-order hold (the sums are the same but for the sign of a 0).
-        for j in [
-            linear::U,
-            linear::V,
-            linear::OMEGA_L,
-            linear::TAU_M,
-            linear::TAU_L,
-            linear::ONE,
-        ] {
-            add(j);
-        }
-        if y[linear::DTAU_M] != 0.0 || y[linear::DTAU_L] != 0.0 {
-            add(linear::DTAU_M);
-            add(linear::DTAU_L);
+        add(linear::U, u);
+        add(linear::V, v);
+        add(linear::OMEGA_L, w);
+        add(linear::TAU_M, tm);
+        add(linear::TAU_L, tl);
+        add(linear::ONE, 1.0);
+        // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign).
+        if dtm != 0.0 || dtl != 0.0 {
+            add(linear::DTAU_M, dtm);
+            add(linear::DTAU_L, dtl);
         }
         acc
     }
