@@ -4,7 +4,7 @@
 //! an address: a handle that is not live (NULL, freed, foreign) is refused before anything is
 //! dereferenced, and a stale handle never reaches a component created later in the same slot,
 //! so a double fmi2FreeInstance cannot corrupt memory. Adding and removing take a lock; a
-//! lookup reads three atomics. The table grows by chunks that live as long as the library.
+//! lookup reads four atomics. The table grows by chunks that live as long as the library.
 
 use super::guard::Component;
 use std::sync::atomic::{AtomicPtr, AtomicUsize, Ordering};
@@ -94,8 +94,10 @@ pub fn insert(component: Box<Component>) -> Result<usize, Box<Component>> {
     let previous = decode(slot.handle.load(Ordering::Relaxed)).map_or(0, |(generation, _)| generation);
     let generation = if previous >= GENERATIONS { 1 } else { previous + 1 };
     let handle = encode(generation, index);
-    slot.component.store(Box::into_raw(component), Ordering::Release);
+    // The new handle first: a lookup of the slot's previous handle that sees the new
+    // component then sees the new handle too (see `get`).
     slot.handle.store(handle, Ordering::Release);
+    slot.component.store(Box::into_raw(component), Ordering::Release);
     Ok(handle)
 }
 
@@ -108,7 +110,12 @@ pub fn get(handle: usize) -> Option<*mut Component> {
         return None;
     }
     let component = slot.component.load(Ordering::Acquire);
-    (!component.is_null()).then_some(component)
+    // Checked again after the component: a stale handle racing with the slot's reuse by
+    // another thread would otherwise pair with the new component.
+    if component.is_null() || slot.handle.load(Ordering::Acquire) != handle {
+        return None;
+    }
+    Some(component)
 }
 
 /// Takes the component of `handle` out of the table, if it is live.
