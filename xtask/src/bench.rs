@@ -588,7 +588,9 @@ fn render(
          solution (matrix exponential applied to the state and the held input, spec §2), searches the step \
          for a switch and advances both bounds (spec §3), with a single product of a 4x4 matrix and a vector. \
          The criterion bench of the physics core (below) splits the step: its `step_1ms_no_switch` is the \
-         plant alone, `bound_advance_1ms` the bounds alone."
+         plant alone, `bound_advance_1ms` the bounds alone while the loop's response h is still decaying. \
+         Once h is below the round-off of `bound` (after the first seconds of these runs), `bound` is final \
+         and advancing the bounds costs one multiply-add per entry of the integral behind `bound_paper`."
     ));
     line(String::new());
 
