@@ -70,8 +70,59 @@ struct AdvanceCache {
     h: f64,
     pieces: usize,
     len: f64,
-    phi: BoundMatrix,
-    remainder: BoundVector,
+    kernel: PieceKernel,
+}
+
+/// Everything a whole piece needs, fused into one pass over the response v (at a piece start
+/// y = [v, 0]: the integral columns drop out): outputs 0–9 are e^{M len} y, 10–12 are h′, h″
+/// and h‴ at the start, 13 is `remainder`·|v|, which bounds how far h‴ moves over the piece.
+/// Stored by column, sixteen outputs wide, so that the pass vectorizes across the outputs.
+#[derive(Clone, Debug)]
+struct PieceKernel {
+    cols: [[f64; KERNEL_OUT]; CL],
+}
+
+const KERNEL_OUT: usize = 16;
+
+/// What the kernel gives for one piece: the end state, [h, h′, h″] at the start and a bound on
+/// |h‴| over the piece.
+struct Piece {
+    end: BoundVector,
+    d: [f64; 3],
+    c3: f64,
+}
+
+impl PieceKernel {
+    fn new(phi: &BoundMatrix, rows: &SignalRows<BA>, remainder: &BoundVector) -> PieceKernel {
+        let mut cols = [[0.0; KERNEL_OUT]; CL];
+        for (j, col) in cols.iter_mut().enumerate() {
+            for (r, x) in col.iter_mut().enumerate() {
+                *x = match r {
+                    0..BA => phi[(r, j)],
+                    10..=12 => rows.row(r - 9)[j],
+                    13 => remainder[j],
+                    _ => 0.0,
+                };
+            }
+        }
+        PieceKernel { cols }
+    }
+
+    fn apply(&self, v: &[f64; CL]) -> Piece {
+        let mut acc = [0.0; KERNEL_OUT];
+        for (col, &vj) in self.cols.iter().zip(v) {
+            let mut by = [vj; KERNEL_OUT];
+            by[13] = vj.abs();
+            for r in 0..KERNEL_OUT {
+                acc[r] += col[r] * by[r];
+            }
+        }
+        Piece {
+            end: BoundVector::from_column_slice(&acc[..BA]),
+            d: [v[OMEGA_L], acc[10], acc[11]],
+            c3: acc[12].abs() + acc[13],
+        }
+    }
 }
 
 /// bound(t), bound_paper(t) and bound_sup of spec §3, advanced alongside the simulation.
@@ -198,17 +249,16 @@ impl SpeedErrorBound {
         if !self.cache.as_ref().is_some_and(|c| c.h == h) {
             let pieces = (h / self.h_rows.len_ref()).ceil().max(1.0);
             let len = h / pieces;
+            let phi = roots::exp_series(&self.sparse, len);
             self.cache = Some(AdvanceCache {
                 h,
                 pieces: pieces as usize,
                 len,
-                phi: roots::exp_series(&self.sparse, len),
-                remainder: self.h_rows.remainder_row(&self.m, len),
+                kernel: PieceKernel::new(&phi, &self.h_rows, &self.h_rows.remainder_row(&self.m, len)),
             });
         }
         let cache = self.cache.as_ref().expect("cache was just filled");
-        let mut y = BoundVector::zeros();
-        y.as_mut_slice()[..CL].copy_from_slice(&self.state.response);
+        let mut response = self.state.response;
         let mut l1 = self.state.l1;
         let mut excess = 0.0;
         let mut own_budget = roots::work_budget(cache.pieces);
@@ -216,7 +266,9 @@ impl SpeedErrorBound {
         for _ in 0..cache.pieces {
             // Each piece integrates from zero, so ∫h over it keeps full precision however large
             // the running integral has grown.
-            y.as_mut_slice()[CL..].fill(0.0);
+            let mut y = BoundVector::zeros();
+            y.as_mut_slice()[..CL].copy_from_slice(&response);
+            let mut whole_piece = Some(cache.kernel.apply(&response));
             let mut done = 0.0;
             // A piece is shorter than a half period of the loop: it holds few sign changes.
             // Past `MAX_CROSSINGS`, or where the search cannot decide (h within round-off of 0
@@ -224,21 +276,22 @@ impl SpeedErrorBound {
             // that `bound` stays a guarantee.
             for crossing in 0..=MAX_CROSSINGS {
                 let span = cache.len - done;
-                let whole = done == 0.0;
+                // The kernel's pass covers the piece from its start only.
+                let whole = whole_piece.take();
                 let before = y[CL + OMEGA_L];
-                let exact_row = whole.then_some(&cache.remainder);
                 let mut model = None;
                 let found = if crossing < MAX_CROSSINGS {
-                    self.sign_change(&y, span, exact_row, &mut model, budget)
+                    let probe = whole.as_ref().map(|p| (p.d, p.c3));
+                    self.sign_change(&y, span, probe, &mut model, budget)
                 } else {
                     Err(Undecided)
                 };
                 match found {
                     Ok(None) => {
                         y = match (whole, &model) {
-                            (true, _) => cache.phi * y,
-                            (false, Some(model)) => model.at(span),
-                            (false, None) => TaylorModel::new(&self.sparse, &y, span).at(span),
+                            (Some(piece), _) => piece.end,
+                            (None, Some(model)) => model.at(span),
+                            (None, None) => TaylorModel::new(&self.sparse, &y, span).at(span),
                         };
                         l1 += (y[CL + OMEGA_L] - before).abs();
                         break;
@@ -271,29 +324,30 @@ impl SpeedErrorBound {
             for (total, piece) in self.state.integral.iter_mut().zip(&y.as_slice()[CL..]) {
                 *total += piece;
             }
+            response.copy_from_slice(&y.as_slice()[..CL]);
         }
-        self.state.response.copy_from_slice(&y.as_slice()[..CL]);
+        self.state.response = response;
         self.state.l1 = l1;
         self.settled = self.settled_now();
         self.state.elapsed += h;
         Ok(excess)
     }
 
-    /// The first sign change of h within `span`, if any, or `Undecided`.
+    /// The first sign change of h within `span`, if any, or `Undecided`. `probe` carries
+    /// [h, h′, h″] and the bound on |h‴| when the piece kernel computed them already.
     /// The Taylor model of the piece, when the search needed it, is left in `model`.
     fn sign_change(
         &self,
         y: &BoundVector,
         span: f64,
-        exact_row: Option<&BoundVector>,
+        probe: Option<([f64; 3], f64)>,
         model: &mut Option<TaylorModel<BA>>,
         budget: &mut usize,
     ) -> Result<Option<f64>, Undecided> {
-        let d = [
-            self.h_rows.derivative(0, y),
-            self.h_rows.derivative(1, y),
-            self.h_rows.derivative(2, y),
-        ];
+        let (d, c3) = probe.unwrap_or_else(|| {
+            let d = [0, 1, 2].map(|k| self.h_rows.derivative(k, y));
+            (d, self.h_rows.third_bound(y, span, None))
+        });
         // Keep to the side h is on (or, at a zero, is heading to).
         let sign = if d[0] != 0.0 {
             d[0].signum()
@@ -306,7 +360,6 @@ impl SpeedErrorBound {
         // left) on its side, rather than searched for a sign it does not have.
         let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[OMEGA_L].abs()) + f64::MIN_POSITIVE;
         let side = Side { offset: 0.0, sign, tol };
-        let c3 = self.h_rows.third_bound(y, span, exact_row);
         if roots::cubic_clear(sign * d[0], sign * d[1], sign * d[2], c3, span, tol) {
             return Ok(None);
         }
@@ -419,7 +472,7 @@ impl SpeedErrorBound {
     fn settled_now(&self) -> bool {
         self.tail
             .as_ref()
-            .is_some_and(|t| t.of(&self.state.response) <= SETTLED * self.state.l1)
+            .is_some_and(|t| t.at_most(&self.state.response, SETTLED * self.state.l1))
     }
 }
 
@@ -499,9 +552,19 @@ struct TailBound {
 impl TailBound {
     /// The bound for the full response v (projected on the reduced coordinates).
     fn of(&self, v: &[f64; CL]) -> f64 {
+        (self.squared(v) / (2.0 * self.epsilon)).sqrt()
+    }
+
+    /// Whether `of(v)` ≤ `limit` (≥ 0), without the square root and the division: a test
+    /// made after every advance until the response has decayed.
+    fn at_most(&self, v: &[f64; CL], limit: f64) -> bool {
+        self.squared(v) <= 2.0 * self.epsilon * limit * limit
+    }
+
+    fn squared(&self, v: &[f64; CL]) -> f64 {
         let xc = if self.with_xc { v[4] } else { 0.0 };
         let x = SVector::<f64, 4>::new(self.r_m * v[0] - self.r_l * v[2], v[1], v[OMEGA_L], xc);
-        (x.dot(&(self.gramian * x)).max(0.0) / (2.0 * self.epsilon)).sqrt()
+        x.dot(&(self.gramian * x)).max(0.0)
     }
 }
 
