@@ -107,6 +107,8 @@ const F: u8 = 1 << 3;
 const T: u8 = 1 << 4;
 const E: u8 = 1 << 5;
 const ANY: u8 = I | M | C | F | T | E;
+/// Not a state: marks the Model Exchange functions, legal in no state of this CS-only FMU.
+const MODEL_EXCHANGE: u8 = 1 << 7;
 
 impl Function {
     /// The C name, for messages.
@@ -191,25 +193,12 @@ impl Function {
             | GetDerivatives
             | GetEventIndicators
             | GetContinuousStates
-            | GetNominalsOfContinuousStates => 0,
+            | GetNominalsOfContinuousStates => MODEL_EXCHANGE,
         }
     }
 
     pub fn is_model_exchange_only(self) -> bool {
-        use Function::*;
-        matches!(
-            self,
-            EnterEventMode
-                | NewDiscreteStates
-                | EnterContinuousTimeMode
-                | CompletedIntegratorStep
-                | SetTime
-                | SetContinuousStates
-                | GetDerivatives
-                | GetEventIndicators
-                | GetContinuousStates
-                | GetNominalsOfContinuousStates
-        )
+        self.mask() == MODEL_EXCHANGE
     }
 
     pub fn is_legal_in(self, phase: Phase) -> bool {
