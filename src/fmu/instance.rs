@@ -737,7 +737,9 @@ impl Instance {
                 switches.push(event)
             }
         })?;
-        sim.check_state(&state, format_args!("the step to t = {end} overflows"))?;
+        if !sim.state_ok(&state) {
+            return Err(sim.overflow(&state, format_args!("the step to t = {end} overflows")));
+        }
         // Fails before changing anything (a bad h is excluded above).
         sim.bound.advance(h).map_err(|e| match e {
             BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(

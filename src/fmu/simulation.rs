@@ -84,19 +84,30 @@ impl Simulation {
         Ok(sim)
     }
 
-    /// Refuses a plant state that is not finite or whose force ψ = K·dz(u, g) overflows:
-    /// finite but huge angles, speeds or parameters must not turn into ∞/NaN outputs.
-    /// `what` is formatted only when the check fails (it runs on every fmi2DoStep).
-    pub fn check_state(&self, state: &PlantState, what: std::fmt::Arguments<'_>) -> Result<(), FmuError> {
+    /// Whether `state` is finite and its force ψ = K·dz(u, g) too: finite but huge angles,
+    /// speeds or parameters must not turn into ∞/NaN outputs. Runs on every fmi2DoStep.
+    #[inline]
+    pub fn state_ok(&self, state: &PlantState) -> bool {
+        state.finite_probe() == 0.0 && self.plant().force(state.u).is_finite()
+    }
+
+    /// The refusal of a state that is not `state_ok`, saying `what` overflows.
+    #[cold]
+    pub fn overflow(&self, state: &PlantState, what: std::fmt::Arguments<'_>) -> FmuError {
         let psi = self.plant().force(state.u);
-        if state.is_finite() && psi.is_finite() {
+        FmuError::Overflow(format!(
+            "{what}: theta_m = {:e}, omega_m = {:e}, theta_L = {:e}, omega_L = {:e}, u = {:e}, psi = {psi:e}; \
+             reduce the start values, inputs or parameters",
+            state.theta_m, state.omega_m, state.theta_l, state.omega_l, state.u
+        ))
+    }
+
+    /// `state_ok`, or its refusal.
+    pub fn check_state(&self, state: &PlantState, what: std::fmt::Arguments<'_>) -> Result<(), FmuError> {
+        if self.state_ok(state) {
             Ok(())
         } else {
-            Err(FmuError::Overflow(format!(
-                "{what}: theta_m = {:e}, omega_m = {:e}, theta_L = {:e}, omega_L = {:e}, u = {:e}, psi = {psi:e}; \
-                 reduce the start values, inputs or parameters",
-                state.theta_m, state.omega_m, state.theta_l, state.omega_l, state.u
-            )))
+            Err(self.overflow(state, what))
         }
     }
 
