@@ -83,6 +83,8 @@ struct PieceKernel {
 }
 
 const KERNEL_OUT: usize = 16;
+/// The output that takes |v|: the growth bound of h‴.
+const GROWTH_ROW: usize = 13;
 
 /// What the kernel gives for one piece: the end state, [h, h′, h″] at the start and a bound on
 /// |h‴| over the piece.
@@ -100,7 +102,7 @@ impl PieceKernel {
                 *x = match r {
                     0..BA => phi[(r, j)],
                     10..=12 => rows.row(r - 9)[j],
-                    13 => remainder[j],
+                    GROWTH_ROW => remainder[j],
                     _ => 0.0,
                 };
             }
@@ -111,16 +113,12 @@ impl PieceKernel {
     fn apply(&self, v: &[f64; CL]) -> Piece {
         let mut acc = [0.0; KERNEL_OUT];
         for (col, &vj) in self.cols.iter().zip(v) {
-            let mut by = [vj; KERNEL_OUT];
-            by[13] = vj.abs();
-            for r in 0..KERNEL_OUT {
-                acc[r] += col[r] * by[r];
-            }
+            roots::accumulate_column(&mut acc, col, vj, GROWTH_ROW);
         }
         Piece {
             end: BoundVector::from_column_slice(&acc[..BA]),
             d: [v[OMEGA_L], acc[10], acc[11]],
-            c3: acc[12].abs() + acc[13],
+            c3: acc[12].abs() + acc[GROWTH_ROW],
         }
     }
 }

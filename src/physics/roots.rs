@@ -196,6 +196,18 @@ impl<const N: usize> TaylorModel<N> {
     }
 }
 
+/// One column of a fused kernel (a matrix stored by column, its outputs side by side):
+/// `acc += col·x`, except that entry `abs_row` takes `col·|x|` (a growth bound's row).
+/// Inlined, it vectorizes across the outputs.
+#[inline(always)]
+pub fn accumulate_column<const OUT: usize>(acc: &mut [f64; OUT], col: &[f64; OUT], x: f64, abs_row: usize) {
+    let mut by = [x; OUT];
+    by[abs_row] = x.abs();
+    for r in 0..OUT {
+        acc[r] += col[r] * by[r];
+    }
+}
+
 /// e^{M s} column by column from the Taylor series, for s no longer than a piece. Unlike a
 /// normwise-accurate Padé exponential, every entry comes out to round-off of itself, which
 /// matters here: the augmented matrices mix units, so their exponentials hold entries of very

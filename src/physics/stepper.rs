@@ -77,6 +77,8 @@ struct PieceKernel {
 }
 
 const KERNEL_OUT: usize = 8;
+/// The output that takes |y|: the growth bound of u‴.
+const GROWTH_ROW: usize = 7;
 
 impl PieceKernel {
     fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
@@ -87,7 +89,8 @@ impl PieceKernel {
                     0..=4 => phi[(r, j)],
                     5 => u_rows.row(2)[j],
                     6 => u_rows.row(3)[j],
-                    _ => remainder[j],
+                    GROWTH_ROW => remainder[j],
+                    _ => unreachable!("KERNEL_OUT rows"),
                 };
             }
         }
@@ -102,7 +105,11 @@ impl PieceKernel {
         debug_assert!(y[DTHETA_M] == 0.0 && y[DTHETA_L] == 0.0 && y[ONE] == 1.0);
         let [u, v, w, tm, tl, dtm, dtl] = entries;
         let acc = self.sums(u, v, w, tm, tl, dtm, dtl);
-        ([acc[0], acc[1], acc[2], acc[3], acc[4]], acc[5], acc[6].abs() + acc[7])
+        (
+            [acc[0], acc[1], acc[2], acc[3], acc[4]],
+            acc[5],
+            acc[6].abs() + acc[GROWTH_ROW],
+        )
     }
 
     /// The eight column sums at a piece start y = [u, v, ω_L, 0, 0, τ_m, τ_L, 1, τ̇_m, τ̇_L]
@@ -114,13 +121,7 @@ impl PieceKernel {
     #[inline(never)]
     fn sums(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64) -> [f64; KERNEL_OUT] {
         let mut acc = [0.0; KERNEL_OUT];
-        let mut add = |j: usize, yj: f64| {
-            let c = &self.cols[j];
-            let by = [yj, yj, yj, yj, yj, yj, yj, yj.abs()];
-            for r in 0..KERNEL_OUT {
-                acc[r] += c[r] * by[r];
-            }
-        };
+        let mut add = |j: usize, yj: f64| roots::accumulate_column(&mut acc, &self.cols[j], yj, GROWTH_ROW);
         add(linear::U, u);
         add(linear::V, v);
         add(linear::OMEGA_L, w);
