@@ -286,6 +286,33 @@ fn parameter(
 }
 
 /// Value references are unique across types, so a reference alone names a variable.
+/// The PI gains (value references 17 and 18), the same in both models: they parameterize
+/// the bounds only.
+fn pi_gains() -> [Var; 2] {
+    [
+        parameter(
+            "Kp",
+            "Kp",
+            17,
+            0.0,
+            Range::Finite,
+            "N.m.s/rad",
+            "",
+            "Proportional gain of the PI loop on omega_m used by the bounds only (0 with Ki = 0: open loop)",
+        ),
+        parameter(
+            "Ki",
+            "Ki",
+            18,
+            0.0,
+            Range::Finite,
+            "N.m/rad",
+            "",
+            "Integral gain of the PI loop on omega_m used by the bounds only",
+        ),
+    ]
+}
+
 fn common_head(drive_train: DriveTrain) -> Vec<Var> {
     use Causality::*;
     let (psi_unit, psi_quantity, psi_text) = match drive_train {
@@ -419,37 +446,18 @@ fn model(identifier: &str) -> Model {
                     "Angle",
                     "Half backlash gap (>= 0): total free play is 2*Delta; default is half the paper's 1.55 mm gap",
                 ),
-                parameter(
-                    "Kp",
-                    "Kp",
-                    17,
-                    0.0,
-                    Finite,
-                    "N.m.s/rad",
-                    "",
-                    "Proportional gain of the PI loop on omega_m used by the bounds only (0 with Ki = 0: open loop)",
-                ),
-                parameter(
-                    "Ki",
-                    "Ki",
-                    18,
-                    0.0,
-                    Finite,
-                    "N.m/rad",
-                    "",
-                    "Integral gain of the PI loop on omega_m used by the bounds only",
-                ),
-                parameter(
-                    "k",
-                    "K",
-                    19,
-                    200.0,
-                    Positive,
-                    "N.m/rad",
-                    "RotationalSpringConstant",
-                    "Shaft stiffness (> 0)",
-                ),
             ]);
+            v.extend(pi_gains());
+            v.extend([parameter(
+                "k",
+                "K",
+                19,
+                200.0,
+                Positive,
+                "N.m/rad",
+                "RotationalSpringConstant",
+                "Shaft stiffness (> 0)",
+            )]);
             Model {
                 identifier: "BacklashShaft",
                 drive_train: DriveTrain::Shaft,
@@ -513,26 +521,9 @@ fn model(identifier: &str) -> Model {
                     "Length",
                     "Half backlash gap on the pitch circle of the gears (>= 0): total free play is 2*Delta",
                 ),
-                parameter(
-                    "Kp",
-                    "Kp",
-                    17,
-                    0.0,
-                    Finite,
-                    "N.m.s/rad",
-                    "",
-                    "Proportional gain of the PI loop on omega_m used by the bounds only (0 with Ki = 0: open loop)",
-                ),
-                parameter(
-                    "Ki",
-                    "Ki",
-                    18,
-                    0.0,
-                    Finite,
-                    "N.m/rad",
-                    "",
-                    "Integral gain of the PI loop on omega_m used by the bounds only",
-                ),
+            ]);
+            v.extend(pi_gains());
+            v.extend([
                 parameter(
                     "K_b",
                     "KB",
