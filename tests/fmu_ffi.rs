@@ -7,41 +7,10 @@ use backlash_fmu::ffi::*;
 use backlash_fmu::fmu::{Function, MODELS};
 use std::ffi::{c_char, CStr, CString};
 use std::ptr::{null, null_mut};
-use std::sync::Mutex;
 
-/// (status, category, format, message) of every logger call.
-type Log = Mutex<Vec<(fmi2Status, String, String, String)>>;
+mod robustness_common;
 
-/// The logger with its one variadic argument spelled out. On the Linux x86-64 and AArch64
-/// ABIs a variadic call passes these pointer arguments exactly as a fixed-arity call does.
-unsafe extern "C" fn record(
-    env: fmi2ComponentEnvironment,
-    _name: fmi2String,
-    status: fmi2Status,
-    category: fmi2String,
-    format: fmi2String,
-    message: fmi2String,
-) {
-    let log = unsafe { &*(env as *const Log) };
-    let text = |p: fmi2String| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned();
-    log.lock()
-        .unwrap()
-        .push((status, text(category), text(format), text(message)));
-}
-
-fn callbacks(log: &Log) -> fmi2CallbackFunctions {
-    type Fixed =
-        unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, fmi2String);
-    // SAFETY: see `record`.
-    let logger: fmi2CallbackLogger = unsafe { std::mem::transmute::<Fixed, fmi2CallbackLogger>(record) };
-    fmi2CallbackFunctions {
-        logger: Some(logger),
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: log as *const Log as *mut _,
-    }
-}
+use robustness_common::{callbacks, Log};
 
 fn instantiate(log: &Log, name: &str, kind: fmi2Type, guid: &str) -> fmi2Component {
     // SAFETY: every pointer passed points to a live local of the announced length, and
@@ -64,7 +33,7 @@ fn instantiate(log: &Log, name: &str, kind: fmi2Type, guid: &str) -> fmi2Compone
 }
 
 fn messages(log: &Log) -> Vec<String> {
-    log.lock().unwrap().iter().map(|e| e.3.clone()).collect()
+    log.lock().unwrap().iter().map(|e| e.message.clone()).collect()
 }
 
 #[test]
@@ -88,7 +57,7 @@ fn instantiate_refuses_what_it_cannot_serve_and_says_why() {
             .lock()
             .unwrap()
             .iter()
-            .all(|e| e.0 == fmi2Status::fmi2Error && e.2 == "%s"));
+            .all(|e| e.status == fmi2Status::fmi2Error && e.format == "%s"));
 
         let cb = callbacks(&log);
         let guid = CString::new(shaft).unwrap();
@@ -172,8 +141,8 @@ fn messages_go_through_percent_s() {
             fmi2Status::fmi2Error
         );
         let last = log.lock().unwrap().last().cloned().unwrap();
-        assert_eq!((last.1.as_str(), last.2.as_str()), ("logErrors", "%s"));
-        assert!(last.3.contains("\"log%s%n%d\""), "{}", last.3);
+        assert_eq!((last.category.as_str(), last.format.as_str()), ("logErrors", "%s"));
+        assert!(last.message.contains("\"log%s%n%d\""), "{}", last.message);
         fmi2FreeInstance(c);
     }
 }
