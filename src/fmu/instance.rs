@@ -504,6 +504,8 @@ impl Instance {
         }
     }
 
+    /// As `get_untyped_body`; setting `contact` (the only Integer, a calculated output) is
+    /// refused as not settable first.
     pub(crate) fn set_untyped_body(
         &mut self,
         vrs: &[u32],
@@ -511,22 +513,14 @@ impl Instance {
         requested: &'static str,
     ) -> Result<Status, FmuError> {
         Self::same_length("values", count, vrs.len())?;
-        match vrs.first() {
-            None => Ok(Status::Ok),
-            Some(vr) => {
-                let v = self.variable(*vr)?;
-                if v.ty == VarType::Integer && requested == "Integer" {
-                    // contact, the only Integer, is a calculated output.
-                    self.check_settable(v)?;
-                }
-                Err(FmuError::WrongType {
-                    name: v.name,
-                    vr: *vr,
-                    actual: v.ty,
-                    requested,
-                })
-            }
+        let integer = vrs
+            .first()
+            .and_then(|vr| self.model.by_vr(*vr))
+            .filter(|v| v.ty == VarType::Integer);
+        if let (Some(v), "Integer") = (integer, requested) {
+            self.check_settable(v)?;
         }
+        self.get_untyped_body(vrs, count, requested)
     }
 
     /// FMI 2.0.4 Co-Simulation table of allowed calls, per variable: before and during
