@@ -4,7 +4,7 @@
 //! speed reference. All integration goes through the Taylor integrator of `taylor.rs`.
 
 use super::reference::GenericForm;
-use super::taylor::{component, integrate_poly, Coeffs, Event, Guard, Hybrid, Mode, Piece, ORDER};
+use super::taylor::{backlash_modes, component, integrate_poly, Coeffs, Event, Guard, Hybrid, Mode, Piece, ORDER};
 
 /// z_cl = [θ_m, ω_m, θ_L, ω_L, x_c] (spec §3).
 #[derive(Clone, Copy, Debug)]
@@ -205,55 +205,11 @@ impl PiLoop {
             }
             (a, c)
         };
-        let e_u = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let neg_e_u = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
         let modes = if g == 0.0 {
             let (a, c) = build(0.0, true);
             vec![Mode { a, c, guards: vec![] }]
         } else {
-            let (an, cn) = build(-1.0, true);
-            let (af, cf) = build(0.0, false);
-            let (ap, cp) = build(1.0, true);
-            vec![
-                Mode {
-                    a: an,
-                    c: cn,
-                    guards: vec![Guard {
-                        l: e_u,
-                        offset: g,
-                        to: 1,
-                        snap: Some((0, -g)),
-                    }],
-                },
-                Mode {
-                    a: af,
-                    c: cf,
-                    guards: vec![
-                        Guard {
-                            l: e_u,
-                            offset: -g,
-                            to: 2,
-                            snap: Some((0, g)),
-                        },
-                        Guard {
-                            l: neg_e_u,
-                            offset: -g,
-                            to: 0,
-                            snap: Some((0, -g)),
-                        },
-                    ],
-                },
-                Mode {
-                    a: ap,
-                    c: cp,
-                    guards: vec![Guard {
-                        l: neg_e_u,
-                        offset: g,
-                        to: 1,
-                        snap: Some((0, g)),
-                    }],
-                },
-            ]
+            backlash_modes(g, 0, build)
         };
         // Start at rest with u = 0: inside the gap, or the single linear mode.
         let mode = if g == 0.0 { 0 } else { 1 };

@@ -7,7 +7,7 @@
 //! function u ∓ g keeps full precision even when the speeds are large and nearly cancel in v;
 //! modes are indexed 0 = contact −, 1 = free, 2 = contact + (the `contact` output + 1).
 
-use super::taylor::{component, integrate_poly, poly_mul, Coeffs, Event, Guard, Hybrid, Mode, Piece};
+use super::taylor::{backlash_modes, component, integrate_poly, poly_mul, Coeffs, Event, Hybrid, Mode, Piece};
 use backlash_fmu::physics::{Geometry, Inputs, PlantParams};
 
 pub const U: usize = 0;
@@ -156,8 +156,6 @@ impl Reference {
             }
             (a, c)
         };
-        let e_u = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let neg_e_u = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
         let g = f.g;
         let modes = if g == 0.0 {
             // No gap: both flanks carry K u, one mode in effect and no switch.
@@ -168,52 +166,8 @@ impl Reference {
                 Mode { a, c, guards: vec![] },
             ]
         } else {
-            let (an, cn) = mode(-1.0, true);
-            let (af, cf) = mode(0.0, false);
-            let (ap, cp) = mode(1.0, true);
-            vec![
-                // contact −: leave when u + g > 0
-                Mode {
-                    a: an,
-                    c: cn,
-                    guards: vec![Guard {
-                        l: e_u,
-                        offset: g,
-                        to: FREE,
-                        snap: Some((U, -g)),
-                    }],
-                },
-                // free: leave when u − g > 0 or −u − g > 0
-                Mode {
-                    a: af,
-                    c: cf,
-                    guards: vec![
-                        Guard {
-                            l: e_u,
-                            offset: -g,
-                            to: POSITIVE,
-                            snap: Some((U, g)),
-                        },
-                        Guard {
-                            l: neg_e_u,
-                            offset: -g,
-                            to: NEGATIVE,
-                            snap: Some((U, -g)),
-                        },
-                    ],
-                },
-                // contact +: leave when g − u > 0
-                Mode {
-                    a: ap,
-                    c: cp,
-                    guards: vec![Guard {
-                        l: neg_e_u,
-                        offset: g,
-                        to: FREE,
-                        snap: Some((U, g)),
-                    }],
-                },
-            ]
+            // Indexed NEGATIVE, FREE, POSITIVE.
+            backlash_modes(g, U, mode)
         };
         Reference {
             form: f,

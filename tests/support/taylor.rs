@@ -34,6 +34,31 @@ pub struct Mode<const N: usize> {
     pub guards: Vec<Guard<N>>,
 }
 
+/// The three modes of a backlash gap of half-width g > 0 on u = y[`u`]: 0 contact − (leave
+/// when u + g > 0), 1 free (leave when u − g > 0 or −u − g > 0), 2 contact + (leave when
+/// g − u > 0), each switch snapping u onto ±g. `build(σ, contact)` gives a mode's (A, c).
+pub fn backlash_modes<const N: usize>(
+    g: f64,
+    u: usize,
+    build: impl Fn(f64, bool) -> ([[f64; N]; N], [f64; N]),
+) -> Vec<Mode<N>> {
+    let mut e_u = [0.0; N];
+    e_u[u] = 1.0;
+    let neg_e_u = e_u.map(|x| -x);
+    let guard = |l: [f64; N], offset: f64, to: usize, snap: f64| Guard {
+        l,
+        offset,
+        to,
+        snap: Some((u, snap)),
+    };
+    let mode = |(a, c): ([[f64; N]; N], [f64; N]), guards: Vec<Guard<N>>| Mode { a, c, guards };
+    vec![
+        mode(build(-1.0, true), vec![guard(e_u, g, 1, -g)]),
+        mode(build(0.0, false), vec![guard(e_u, -g, 2, g), guard(neg_e_u, -g, 0, -g)]),
+        mode(build(1.0, true), vec![guard(neg_e_u, g, 1, g)]),
+    ]
+}
+
 /// A mode switch, `offset` measured from the start of the `advance` call.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Event {
