@@ -14,7 +14,7 @@ use support::closed_form::{single_inertia_increment, undamped_contact};
 use support::expm::{a_p, linear_gap_step, linear_plant_step};
 use support::harness::RelativeErrors;
 use support::reference::GenericForm;
-use support::rigs::{belt_damped, rig};
+use support::rigs::{self, belt_damped, rig};
 
 const TOL: f64 = 1e-12;
 
@@ -105,23 +105,10 @@ fn free_inertias_match_the_closed_form() {
 fn undamped_permanent_contact_matches_the_closed_form() {
     // b = 0; a motor torque preloads the contact and the initial oscillation is smaller than
     // the static deflection, so u − g > 0 throughout and the plant is linear.
-    for params in [
-        rig(0.0, 0.0),
-        rig(2e-3, 0.0),
-        belt_damped(0.0, 0.0, 0.0),
-        belt_damped(1e-4, 0.0, 0.0),
-    ] {
+    for params in rigs::undamped() {
         let f = GenericForm::from_params(&params);
-        let w2 = f.k * (f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l);
         let tau_m = 4.0;
-        let q_star = f.r_m * tau_m / (f.j_m * w2);
-        let u0 = f.g + 1.5 * q_star;
-        let init = [
-            (u0 + 0.1 * f.r_l) / f.r_m,
-            0.4,
-            0.1,
-            0.4 * f.r_m / f.r_l + 0.2 * q_star * w2.sqrt() / f.r_l,
-        ];
+        let init = f.preloaded_start(tau_m);
         let exact = |st: &PlantState, inp: &Inputs, h: f64| {
             undamped_contact(
                 f.j_m,

@@ -9,7 +9,7 @@ use backlash_fmu::physics::Inputs;
 use support::closed_form::{oscillator_kernels, phi, single_inertia, undamped_contact};
 use support::expm::{a_p, expm, linear_plant_step, scaled};
 use support::reference::{PowerIntegrals, Reference, TH_L, TH_M, U, W_L, W_M};
-use support::rigs::{belt_damped, rig};
+use support::rigs::{self, belt_damped, rig};
 
 /// |a − b| / scale, componentwise maximum.
 fn rel(a: &[f64], b: &[f64], scale: f64) -> f64 {
@@ -100,15 +100,9 @@ fn reference_matches_free_inertias_in_closed_form() {
 fn reference_matches_undamped_permanent_contact_in_closed_form() {
     // b = 0 and either Δ = 0 or a preload that keeps u ≥ g: q'' + Ω² q = F(t) exactly.
     let mut worst: f64 = 0.0;
-    for params in [
-        rig(0.0, 0.0),
-        rig(2e-3, 0.0),
-        belt_damped(0.0, 0.0, 0.0),
-        belt_damped(1e-4, 0.0, 0.0),
-    ] {
+    for params in rigs::undamped() {
         let r = Reference::new(&params);
         let f = r.form;
-        let w2 = f.k * (f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l);
         for &(h, steps, dtau_m) in &[
             (1e-3, 50, 0.0),
             (0.05, 40, 0.0),
@@ -116,13 +110,9 @@ fn reference_matches_undamped_permanent_contact_in_closed_form() {
             (2.5, 4, 0.0),
             (10.0, 1, 0.5),
         ] {
-            // Motor torque T preloads the contact: static deflection q* = r_m T / (J_m Ω²);
-            // start at q* (1 + 0.5 cos) so that the oscillation never opens the gap.
+            // Motor torque T preloads the contact so that the oscillation never opens the gap.
             let tau_m = 4.0;
-            let q_star = f.r_m * tau_m / (f.j_m * w2);
-            let u0 = f.g + 1.5 * q_star;
-            let (th_m0, th_l0) = ((u0 + 0.1 * f.r_l) / f.r_m, 0.1);
-            let (w_m0, w_l0) = (0.4, 0.4 * f.r_m / f.r_l + 0.2 * q_star * w2.sqrt() / f.r_l);
+            let [th_m0, w_m0, th_l0, w_l0] = f.preloaded_start(tau_m);
             let inputs = Inputs {
                 tau_m,
                 tau_l: 0.0,

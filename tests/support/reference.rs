@@ -37,6 +37,26 @@ pub struct GenericForm {
 }
 
 impl GenericForm {
+    /// Ω² = K (r_m²/J_m + r_L²/J_L): the squared frequency of the undamped contact oscillation.
+    pub fn contact_omega_sq(&self) -> f64 {
+        self.k * (self.r_m * self.r_m / self.j_m + self.r_l * self.r_l / self.j_l)
+    }
+
+    /// [θ_m, ω_m, θ_L, ω_L] that a held motor torque `tau_m` keeps in contact without damping:
+    /// the static deflection is q* = r_m τ_m / (J_m Ω²); u starts at g + 1.5 q* with an
+    /// oscillation smaller than q*, so u − g stays > 0.
+    pub fn preloaded_start(&self, tau_m: f64) -> [f64; 4] {
+        let w2 = self.contact_omega_sq();
+        let q_star = self.r_m * tau_m / (self.j_m * w2);
+        let u0 = self.g + 1.5 * q_star;
+        [
+            (u0 + 0.1 * self.r_l) / self.r_m,
+            0.4,
+            0.1,
+            0.4 * self.r_m / self.r_l + 0.2 * q_star * w2.sqrt() / self.r_l,
+        ]
+    }
+
     /// The table of spec §1: shaft r_m = r_L = 1, K = k, g = Δ; belt r_m = R_1,
     /// r_L = α_1 = R_2 R_g2 / R_g1, K = K_b, g = α_2 Δ with α_2 = R_2 / R_g1.
     pub fn from_params(p: &PlantParams) -> GenericForm {

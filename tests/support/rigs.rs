@@ -33,3 +33,14 @@ pub fn belt_damped(delta: f64, b_m: f64, b_l: f64) -> PlantParams {
 pub fn belt(delta: f64) -> PlantParams {
     belt_damped(delta, 0.002, 0.01)
 }
+
+/// Undamped plants (b = 0) for the closed forms of permanent contact: the rig and the belt,
+/// without gap and with one.
+pub fn undamped() -> [PlantParams; 4] {
+    [
+        rig(0.0, 0.0),
+        rig(2e-3, 0.0),
+        belt_damped(0.0, 0.0, 0.0),
+        belt_damped(1e-4, 0.0, 0.0),
+    ]
+}
