@@ -88,7 +88,7 @@ impl Simulation {
     /// speeds or parameters must not turn into ∞/NaN outputs. Runs on every fmi2DoStep.
     #[inline]
     pub fn state_ok(&self, state: &PlantState) -> bool {
-        state.finite_probe() == 0.0 && self.plant().force(state.u).is_finite()
+        state.is_finite() & self.plant().force(state.u).is_finite()
     }
 
     /// The refusal of a state that is not `state_ok`, saying `what` overflows.

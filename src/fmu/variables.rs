@@ -45,7 +45,7 @@ impl Symbol {
 const _: () = assert!(Symbol::Rg2 as usize + 1 == Symbol::COUNT);
 
 // The kinds of variables are those the model description is generated with: one definition.
-#[allow(dead_code)]
+// (generate.rs allows the dead code of each includer itself.)
 #[path = "../../modelDescription/generate.rs"]
 mod description;
 pub use description::{Causality, DriveTrain, Initial, Range, Type as VarType, Variability};

@@ -76,24 +76,16 @@ impl PlantState {
         }
     }
 
-    /// 0 when every field is finite, NaN otherwise: one comparison for hot paths.
+    /// All fields finite. Non-short-circuit `&`: one branch for the whole test, which runs
+    /// on every step.
     #[inline]
-    pub fn finite_probe(&self) -> f64 {
-        (self.theta_m - self.theta_m)
-            + (self.omega_m - self.omega_m)
-            + (self.theta_l - self.theta_l)
-            + (self.omega_l - self.omega_l)
-            + (self.u - self.u)
-            + (self.du - self.du)
-    }
-
     pub fn is_finite(&self) -> bool {
         self.theta_m.is_finite()
-            && self.omega_m.is_finite()
-            && self.theta_l.is_finite()
-            && self.omega_l.is_finite()
-            && self.u.is_finite()
-            && self.du.is_finite()
+            & self.omega_m.is_finite()
+            & self.theta_l.is_finite()
+            & self.omega_l.is_finite()
+            & self.u.is_finite()
+            & self.du.is_finite()
     }
 }
 

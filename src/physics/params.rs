@@ -81,7 +81,7 @@ pub const SCALE_LIMIT: f64 = 1e100;
 /// Checks the magnitude of a finite parameter (0 is always admissible).
 pub(crate) fn in_scale(name: &'static str, value: f64) -> Result<f64, ParamError> {
     let a = value.abs();
-    if a != 0.0 && !(a >= 1.0 / SCALE_LIMIT && a <= SCALE_LIMIT) {
+    if a != 0.0 && !(1.0 / SCALE_LIMIT..=SCALE_LIMIT).contains(&a) {
         Err(ParamError::OutOfScale { name, value })
     } else {
         Ok(value)

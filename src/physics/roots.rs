@@ -288,6 +288,7 @@ pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool
 }
 
 /// `cubic_clear` past its cheap test: the cubic's minimum over [0, w].
+#[allow(clippy::neg_cmp_op_on_partial_ord, reason = "a NaN must fail each test, not pass it")]
 #[inline(never)]
 fn cubic_clear_exactly(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
     let floor = -tol;

@@ -237,15 +237,15 @@ impl Stepper {
         h: f64,
         on_switch: &mut dyn FnMut(SwitchEvent),
     ) -> Result<usize, StepError> {
-        // One test for the common case (x − x is 0 for finite x, NaN otherwise); the reason
-        // is sorted out only when it fails.
-        let finite = (h - h)
-            + (inputs.tau_m - inputs.tau_m)
-            + (inputs.tau_l - inputs.tau_l)
-            + (inputs.dtau_m - inputs.dtau_m)
-            + (inputs.dtau_l - inputs.dtau_l)
-            + state.finite_probe();
-        if !(finite == 0.0 && h > 0.0 && h <= self.max_h) {
+        // One branch for the common case (non-short-circuit `&`); the reason is sorted out
+        // only when it fails.
+        let finite = h.is_finite()
+            & inputs.tau_m.is_finite()
+            & inputs.tau_l.is_finite()
+            & inputs.dtau_m.is_finite()
+            & inputs.dtau_l.is_finite()
+            & state.is_finite();
+        if !(finite & (h > 0.0) & (h <= self.max_h)) {
             return Err(self.refusal(state, inputs, h));
         }
         self.ensure_cache(h);
@@ -262,7 +262,7 @@ impl Stepper {
             }
             self.finish_piece(&mut next, &whole);
         }
-        if next.finite_probe() != 0.0 {
+        if !next.is_finite() {
             return Err(StepError::Overflow);
         }
         *state = next;

@@ -5,6 +5,7 @@
 //!   fmi2Warning with one in logWarnings;
 //! - values read with fmi2OK are never NaN, and never infinite except bound_sup (spec §4);
 //!   after every successful fmi2DoStep every variable is read and checked.
+//!
 //! A panic that unwinds out of an `extern "C"` function aborts the process, so "no panic
 //! escapes" and "no crash" are checked by the process surviving; panics caught inside are
 //! counted by the caller's panic hook.
