@@ -43,6 +43,18 @@ static FREE: Mutex<Free> = Mutex::new(Free {
     fresh: 0,
 });
 
+impl Free {
+    /// A slot for a new component: a released one first, else a fresh one below `capacity`.
+    fn take(&mut self, capacity: usize) -> Option<usize> {
+        self.released.pop().or_else(|| {
+            (self.fresh < capacity).then(|| {
+                self.fresh += 1;
+                self.fresh - 1
+            })
+        })
+    }
+}
+
 fn free_list() -> std::sync::MutexGuard<'static, Free> {
     // Each update under the lock is a single push, pop or increment: never half done.
     FREE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
@@ -74,13 +86,8 @@ fn decode(handle: usize) -> Option<(usize, usize)> {
 /// components are live.
 pub fn insert(component: Box<Component>) -> Result<usize, Box<Component>> {
     let mut free = free_list();
-    let index = match free.released.pop() {
-        Some(index) => index,
-        None if free.fresh < CAPACITY => {
-            free.fresh += 1;
-            free.fresh - 1
-        }
-        None => return Err(component),
+    let Some(index) = free.take(CAPACITY) else {
+        return Err(component);
     };
     let table = &CHUNK_TABLE[index >> CHUNK_BITS];
     if table.load(Ordering::Acquire).is_null() {
@@ -147,5 +154,16 @@ mod tests {
         }
         assert_eq!(decode(encode(3, 5)), Some((3, 5)));
         assert_eq!(decode(encode(GENERATIONS, SLOT_MASK)), Some((GENERATIONS, SLOT_MASK)));
+    }
+
+    #[test]
+    fn slots_run_out_at_the_capacity_and_released_ones_come_back() {
+        let mut free = Free {
+            released: Vec::new(),
+            fresh: 0,
+        };
+        assert_eq!([free.take(2), free.take(2), free.take(2)], [Some(0), Some(1), None]);
+        free.released.push(0);
+        assert_eq!([free.take(2), free.take(2)], [Some(0), None]);
     }
 }
