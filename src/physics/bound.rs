@@ -344,7 +344,7 @@ impl SpeedErrorBound {
     ) -> Result<Option<f64>, Undecided> {
         let (d, c3) = probe.unwrap_or_else(|| {
             let d = [0, 1, 2].map(|k| self.h_rows.derivative(k, y));
-            (d, self.h_rows.third_bound(y, span, None))
+            (d, self.h_rows.third_bound(y, span))
         });
         // Keep to the side h is on (or, at a zero, is heading to).
         let sign = if d[0] != 0.0 {

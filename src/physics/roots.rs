@@ -73,15 +73,11 @@ impl<const N: usize> SignalRows<N> {
         self.rows[k].dot(y)
     }
 
-    /// A bound on sup |s'''| over [0, len] from y = y(0). `exact_row` is the remainder row
-    /// computed for exactly `len`; without it the reference row is scaled by len/len_ref, valid
-    /// for len ≤ len_ref because every entry of e^{|M|σ} − I is convex in σ and 0 at σ = 0.
-    pub fn third_bound(&self, y: &SVector<f64, N>, len: f64, exact_row: Option<&SVector<f64, N>>) -> f64 {
-        let ya = y.abs();
-        let growth = match exact_row {
-            Some(row) => row.dot(&ya),
-            None => self.remainder_ref.dot(&ya) * (len / self.len_ref),
-        };
+    /// A bound on sup |s'''| over [0, len] from y = y(0): the reference remainder row scaled by
+    /// len/len_ref, valid for len ≤ len_ref because every entry of e^{|M|σ} − I is convex in σ
+    /// and 0 at σ = 0. (Whole pieces get the row for their exact length from the fused kernels.)
+    pub fn third_bound(&self, y: &SVector<f64, N>, len: f64) -> f64 {
+        let growth = self.remainder_ref.dot(&y.abs()) * (len / self.len_ref);
         self.rows[3].dot(y).abs() + growth
     }
 }

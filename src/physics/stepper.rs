@@ -459,7 +459,7 @@ impl Stepper {
                 None,
             ],
         };
-        let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, span, None)));
+        let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, span)));
         let d = [u, rows.derivative(1, y), d2];
         let mut poly = None;
         let mut best: Option<Exit> = None;
