@@ -2,7 +2,8 @@
 //! (support/reference.rs, validated in physics_reference.rs to ~1e-13): states within 1e-9
 //! relative to the amplitude of each quantity, and the same switches (number, direction) at
 //! the same times within 1e-10 s. Also grazing touches that begin and end inside one step
-//! (spec §2), several switches per step, and step sizes from 1 ns to 10 s.
+//! (spec §2), several switches per step, and step sizes from 1 ns to 10 s; and the FMU's quiet
+//! path (`Stepper::quiet_step`) against `Stepper::step`.
 
 mod support;
 
@@ -243,5 +244,79 @@ fn grazing_touch_with_damping_matches_the_reference() {
         let events = graze(&params, u0, v0, acc, 0.15);
         eprintln!("damped graze ε = {eps:.1e}: stepper {events:?}, reference {ref_events:?}");
         assert_eq!(events.len(), 2);
+    }
+}
+
+/// `Stepper::quiet_step`, the event-free step the FMU tries first, against `Stepper::step`:
+/// wherever it takes a step it gives the same state bit for bit; it declines every step that
+/// holds a contact switch, a step size other than the last one and a step of several pieces;
+/// and it takes most one-piece steps of a run (else the FMU would not be fast).
+#[test]
+fn the_quiet_step_is_the_step_or_declines() {
+    // (label, plant, schedule, whether its steps are one piece long)
+    for (label, params, sched, one_piece) in [
+        (
+            "rig Δ = 1.78 mm, square wave, h = 1e-3",
+            PlantParams::paper_rig(1.78e-3),
+            square_wave_schedule(5.0, 1.3, 1e-3, 3000, 0.5),
+            true,
+        ),
+        (
+            "belt Δ = 0.1 mm, square wave, h = 1e-3",
+            belt(1e-4),
+            square_wave_schedule(0.3, 0.4, 1e-3, 2000, 0.0),
+            true,
+        ),
+        (
+            "rig Δ = 5.38 mm, sine FOH, h = 0.05",
+            PlantParams::paper_rig(5.38e-3),
+            sine_schedule(4.0, 2.3, 0.05, 200, 0.2, true),
+            false,
+        ),
+    ] {
+        let plant = Plant::new(params).unwrap();
+        let mut stepper = Stepper::new(plant);
+        let mut state = PlantState::new(&plant, 0.0, 1.0, 0.0, 0.0);
+        let (mut taken, mut switching, mut declined_switching) = (0, 0, 0);
+        for (i, (inputs, h)) in sched.iter().enumerate() {
+            let quiet = stepper.quiet_step(&state, inputs, *h);
+            let switches = stepper.step(&mut state, inputs, *h, &mut |_| {}).unwrap();
+            if switches > 0 {
+                switching += 1;
+                declined_switching += usize::from(quiet.is_none());
+            }
+            if let Some(q) = quiet {
+                taken += 1;
+                assert_eq!(switches, 0, "{label}: quiet step {i} over a switch");
+                assert_eq!(q.mode, state.mode, "{label}: step {i}");
+                for (a, b) in [
+                    (q.theta_m, state.theta_m),
+                    (q.omega_m, state.omega_m),
+                    (q.theta_l, state.theta_l),
+                    (q.omega_l, state.omega_l),
+                    (q.u, state.u),
+                    (q.du, state.du),
+                ] {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{label}: step {i}: {a} vs {b}");
+                }
+            }
+        }
+        assert!(
+            switching >= 4,
+            "{label}: too few switching steps to test anything: {switching}"
+        );
+        assert_eq!(declined_switching, switching, "{label}");
+        if one_piece {
+            assert!(
+                taken >= sched.len() * 3 / 4,
+                "{label}: the quiet path took only {taken} of {} steps",
+                sched.len()
+            );
+            // Another step size than the last one: declined.
+            let (inputs, h) = sched[0];
+            assert!(stepper.quiet_step(&state, &inputs, h * 0.5).is_none(), "{label}");
+        } else {
+            assert_eq!(taken, 0, "{label}: steps of several pieces");
+        }
     }
 }

@@ -11,7 +11,7 @@ use super::snapshot::{PhysicsSnapshot, Snapshot};
 use super::state_machine::{Function, Phase};
 use super::variables::{model_by_guid, Causality, ModelInfo, Symbol, VarType, Variable};
 use crate::physics::ContactMode;
-use crate::physics::{contact_indicator, BoundError};
+use crate::physics::{contact_indicator, finite, BoundError, Inputs};
 
 /// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
 /// exitInitializationMode warns.
@@ -126,7 +126,19 @@ impl Instance {
         result
     }
 
+    /// Inlined, so that the mask of a known `function` is a constant.
+    #[inline]
     pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
+        // No phase bit is set in the mask of a Model Exchange function.
+        if function.is_legal_in(self.phase) {
+            return Ok(());
+        }
+        self.illegal(function)
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn illegal(&self, function: Function) -> Result<(), FmuError> {
         if function.is_model_exchange_only() {
             Err(FmuError::ModelExchangeOnly {
                 function: function.c_name(),
@@ -673,7 +685,50 @@ impl Instance {
     }
 
     pub(crate) fn do_step_body(&mut self, communication_point: f64, h: f64) -> Result<Status, FmuError> {
-        let bad = |reason: String| Err(FmuError::InvalidArgument(reason));
+        let inputs = inputs(&self.values, self.input_slopes);
+        // The input lines at the end of the step (see below); refused before stepping if they
+        // leave f64, so that a refused step changes nothing.
+        let tau_end = [inputs.tau_m + h * inputs.dtau_m, inputs.tau_l + h * inputs.dtau_l];
+        let end = communication_point + h;
+        let now = self.time;
+        // Where steps must end: finite, so that time stays finite.
+        let limit = match self.experiment.stop_time {
+            Some(stop) => stop + TIME_TOLERANCE * stop.abs().max(1.0),
+            None => f64::MAX,
+        };
+        let Some(sim) = self.sim.as_mut() else {
+            unreachable!("StepComplete implies a simulation")
+        };
+        // All argument checks in one branch (non-short-circuit `&`, each false on NaN); the
+        // reason is sorted out by `step_refusal` only when one fails. `max_step` is finite.
+        let accepted = finite(communication_point)
+            & (h > 0.0)
+            & (h <= sim.max_step)
+            & ((communication_point - now).abs() <= TIME_TOLERANCE * now.abs().max(1.0))
+            & (end > communication_point)
+            & (end <= limit)
+            & finite(tau_end[0])
+            & finite(tau_end[1]);
+        if !accepted {
+            return Err(self.step_refusal(communication_point, h));
+        }
+        if !sim.quiet_step(&inputs, h) {
+            self.general_step(communication_point, &inputs, h)?;
+        }
+        // The input lines continue over the next step unless set again (see
+        // `set_real_input_derivatives_body`).
+        self.values[Symbol::TauM.index()] = tau_end[0];
+        self.values[Symbol::TauL.index()] = tau_end[1];
+        // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
+        self.time = end;
+        Ok(Status::Ok)
+    }
+
+    /// Why `do_step_body` refuses its arguments (called only when it does).
+    #[cold]
+    #[inline(never)]
+    fn step_refusal(&self, communication_point: f64, h: f64) -> FmuError {
+        let bad = FmuError::InvalidArgument;
         if !communication_point.is_finite() {
             return bad(format!("currentCommunicationPoint {communication_point} is not finite"));
         }
@@ -700,33 +755,39 @@ impl Instance {
                 ));
             }
         }
-        let inputs = inputs(&self.values, self.input_slopes);
-        // The input lines at the end of the step (see below); refused before stepping if they
-        // leave f64, so that a refused step changes nothing.
-        let tau_end = [
-            inputs.tau_m + h * self.input_slopes[0],
-            inputs.tau_l + h * self.input_slopes[1],
-        ];
-        if !tau_end.iter().all(|x| x.is_finite()) {
-            return Err(FmuError::Overflow(format!(
-                "the input ramps reach tau_m = {:e}, tau_L = {:e} at the end of the step",
-                tau_end[0], tau_end[1]
-            )));
-        }
-        let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
-        let max_step = sim.max_step;
-        if h > max_step {
+        if !end.is_finite() {
             return bad(format!(
-                "communicationStepSize {h} exceeds {max_step:e} s ({MAX_PERIODS_PER_STEP:e} periods of the contact \
-                 oscillation); split it into smaller steps"
+                "the step from {communication_point} by {h} leaves the range of f64"
             ));
         }
+        let inputs = inputs(&self.values, self.input_slopes);
+        let tau_end = [inputs.tau_m + h * inputs.dtau_m, inputs.tau_l + h * inputs.dtau_l];
+        if !tau_end.iter().all(|x| x.is_finite()) {
+            return FmuError::Overflow(format!(
+                "the input ramps reach tau_m = {:e}, tau_L = {:e} at the end of the step",
+                tau_end[0], tau_end[1]
+            ));
+        }
+        let max_step = self.sim.as_ref().map_or(f64::NAN, |sim| sim.max_step);
+        bad(format!(
+            "communicationStepSize {h} exceeds {max_step:e} s ({MAX_PERIODS_PER_STEP:e} periods of the contact \
+             oscillation); split it into smaller steps"
+        ))
+    }
+
+    /// The step of `do_step_body` past its argument checks, when the quiet path did not take
+    /// it: contact switches located and logged, overflow of plant or bounds refused.
+    #[cold]
+    #[inline(never)]
+    fn general_step(&mut self, communication_point: f64, inputs: &Inputs, h: f64) -> Result<(), FmuError> {
+        let end = communication_point + h;
+        let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
         // The plant steps a copy of its state, and the bound fails (on a bad h, excluded above)
         // before changing anything: a failed step leaves the instance as it was.
         let mut state = sim.state;
         let mut switches = Vec::new();
         let want_switches = self.log.is_enabled(LogCategory::ContactEvents);
-        sim.stepper.step(&mut state, &inputs, h, &mut |event| {
+        sim.stepper.step(&mut state, inputs, h, &mut |event| {
             if want_switches {
                 switches.push(event)
             }
@@ -752,13 +813,7 @@ impl Instance {
                 )
             });
         }
-        // The input lines continue over the next step unless set again (see
-        // `set_real_input_derivatives_body`).
-        self.values[Symbol::TauM.index()] = tau_end[0];
-        self.values[Symbol::TauL.index()] = tau_end[1];
-        // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
-        self.time = end;
-        Ok(Status::Ok)
+        Ok(())
     }
 
     pub(crate) fn get_status_body(&mut self, kind: StatusKind) -> Result<Status, FmuError> {

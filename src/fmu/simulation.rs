@@ -4,7 +4,7 @@
 use super::error::FmuError;
 use super::variables::{Causality, DriveTrain, ModelInfo, Symbol};
 use crate::physics::{
-    BoundState, Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, Unbounded,
+    finite, BoundState, Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, Unbounded,
 };
 
 /// Values of the settable variables, indexed by [`Symbol`].
@@ -60,11 +60,11 @@ pub struct Simulation {
 pub const MAX_PERIODS_PER_STEP: f64 = 1e4;
 
 /// The largest admissible step: [`MAX_PERIODS_PER_STEP`] periods of the undamped contact
-/// oscillation, ω² = K (r_m²/J_m + r_L²/J_L).
+/// oscillation, ω² = K (r_m²/J_m + r_L²/J_L); finite, so that a step no longer than it is.
 fn max_step(p: &Plant) -> f64 {
     let params = p.params();
     let omega_sq = p.stiffness() * (p.r_m() * p.r_m() / params.j_m + p.r_l() * p.r_l() / params.j_l);
-    MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / omega_sq.sqrt()
+    (MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / omega_sq.sqrt()).min(f64::MAX)
 }
 
 impl Simulation {
@@ -109,6 +109,23 @@ impl Simulation {
         } else {
             Err(self.overflow(state, what))
         }
+    }
+
+    /// Advances plant and bound over `h` when the stepper's quiet path applies (see
+    /// [`Stepper::quiet_step`]) and both stay finite; returns whether it did. When it did not,
+    /// nothing changed and the general path does the step, or says why it cannot.
+    #[inline]
+    pub fn quiet_step(&mut self, inputs: &Inputs, h: f64) -> bool {
+        let Some(next) = self.stepper.quiet_step(&self.state, inputs, h) else {
+            return false;
+        };
+        // `next` is finite: its force is what is left of `state_ok`. The bound changes only
+        // when it stays finite, and last, so that a refusal leaves both as they were.
+        if !finite(self.plant().force(next.u)) || self.bound.advance(h).is_err() {
+            return false;
+        }
+        self.state = next;
+        true
     }
 
     /// Rebuilds from saved values and continues from a saved plant and bound state.

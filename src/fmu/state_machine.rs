@@ -25,6 +25,7 @@ impl Phase {
         Phase::Error,
     ];
 
+    #[inline]
     fn bit(self) -> u8 {
         1 << (self as u8)
     }
@@ -161,6 +162,7 @@ impl Function {
 
     /// The states in which the call is legal (FMI 2.0.4 Table "Co-Simulation: allowed calls").
     /// Get calls in StepFailed and Error are legal; their values are for debugging.
+    #[inline]
     fn mask(self) -> u8 {
         use Function::*;
         match self {
@@ -201,6 +203,7 @@ impl Function {
         self.mask() == MODEL_EXCHANGE
     }
 
+    #[inline]
     pub fn is_legal_in(self, phase: Phase) -> bool {
         self.mask() & phase.bit() != 0
     }

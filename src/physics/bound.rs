@@ -79,7 +79,7 @@ struct AdvanceCache {
 /// Stored by column, sixteen outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel {
-    cols: [[f64; KERNEL_OUT]; CL],
+    cols: [roots::KernelColumn<KERNEL_OUT>; CL],
 }
 
 const KERNEL_OUT: usize = 16;
@@ -96,9 +96,9 @@ struct Piece {
 
 impl PieceKernel {
     fn new(phi: &BoundMatrix, rows: &SignalRows<BA>, remainder: &BoundVector) -> PieceKernel {
-        let mut cols = [[0.0; KERNEL_OUT]; CL];
+        let mut cols = [roots::KernelColumn([0.0; KERNEL_OUT]); CL];
         for (j, col) in cols.iter_mut().enumerate() {
-            for (r, x) in col.iter_mut().enumerate() {
+            for (r, x) in col.0.iter_mut().enumerate() {
                 *x = match r {
                     0..BA => phi[(r, j)],
                     10..=12 => rows.row(r - 9)[j],
@@ -199,17 +199,26 @@ impl SpeedErrorBound {
 
     /// Advances time since the start by `h` ≥ 0. On error nothing changes; `Overflow` when
     /// `bound` or `bound_paper` would not be finite after it.
+    #[inline]
     pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
-        if self.settled && h > 0.0 && h.is_finite() {
+        if self.settled & (h > 0.0) & super::finite(h) {
             // The common case once the response has decayed, with the overflow test of
-            // `outputs_finite` done on the new values before they are stored.
-            let (integral, peak) = self.drift(h);
-            if (self.scale * peak * 2.25).is_finite() {
+            // `outputs_finite` done on the new values before they are stored (`bound` does
+            // not change).
+            let integral = self.drift(h);
+            if super::finite(self.paper(&integral)) {
                 self.state.integral = integral;
                 self.state.elapsed += h;
                 return Ok(());
             }
         }
+        self.advance_in_general(h)
+    }
+
+    /// `advance` past its settled case.
+    #[cold]
+    #[inline(never)]
+    fn advance_in_general(&mut self, h: f64) -> Result<(), BoundError> {
         let before = self.state;
         self.advance_within(h, None)?;
         if self.outputs_finite() {
@@ -233,7 +242,7 @@ impl SpeedErrorBound {
             return Ok(0.0);
         }
         if self.settled {
-            self.state.integral = self.drift(h).0;
+            self.state.integral = self.drift(h);
             self.state.elapsed += h;
             return Ok(0.0);
         }
@@ -372,36 +381,31 @@ impl SpeedErrorBound {
         self.scale * self.state.l1
     }
 
-    /// ∫ e^{As}D_1 after `h` more in the settled regime, and its largest magnitude (NaN if
-    /// any entry is): bound is final, and what remains of e^{As}D_1 is the constant
-    /// rigid-body part, so the integral grows by it linearly (the rest is below round-off).
-    fn drift(&self, h: f64) -> ([f64; CL], f64) {
+    /// ∫ e^{As}D_1 after `h` more in the settled regime: bound is final, and what remains of
+    /// e^{As}D_1 is the constant rigid-body part, so the integral grows by it linearly (the
+    /// rest is below round-off).
+    fn drift(&self, h: f64) -> [f64; CL] {
         let mut integral = self.state.integral;
-        let mut peak = 0.0;
         for (total, v) in integral.iter_mut().zip(&self.state.response) {
             *total += v * h;
-            peak = if total.abs() <= peak { peak } else { total.abs() };
         }
-        (integral, peak)
+        integral
     }
 
-    /// Whether `bound()` and `bound_paper()` are both finite, without the square root in the
-    /// common case: ‖I‖₂ ≤ √5 max|I_i| < 2.25 max|I_i|.
+    /// Whether `bound()` and `bound_paper()` are both finite.
     fn outputs_finite(&self) -> bool {
-        let peak = self
-            .state
-            .integral
-            .iter()
-            .fold(0.0, |m: f64, x| if x.abs() <= m { m } else { x.abs() });
-        if (self.scale * self.state.l1).is_finite() && (self.scale * peak * 2.25).is_finite() {
-            return true;
-        }
         self.bound().is_finite() && self.bound_paper().is_finite()
     }
 
     /// K g ‖∫_0^t e^{A s} D_1 ds‖₂, eq. (37)/(41) as printed: not a guarantee [rad/s].
     pub fn bound_paper(&self) -> f64 {
-        self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
+        self.paper(&self.state.integral)
+    }
+
+    /// `bound_paper` for the integral `integral`.
+    #[inline(always)]
+    fn paper(&self, integral: &[f64; CL]) -> f64 {
+        self.scale * integral.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
     /// K g ∫_0^∞ |h(s)| ds, or why it is infinite.

@@ -14,3 +14,10 @@ pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded};
 pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, Geometry, ParamError, Plant, PlantParams};
 pub use stepper::{Inputs, StepError, Stepper, SwitchEvent};
+
+/// `x.is_finite()` as one floating-point comparison, for the tests that run on every step:
+/// `is_finite` moves x to the integer unit and back.
+#[inline(always)]
+pub fn finite(x: f64) -> bool {
+    x.abs() <= f64::MAX
+}

@@ -192,15 +192,29 @@ impl<const N: usize> TaylorModel<N> {
     }
 }
 
-/// One column of a fused kernel (a matrix stored by column, its outputs side by side):
+/// One column of a fused kernel (a matrix stored by column, its outputs side by side),
+/// aligned so that each pair of outputs loads as one vector operand.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub struct KernelColumn<const OUT: usize>(pub [f64; OUT]);
+
+/// `col·x`, except that entry `abs_row` takes `col·|x|`: the first column of a kernel's sums,
+/// equal to `accumulate_column` into zeros but for the sign of a zero.
+#[inline(always)]
+pub fn column_product<const OUT: usize>(col: &KernelColumn<OUT>, x: f64, abs_row: usize) -> [f64; OUT] {
+    let mut by = [x; OUT];
+    by[abs_row] = x.abs();
+    std::array::from_fn(|r| col.0[r] * by[r])
+}
+
 /// `acc += col·x`, except that entry `abs_row` takes `col·|x|` (a growth bound's row).
 /// Inlined, it vectorizes across the outputs.
 #[inline(always)]
-pub fn accumulate_column<const OUT: usize>(acc: &mut [f64; OUT], col: &[f64; OUT], x: f64, abs_row: usize) {
+pub fn accumulate_column<const OUT: usize>(acc: &mut [f64; OUT], col: &KernelColumn<OUT>, x: f64, abs_row: usize) {
     let mut by = [x; OUT];
     by[abs_row] = x.abs();
     for r in 0..OUT {
-        acc[r] += col[r] * by[r];
+        acc[r] += col.0[r] * by[r];
     }
 }
 
@@ -277,10 +291,17 @@ impl Side {
 #[inline]
 pub fn cubic_clear(f0: f64, f1: f64, f2: f64, c3: f64, w: f64, tol: f64) -> bool {
     // Sufficient and cheap: f₀ exceeds the largest possible drop over [0, w].
-    if f0 - w * (f1.abs() + w * (0.5 * f2.abs() + w * c3 * (1.0 / 6.0))) > -tol {
+    if f0 - largest_drop(f1, f2, c3, w) > -tol {
         return true;
     }
     cubic_clear_exactly(f0, f1, f2, c3, w, tol)
+}
+
+/// The most f₀ + f₁σ + f₂σ²/2 − c₃σ³/6 can fall below f₀ over [0, w] (c₃ ≥ 0), by the
+/// triangle inequality: the cheap test of `cubic_clear`, the same for f and −f.
+#[inline(always)]
+pub fn largest_drop(f1: f64, f2: f64, c3: f64, w: f64) -> f64 {
+    w * (f1.abs() + w * (0.5 * f2.abs() + w * c3 * (1.0 / 6.0)))
 }
 
 /// `cubic_clear` past its cheap test: the cubic's minimum over [0, w].

@@ -73,7 +73,7 @@ struct ModeDynamics {
 /// Stored by column, eight outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel {
-    cols: [[f64; KERNEL_OUT]; AUG],
+    cols: [roots::KernelColumn<KERNEL_OUT>; AUG],
 }
 
 const KERNEL_OUT: usize = 8;
@@ -82,9 +82,9 @@ const GROWTH_ROW: usize = 7;
 
 impl PieceKernel {
     fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
-        let mut cols = [[0.0; KERNEL_OUT]; AUG];
+        let mut cols = [roots::KernelColumn([0.0; KERNEL_OUT]); AUG];
         for (j, col) in cols.iter_mut().enumerate() {
-            for (r, x) in col.iter_mut().enumerate() {
+            for (r, x) in col.0.iter_mut().enumerate() {
                 *x = match r {
                     0..=4 => phi[(r, j)],
                     5 => u_rows.row(2)[j],
@@ -98,13 +98,25 @@ impl PieceKernel {
     }
 
     /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L], u″, bound on sup |u‴| over the piece).
+    /// The sums out of line: see `sums`.
     #[inline(always)]
     fn apply(&self, y: &AugVector) -> ([f64; 5], f64, f64) {
         use linear::*;
-        let entries = [U, V, OMEGA_L, TAU_M, TAU_L, DTAU_M, DTAU_L].map(|j| y[j]);
         debug_assert!(y[DTHETA_M] == 0.0 && y[DTHETA_L] == 0.0 && y[ONE] == 1.0);
-        let [u, v, w, tm, tl, dtm, dtl] = entries;
-        let acc = self.sums(u, v, w, tm, tl, dtm, dtl);
+        let [u, v, w, tm, tl, dtm, dtl] = [U, V, OMEGA_L, TAU_M, TAU_L, DTAU_M, DTAU_L].map(|j| y[j]);
+        Self::split(self.sums(u, v, w, tm, tl, dtm, dtl))
+    }
+
+    /// `apply` at the start of a step from `state` under `inputs`, with the sums inlined:
+    /// for the one-piece step, where there is no loop to hoist the coefficients out of.
+    #[inline(always)]
+    fn apply_at_start(&self, state: &PlantState, inputs: &Inputs) -> ([f64; 5], f64, f64) {
+        let i = inputs;
+        Self::split(self.sums_inline(state.u, state.du, state.omega_l, i.tau_m, i.tau_l, i.dtau_m, i.dtau_l))
+    }
+
+    #[inline(always)]
+    fn split(acc: [f64; KERNEL_OUT]) -> ([f64; 5], f64, f64) {
         (
             [acc[0], acc[1], acc[2], acc[3], acc[4]],
             acc[5],
@@ -112,24 +124,31 @@ impl PieceKernel {
         )
     }
 
-    /// The eight column sums at a piece start y = [u, v, ω_L, 0, 0, τ_m, τ_L, 1, τ̇_m, τ̇_L]
-    /// (the angle increments are zero there: their columns drop out), in the column order
-    /// of `linear`. The entries come as scalars, in registers: read back from a vector just
-    /// stored, they would stall on store forwarding. Not inlined: inlined into the piece loop,
-    /// its 80 coefficients get hoisted out of it and spilled to the stack.
+    /// `sums_inline`, not inlined: inlined into the piece loop, its 80 coefficients get
+    /// hoisted out of it and spilled to the stack.
     #[allow(clippy::too_many_arguments)]
     #[inline(never)]
     fn sums(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64) -> [f64; KERNEL_OUT] {
-        let mut acc = [0.0; KERNEL_OUT];
+        self.sums_inline(u, v, w, tm, tl, dtm, dtl)
+    }
+
+    /// The eight column sums at a piece start y = [u, v, ω_L, 0, 0, τ_m, τ_L, 1, τ̇_m, τ̇_L]
+    /// (the angle increments are zero there: their columns drop out), in the column order
+    /// of `linear`. The entries come as scalars, in registers: read back from a vector just
+    /// stored, they would stall on store forwarding.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn sums_inline(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64) -> [f64; KERNEL_OUT] {
+        let mut acc = roots::column_product(&self.cols[linear::U], u, GROWTH_ROW);
         let mut add = |j: usize, yj: f64| roots::accumulate_column(&mut acc, &self.cols[j], yj, GROWTH_ROW);
-        add(linear::U, u);
         add(linear::V, v);
         add(linear::OMEGA_L, w);
         add(linear::TAU_M, tm);
         add(linear::TAU_L, tl);
         add(linear::ONE, 1.0);
-        // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign).
-        if dtm != 0.0 || dtl != 0.0 {
+        // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign,
+        // like starting from the first product rather than from zeros).
+        if (dtm != 0.0) | (dtl != 0.0) {
             add(linear::DTAU_M, dtm);
             add(linear::DTAU_L, dtl);
         }
@@ -269,6 +288,28 @@ impl Stepper {
         Ok(0)
     }
 
+    /// The step of a co-simulation in the common case, with nothing to locate: `h` is the
+    /// size of the previous step and one piece long, and the piece is certified free of
+    /// switches. Returns the state at its end if it is finite; else `None`, and `step` does
+    /// the step (or says why not). `state` must be finite.
+    #[inline]
+    pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
+        debug_assert!(state.is_finite());
+        // The cache holds only step sizes `step` accepted, so h is finite, > 0 and short enough.
+        let cache = self.cache.as_ref().filter(|c| c.h == h && c.pieces == 1)?;
+        let (whole, d2, c3) = cache.kernel[state.mode.index()].apply_at_start(state, inputs);
+        // Non-finite inputs make u″ or c3 NaN or infinite, which fails the test.
+        if !self.clear_from(state.mode, state.u, state.du, d2, c3, cache.len) {
+            return None;
+        }
+        let mut next = *state;
+        self.finish_piece(&mut next, &whole);
+        // Finite when the sum of its fields is (a NaN or ∞ field makes the sum NaN or ∞);
+        // the sum of finite fields that overflows leaves the step to `step`.
+        let sum = next.theta_m + next.omega_m + next.theta_l + next.omega_l + next.u + next.du;
+        super::finite(sum).then_some(next)
+    }
+
     /// Why `step` refuses its arguments (called only when it does).
     #[cold]
     #[inline(never)]
@@ -378,13 +419,35 @@ impl Stepper {
     /// True when u cannot leave `mode`'s region within `span`, given u″ and the bound c3 on |u‴|.
     #[inline(always)]
     fn clear(&self, mode: ContactMode, y: &AugVector, d2: f64, c3: f64, span: f64) -> bool {
+        self.clear_from(mode, y[linear::U], y[linear::V], d2, c3, span)
+    }
+
+    /// `clear` for u and u′ given as scalars.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn clear_from(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
         let g = self.plant.half_gap();
         if g == 0.0 {
             return true;
         }
-        let u = y[linear::U];
-        let du = y[linear::V];
         let tol = 8.0 * f64::EPSILON * (u.abs() + g);
+        // The cheap test of `roots::cubic_clear` for each threshold, its drop computed once:
+        // it is the same on both sides.
+        let drop = roots::largest_drop(du, d2, c3, span);
+        let clear = match mode {
+            ContactMode::Free => (g - u - drop > -tol) & (g + u - drop > -tol),
+            ContactMode::Positive => u - g - drop > -tol,
+            ContactMode::Negative => -u - g - drop > -tol,
+        };
+        clear || self.clear_exactly(mode, u, du, d2, c3, span, tol)
+    }
+
+    /// `clear_from` past its cheap test.
+    #[allow(clippy::too_many_arguments)]
+    #[cold]
+    #[inline(never)]
+    fn clear_exactly(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64, tol: f64) -> bool {
+        let g = self.plant.half_gap();
         let side_clear = |f0: f64, sign: f64| roots::cubic_clear(f0, sign * du, sign * d2, c3, span, tol);
         match mode {
             ContactMode::Free => side_clear(g - u, -1.0) && side_clear(g + u, 1.0),
