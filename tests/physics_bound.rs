@@ -5,7 +5,7 @@
 
 mod support;
 
-use backlash_fmu::physics::{PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
+use backlash_fmu::physics::{BoundError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
 use support::closed_loop::{worst_case_response, ImpulseResponse, LinearLoop, PiLoop};
 use support::expm::{expm, scaled};
 use support::reference::GenericForm;
@@ -253,4 +253,62 @@ fn one_long_advance_equals_many_short_ones_and_reset_restarts() {
     assert!(rel(one.bound(), many.bound()) <= 1e-10 && rel(one.bound_paper(), many.bound_paper()) <= 1e-10);
     one.reset();
     assert_eq!((one.elapsed(), one.bound(), one.bound_paper()), (0.0, 0.0, 0.0));
+}
+
+/// Once h has decayed, `advance` adds response·h to the integral and leaves the rest alone; on
+/// its fast path it does not compute bound_paper but bounds the integral instead. The settled
+/// state of a run, scaled up (settledness compares the response with l1: scaled alike, the
+/// state stays settled): every accepted advance adds exactly response·h (one rounding per
+/// entry, as written here) with bound_paper finite, both while far from overflow (the fast
+/// path) and near it; the advance that would overflow bound_paper is refused with the state
+/// left as it was.
+#[test]
+fn settled_advance_drifts_exactly_and_refuses_overflow() {
+    let mut b = bound_for(&PlantParams::paper_rig(1.78e-3), KP, KI);
+    for _ in 0..2000 {
+        b.advance(1.0).unwrap();
+    }
+    let settled = b.state();
+    b.advance(1.0).unwrap();
+    assert_eq!(b.state().response, settled.response, "not settled after 2000 s");
+    assert!(settled.response.iter().any(|r| *r != 0.0), "no drift to test");
+    let h = 100.0;
+    let norm = |x: &[f64; 5]| x.iter().map(|v| v * v).sum::<f64>().sqrt();
+    // (scale of the response and l1, of the integral, advances): far from overflow for 1000
+    // advances; then fast enough to reach it.
+    for (c, ci, advances) in [(1e100, 1e100, 1000), (3e167, 1e150, usize::MAX)] {
+        let mut s = settled;
+        s.response = settled.response.map(|r| r * c);
+        s.l1 = settled.l1 * c;
+        s.integral = settled.integral.map(|x| x * ci);
+        b.restore(&s).unwrap();
+        let mut accepted = 0;
+        while accepted < advances {
+            let before = b.state();
+            let mut expected = before.integral;
+            for (e, r) in expected.iter_mut().zip(&before.response) {
+                *e += r * h;
+            }
+            match b.advance(h) {
+                Ok(()) => {
+                    accepted += 1;
+                    let now = b.state();
+                    assert_eq!(now.integral, expected, "scale {c:e}, advance {accepted}");
+                    assert_eq!((now.response, now.l1), (before.response, before.l1));
+                    assert_eq!(now.elapsed, before.elapsed + h);
+                    assert!(b.bound_paper().is_finite() && b.bound().is_finite());
+                }
+                Err(e) => {
+                    assert!(advances == usize::MAX, "scale {c:e}: refused advance {accepted}: {e}");
+                    assert!(matches!(e, BoundError::Overflow { .. }), "{e}");
+                    assert_eq!(b.state(), before, "a refused advance changed the state");
+                    let scale = b.bound_paper() / norm(&before.integral);
+                    assert!(!(scale * norm(&expected)).is_finite(), "refused a finite bound_paper");
+                    assert!(accepted >= 2, "the first advances should be accepted: {accepted}");
+                    break;
+                }
+            }
+            assert!(accepted < 100_000, "scale {c:e}: never overflowed");
+        }
+    }
 }

@@ -145,6 +145,12 @@ pub struct SpeedErrorBound {
     /// `settled_now()` of `state`, kept with it: in the settled regime the response no longer
     /// moves, so the answer cannot change until the state is replaced.
     settled: bool,
+    /// In the settled regime: an upper bound on every |integral_i|, and the largest
+    /// |response_i|, by which it grows per second (see `advance`).
+    reach: f64,
+    drift_peak: f64,
+    /// Up to this `reach`, `bound_paper` cannot overflow.
+    reach_limit: f64,
 }
 
 impl SpeedErrorBound {
@@ -170,8 +176,9 @@ impl SpeedErrorBound {
         let len_ref = linear::PIECE_RATE / rate;
         let mut c = BoundVector::zeros();
         c[OMEGA_L] = 1.0;
+        let scale = plant.stiffness() * plant.half_gap();
         let mut bound = SpeedErrorBound {
-            scale: plant.stiffness() * plant.half_gap(),
+            scale,
             m,
             sparse: Sparse::new(&m),
             h_rows: SignalRows::new(c, &m, len_ref),
@@ -181,6 +188,11 @@ impl SpeedErrorBound {
             tail: None,
             cache: None,
             settled: false,
+            reach: 0.0,
+            drift_peak: 0.0,
+            // Then the squares in ‖integral‖₂ stay finite, and K g ‖integral‖₂ ≤ K g √5 reach
+            // is below f64::MAX.
+            reach_limit: (f64::MAX / (4.0 * scale)).min(1e150),
         };
         let reduced = Reduced::new(plant, gains);
         bound.tail = reduced.tail_bound().ok();
@@ -194,7 +206,7 @@ impl SpeedErrorBound {
     pub fn reset(&mut self) {
         self.state = BoundState::default();
         self.state.response.copy_from_slice(&self.start.as_slice()[..CL]);
-        self.settled = self.settled_now();
+        self.settle();
     }
 
     /// Advances time since the start by `h` ≥ 0. On error nothing changes; `Overflow` when
@@ -202,17 +214,31 @@ impl SpeedErrorBound {
     #[inline]
     pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
         if self.settled & (h > 0.0) & super::finite(h) {
-            // The common case once the response has decayed, with the overflow test of
-            // `outputs_finite` done on the new values before they are stored (`bound` does
-            // not change).
-            let integral = self.drift(h);
-            if super::finite(self.paper(&integral)) {
-                self.state.integral = integral;
+            // The common case once the response has decayed. `bound` does not change, and
+            // `bound_paper` cannot overflow while `reach` stays below its limit. `reach` bounds
+            // every |integral_i| after the drift too, rounding being monotonic:
+            // |fl(I_i + fl(r_i h))| ≤ fl(reach + fl(max|r| h)).
+            let reach = self.reach + self.drift_peak * h;
+            if reach <= self.reach_limit {
+                self.state.integral = self.drift(h);
                 self.state.elapsed += h;
+                self.reach = reach;
                 return Ok(());
             }
         }
         self.advance_in_general(h)
+    }
+
+    /// `settled` for the current state, and `reach` and `drift_peak` with it.
+    fn settle(&mut self) {
+        self.settled = self.settled_now();
+        self.refresh_reach();
+    }
+
+    fn refresh_reach(&mut self) {
+        let peak = |xs: &[f64; CL]| xs.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+        self.reach = peak(&self.state.integral);
+        self.drift_peak = peak(&self.state.response);
     }
 
     /// `advance` past its settled case.
@@ -222,11 +248,13 @@ impl SpeedErrorBound {
         let before = self.state;
         self.advance_within(h, None)?;
         if self.outputs_finite() {
+            // advance_within drifts a settled integral without `reach`.
+            self.refresh_reach();
             return Ok(());
         }
         let (bound, bound_paper) = (self.bound(), self.bound_paper());
         self.state = before;
-        self.settled = self.settled_now();
+        self.settle();
         Err(BoundError::Overflow { bound, bound_paper })
     }
 
@@ -335,7 +363,7 @@ impl SpeedErrorBound {
         }
         self.state.response = response;
         self.state.l1 = l1;
-        self.settled = self.settled_now();
+        self.settle();
         self.state.elapsed += h;
         Ok(excess)
     }
@@ -399,13 +427,7 @@ impl SpeedErrorBound {
 
     /// K g ‖∫_0^t e^{A s} D_1 ds‖₂, eq. (37)/(41) as printed: not a guarantee [rad/s].
     pub fn bound_paper(&self) -> f64 {
-        self.paper(&self.state.integral)
-    }
-
-    /// `bound_paper` for the integral `integral`.
-    #[inline(always)]
-    fn paper(&self, integral: &[f64; CL]) -> f64 {
-        self.scale * integral.iter().map(|x| x * x).sum::<f64>().sqrt()
+        self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
     /// K g ∫_0^∞ |h(s)| ds, or why it is infinite.
@@ -439,7 +461,7 @@ impl SpeedErrorBound {
             return Err(BoundError::BadState);
         }
         self.state = *state;
-        self.settled = self.settled_now();
+        self.settle();
         Ok(())
     }
 

@@ -148,7 +148,7 @@ impl PieceKernel {
         add(linear::ONE, 1.0);
         // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign,
         // like starting from the first product rather than from zeros).
-        if (dtm != 0.0) | (dtl != 0.0) {
+        if !((dtm == 0.0) & (dtl == 0.0)) {
             add(linear::DTAU_M, dtm);
             add(linear::DTAU_L, dtl);
         }
@@ -176,6 +176,8 @@ pub struct Stepper {
     /// Longest step: `MAX_PIECES` pieces.
     max_h: f64,
     cache: Option<StepCache>,
+    /// The cached step size if it is one piece long, else NaN: the step `quiet_step` takes.
+    quiet_h: f64,
 }
 
 /// The exit from the mode in force: when it happens and what follows.
@@ -211,6 +213,7 @@ impl Stepper {
             len_ref,
             max_h: MAX_PIECES as f64 * len_ref,
             cache: None,
+            quiet_h: f64::NAN,
         }
     }
 
@@ -238,6 +241,7 @@ impl Stepper {
             let ModeDynamics { m, sparse, u_rows } = &self.modes[i];
             PieceKernel::new(&roots::exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
         });
+        self.quiet_h = if pieces == 1.0 { h } else { f64::NAN };
         self.cache = Some(StepCache {
             h,
             pieces: pieces as usize,
@@ -296,7 +300,10 @@ impl Stepper {
     pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
         debug_assert!(state.is_finite());
         // The cache holds only step sizes `step` accepted, so h is finite, > 0 and short enough.
-        let cache = self.cache.as_ref().filter(|c| c.h == h && c.pieces == 1)?;
+        if self.quiet_h != h {
+            return None;
+        }
+        let cache = self.cache.as_ref()?;
         let (whole, d2, c3) = cache.kernel[state.mode.index()].apply_at_start(state, inputs);
         // Non-finite inputs make u″ or c3 NaN or infinite, which fails the test.
         if !self.clear_from(state.mode, state.u, state.du, d2, c3, cache.len) {
