@@ -257,66 +257,69 @@ static volatile double sink;
 
 /* ---- modes ---- */
 
+/* The timed blocks of `suite`, reported in this order. */
+enum {
+    MATVEC,
+    COPY,
+    SET_GET,
+    STEP,
+    SET_STEP,
+    PATTERN,
+    ALL_OUTPUTS,
+    SWITCHING,
+    BLOCKS
+};
+static const char *const block_key[BLOCKS] = {
+    "matvec_4x4",     "copy_set2_step_get1", "ours_set2_get1",         "ours_step_event_free",
+    "ours_set2_step", "ours_set2_step_get1", "ours_set2_step_get_all", "ours_set2_step_switching",
+};
+
+/* One batch of the floor y = M x, fed back (see `suite`); a function of its own so that its
+ * code is the same as in a loop by itself (the matrix in registers). */
+__attribute__((noinline)) static void matvec_batch(const double mix_in[16], double x_io[4], long n) {
+    double mix[16], x[4], y[4];
+    memcpy(mix, mix_in, sizeof mix);
+    memcpy(x, x_io, sizeof x);
+    for (long k = 0; k < n; k++) {
+        for (int i = 0; i < 4; i++)
+            y[i] = mix[4 * i] * x[0] + mix[4 * i + 1] * x[1] + mix[4 * i + 2] * x[2] + mix[4 * i + 3] * x[3];
+        memcpy(x, y, sizeof x);
+    }
+    memcpy(x_io, x, sizeof x);
+}
+
+/* One batch of the copy component's PI-loop call pattern (see `suite`). */
+__attribute__((noinline)) static double copy_batch(Copy *copy, double v, long n) {
+    const fmi2ValueReference cin[] = {0, 1}, cout[] = {0};
+    for (long k = 0; k < n; k++) {
+        double in2[2] = {v, 0.0};
+        copy_set(copy, cin, 2, in2);
+        copy_step(copy, k * H, H, fmi2True);
+        copy_get(copy, cout, 1, &v);
+        v = v * 0.999 + 0.001;
+    }
+    return v;
+}
+
+/* Every block is timed once per round, round after round, so that each block's batches are
+ * spread over the whole run: a spell of contention on the machine then disturbs a few batches
+ * of every block rather than all batches of one. */
 static void suite(int batches, long steps) {
-    double *t = malloc(sizeof(double) * batches), *tw = malloc(sizeof(double) * batches);
+    double *t[BLOCKS], *tw[BLOCKS];
+    for (int i = 0; i < BLOCKS; i++) {
+        t[i] = malloc(sizeof(double) * batches);
+        tw[i] = malloc(sizeof(double) * batches);
+    }
     const fmi2ValueReference in[] = {VR_tau_m, VR_tau_L};
     const fmi2ValueReference w_m[] = {VR_omega_m};
     const fmi2ValueReference reals[] = {VR_theta_m, VR_omega_m, VR_theta_L, VR_omega_L, VR_psi, VR_bound, VR_bound_paper};
     const fmi2ValueReference contact_vr[] = {VR_contact};
     fmi2Real out[7];
     fmi2Integer contact;
-
-    /* Floor: y = M x with M orthogonal (two plane rotations; built at run time so nothing
-     * folds), fed back so that each product depends on the previous one, as steps do. */
-    {
-        volatile double angle = 0.7;
-        double c1 = cos(angle), s1 = sin(angle), c2 = cos(2 * angle), s2 = sin(2 * angle);
-        double m[16] = {c1, -s1, 0, 0, s1, c1, 0, 0, 0, 0, c2, -s2, 0, 0, s2, c2};
-        double mix[16], r[16] = {1, 0, 0, 0, 0, c2, 0, -s2, 0, 0, 1, 0, 0, s2, 0, c2};
-        for (int i = 0; i < 4; i++)
-            for (int j = 0; j < 4; j++) {
-                mix[4 * i + j] = 0;
-                for (int k = 0; k < 4; k++) mix[4 * i + j] += r[4 * i + k] * m[4 * k + j];
-            }
-        double x[4] = {0.1, 0.2, 0.3, 0.4}, y[4];
-        long n = steps * 20; /* a product is ~100x cheaper than a step: longer batches */
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long k = 0; k < n; k++) {
-                for (int i = 0; i < 4; i++)
-                    y[i] = mix[4 * i] * x[0] + mix[4 * i + 1] * x[1] + mix[4 * i + 2] * x[2] + mix[4 * i + 3] * x[3];
-                memcpy(x, y, sizeof x);
-            }
-            toc(t0, n, t, tw, b);
-        }
-        sink = x[0] + x[1] + x[2] + x[3];
-        report("matvec_4x4", t, tw, batches);
-    }
-
-    /* Floor: the PI loop's call pattern (setReal of 2, doStep, getReal of 1) on the copy component. */
-    {
-        Copy copy = {{0, 0}, 0};
-        const fmi2ValueReference cin[] = {0, 1}, cout[] = {0};
-        double v = 0.5, tau[2];
-        long n = steps * 20;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long k = 0; k < n; k++) {
-                tau[0] = v, tau[1] = 0.0;
-                copy_set(&copy, cin, 2, tau);
-                copy_step(&copy, k * H, H, fmi2True);
-                copy_get(&copy, cout, 1, &v);
-                v = v * 0.999 + 0.001;
-            }
-            toc(t0, n, t, tw, b);
-        }
-        sink = v;
-        report("copy_set2_step_get1", t, tw, batches);
-    }
+    long total = (long)batches * steps;
 
     /* Event-free: verify first (untimed, logging on) that the schedule never switches. */
     {
-        long total = (long)batches * steps;
         fmi2Component c = make_pressed("check-pressed", 1);
         contact_messages = 0;
         for (long k = 0; k < total; k++) check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
@@ -325,87 +328,8 @@ static void suite(int batches, long steps) {
         printf("@ pressed_final_contact %d\n", (int)contact);
         release(c);
     }
+    /* Switching: count the switches of the schedule in an untimed run with logging. */
     {
-        fmi2Component c = make_pressed("set-get", 0);
-        double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long k = 0; k < steps; k++) {
-                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
-                check(api.get_real(c, w_m, 1, &w), "fmi2GetReal");
-            }
-            toc(t0, steps, t, tw, b);
-        }
-        sink = w;
-        report("ours_set2_get1", t, tw, batches);
-        release(c);
-    }
-    {
-        fmi2Component c = make_pressed("step", 0);
-        long k = 0;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long i = 0; i < steps; i++, k++) check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
-            toc(t0, steps, t, tw, b);
-        }
-        report("ours_step_event_free", t, tw, batches);
-        release(c);
-    }
-    {
-        fmi2Component c = make_pressed("set-step", 0);
-        double tau[2] = {TAU_PRESS, 0.0};
-        long k = 0;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long i = 0; i < steps; i++, k++) {
-                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
-                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
-            }
-            toc(t0, steps, t, tw, b);
-        }
-        report("ours_set2_step", t, tw, batches);
-        release(c);
-    }
-    {
-        fmi2Component c = make_pressed("pattern", 0);
-        double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
-        long k = 0;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long i = 0; i < steps; i++, k++) {
-                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
-                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
-                check(api.get_real(c, w_m, 1, &w), "fmi2GetReal");
-            }
-            toc(t0, steps, t, tw, b);
-        }
-        sink = w;
-        report("ours_set2_step_get1", t, tw, batches);
-        release(c);
-    }
-    {
-        fmi2Component c = make_pressed("all-outputs", 0);
-        double tau[2] = {TAU_PRESS, 0.0};
-        long k = 0;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long i = 0; i < steps; i++, k++) {
-                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
-                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
-                check(api.get_real(c, reals, 7, out), "fmi2GetReal");
-                check(api.get_integer(c, contact_vr, 1, &contact), "fmi2GetInteger");
-            }
-            toc(t0, steps, t, tw, b);
-        }
-        sink = out[5] + out[6] + contact;
-        printf("@ all_outputs_final_bound %.17g %.17g\n", out[5], out[6]);
-        report("ours_set2_step_get_all", t, tw, batches);
-        release(c);
-    }
-
-    /* Switching: count the switches in an untimed run with logging, then time the same schedule. */
-    {
-        long total = (long)batches * steps;
         fmi2Component c = make_swinging("check-swinging", 1);
         contact_messages = 0;
         for (long k = 0; k < total; k++) {
@@ -416,23 +340,92 @@ static void suite(int batches, long steps) {
         printf("@ swinging_switches %ld %ld\n", contact_messages, total);
         release(c);
     }
-    {
-        fmi2Component c = make_swinging("swinging", 0);
-        long k = 0;
-        for (int b = 0; b < batches; b++) {
-            Tic t0 = tic();
-            for (long i = 0; i < steps; i++, k++) {
-                double tau[2] = {swing_torque(k), 0.0};
-                check(api.set_real(c, in, 2, tau), "fmi2SetReal");
-                check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
-            }
-            toc(t0, steps, t, tw, b);
+
+    /* Floor: y = M x with M orthogonal (two plane rotations; built at run time so nothing
+     * folds), fed back so that each product depends on the previous one, as steps do. */
+    volatile double angle = 0.7;
+    double c1 = cos(angle), s1 = sin(angle), c2 = cos(2 * angle), s2 = sin(2 * angle);
+    double m[16] = {c1, -s1, 0, 0, s1, c1, 0, 0, 0, 0, c2, -s2, 0, 0, s2, c2};
+    double mix[16], r[16] = {1, 0, 0, 0, 0, c2, 0, -s2, 0, 0, 1, 0, 0, s2, 0, c2};
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++) {
+            mix[4 * i + j] = 0;
+            for (int k = 0; k < 4; k++) mix[4 * i + j] += r[4 * i + k] * m[4 * k + j];
         }
-        report("ours_set2_step_switching", t, tw, batches);
-        release(c);
+    double x[4] = {0.1, 0.2, 0.3, 0.4};
+    /* Floor: the PI loop's call pattern (setReal of 2, doStep, getReal of 1) on the copy
+     * component. The floors are ~100x cheaper than a step: longer batches. */
+    Copy copy = {{0, 0}, 0};
+    double v = 0.5;
+    long floor_items = steps * 20;
+
+    fmi2Component set_get = make_pressed("set-get", 0), step = make_pressed("step", 0),
+                  set_step = make_pressed("set-step", 0), pattern = make_pressed("pattern", 0),
+                  all = make_pressed("all-outputs", 0), swinging = make_swinging("swinging", 0);
+    double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
+    long k_step = 0, k_set_step = 0, k_pattern = 0, k_all = 0, k_swinging = 0;
+
+    for (int b = 0; b < batches; b++) {
+        Tic t0 = tic();
+        matvec_batch(mix, x, floor_items);
+        toc(t0, floor_items, t[MATVEC], tw[MATVEC], b);
+
+        t0 = tic();
+        v = copy_batch(&copy, v, floor_items);
+        toc(t0, floor_items, t[COPY], tw[COPY], b);
+
+        t0 = tic();
+        for (long i = 0; i < steps; i++) {
+            check(api.set_real(set_get, in, 2, tau), "fmi2SetReal");
+            check(api.get_real(set_get, w_m, 1, &w), "fmi2GetReal");
+        }
+        toc(t0, steps, t[SET_GET], tw[SET_GET], b);
+
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_step++) check(api.do_step(step, k_step * H, H, fmi2True), "fmi2DoStep");
+        toc(t0, steps, t[STEP], tw[STEP], b);
+
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_set_step++) {
+            check(api.set_real(set_step, in, 2, tau), "fmi2SetReal");
+            check(api.do_step(set_step, k_set_step * H, H, fmi2True), "fmi2DoStep");
+        }
+        toc(t0, steps, t[SET_STEP], tw[SET_STEP], b);
+
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_pattern++) {
+            check(api.set_real(pattern, in, 2, tau), "fmi2SetReal");
+            check(api.do_step(pattern, k_pattern * H, H, fmi2True), "fmi2DoStep");
+            check(api.get_real(pattern, w_m, 1, &w), "fmi2GetReal");
+        }
+        toc(t0, steps, t[PATTERN], tw[PATTERN], b);
+
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_all++) {
+            check(api.set_real(all, in, 2, tau), "fmi2SetReal");
+            check(api.do_step(all, k_all * H, H, fmi2True), "fmi2DoStep");
+            check(api.get_real(all, reals, 7, out), "fmi2GetReal");
+            check(api.get_integer(all, contact_vr, 1, &contact), "fmi2GetInteger");
+        }
+        toc(t0, steps, t[ALL_OUTPUTS], tw[ALL_OUTPUTS], b);
+
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_swinging++) {
+            double swing[2] = {swing_torque(k_swinging), 0.0};
+            check(api.set_real(swinging, in, 2, swing), "fmi2SetReal");
+            check(api.do_step(swinging, k_swinging * H, H, fmi2True), "fmi2DoStep");
+        }
+        toc(t0, steps, t[SWITCHING], tw[SWITCHING], b);
     }
-    free(t);
-    free(tw);
+    sink = x[0] + x[1] + x[2] + x[3] + v + w + out[5] + out[6] + contact;
+    printf("@ all_outputs_final_bound %.17g %.17g\n", out[5], out[6]);
+    for (int i = 0; i < BLOCKS; i++) {
+        report(block_key[i], t[i], tw[i], batches);
+        free(t[i]);
+        free(tw[i]);
+    }
+    fmi2Component made[] = {set_get, step, set_step, pattern, all, swinging};
+    for (size_t i = 0; i < sizeof made / sizeof made[0]; i++) release(made[i]);
 }
 
 static void scale(long steps) {
