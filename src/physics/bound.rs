@@ -96,24 +96,20 @@ struct Piece {
 
 impl PieceKernel {
     fn new(phi: &BoundMatrix, rows: &SignalRows<BA>, remainder: &BoundVector) -> PieceKernel {
-        let mut cols = [roots::KernelColumn([0.0; KERNEL_OUT]); CL];
-        for (j, col) in cols.iter_mut().enumerate() {
-            for (r, x) in col.0.iter_mut().enumerate() {
-                *x = match r {
-                    0..BA => phi[(r, j)],
-                    10..=12 => rows.row(r - 9)[j],
-                    GROWTH_ROW => remainder[j],
-                    _ => 0.0,
-                };
-            }
+        PieceKernel {
+            cols: roots::KernelColumn::table(|r, j| match r {
+                0..BA => phi[(r, j)],
+                10..=12 => rows.row(r - 9)[j],
+                GROWTH_ROW => remainder[j],
+                _ => 0.0,
+            }),
         }
-        PieceKernel { cols }
     }
 
     fn apply(&self, v: &[f64; CL]) -> Piece {
         let mut acc = [0.0; KERNEL_OUT];
         for (col, &vj) in self.cols.iter().zip(v) {
-            roots::accumulate_column(&mut acc, col, vj, GROWTH_ROW);
+            col.accumulate(&mut acc, vj, GROWTH_ROW);
         }
         Piece {
             end: BoundVector::from_column_slice(&acc[..BA]),

@@ -193,28 +193,40 @@ impl<const N: usize> TaylorModel<N> {
 }
 
 /// One column of a fused kernel (a matrix stored by column, its outputs side by side),
-/// aligned so that each pair of outputs loads as one vector operand.
+/// aligned so that each pair of outputs loads as one vector operand. Entry `abs_row` of a
+/// kernel is a growth bound's row: it multiplies |x| where the others multiply x.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
 pub struct KernelColumn<const OUT: usize>(pub [f64; OUT]);
 
-/// `col·x`, except that entry `abs_row` takes `col·|x|`: the first column of a kernel's sums,
-/// equal to `accumulate_column` into zeros but for the sign of a zero.
-#[inline(always)]
-pub fn column_product<const OUT: usize>(col: &KernelColumn<OUT>, x: f64, abs_row: usize) -> [f64; OUT] {
-    let mut by = [x; OUT];
-    by[abs_row] = x.abs();
-    std::array::from_fn(|r| col.0[r] * by[r])
-}
+impl<const OUT: usize> KernelColumn<OUT> {
+    /// The N columns of a kernel with entry(r, j) in output r of column j.
+    pub fn table<const N: usize>(entry: impl Fn(usize, usize) -> f64) -> [KernelColumn<OUT>; N] {
+        std::array::from_fn(|j| KernelColumn(std::array::from_fn(|r| entry(r, j))))
+    }
 
-/// `acc += col·x`, except that entry `abs_row` takes `col·|x|` (a growth bound's row).
-/// Inlined, it vectorizes across the outputs.
-#[inline(always)]
-pub fn accumulate_column<const OUT: usize>(acc: &mut [f64; OUT], col: &KernelColumn<OUT>, x: f64, abs_row: usize) {
-    let mut by = [x; OUT];
-    by[abs_row] = x.abs();
-    for r in 0..OUT {
-        acc[r] += col.0[r] * by[r];
+    /// This column times x: the first term of a kernel's sums, equal to `accumulate` into
+    /// zeros but for the sign of a zero.
+    #[inline(always)]
+    pub fn product(&self, x: f64, abs_row: usize) -> [f64; OUT] {
+        let by = Self::multipliers(x, abs_row);
+        std::array::from_fn(|r| self.0[r] * by[r])
+    }
+
+    /// `acc += this column times x`. Inlined, it vectorizes across the outputs.
+    #[inline(always)]
+    pub fn accumulate(&self, acc: &mut [f64; OUT], x: f64, abs_row: usize) {
+        let by = Self::multipliers(x, abs_row);
+        for r in 0..OUT {
+            acc[r] += self.0[r] * by[r];
+        }
+    }
+
+    #[inline(always)]
+    fn multipliers(x: f64, abs_row: usize) -> [f64; OUT] {
+        let mut by = [x; OUT];
+        by[abs_row] = x.abs();
+        by
     }
 }
 

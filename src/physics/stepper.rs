@@ -82,19 +82,15 @@ const GROWTH_ROW: usize = 7;
 
 impl PieceKernel {
     fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
-        let mut cols = [roots::KernelColumn([0.0; KERNEL_OUT]); AUG];
-        for (j, col) in cols.iter_mut().enumerate() {
-            for (r, x) in col.0.iter_mut().enumerate() {
-                *x = match r {
-                    0..=4 => phi[(r, j)],
-                    5 => u_rows.row(2)[j],
-                    6 => u_rows.row(3)[j],
-                    GROWTH_ROW => remainder[j],
-                    _ => unreachable!("KERNEL_OUT rows"),
-                };
-            }
+        PieceKernel {
+            cols: roots::KernelColumn::table(|r, j| match r {
+                0..=4 => phi[(r, j)],
+                5 => u_rows.row(2)[j],
+                6 => u_rows.row(3)[j],
+                GROWTH_ROW => remainder[j],
+                _ => unreachable!("KERNEL_OUT rows"),
+            }),
         }
-        PieceKernel { cols }
     }
 
     /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L], u″, bound on sup |u‴| over the piece).
@@ -148,14 +144,14 @@ impl PieceKernel {
         // The first product rather than zeros plus it (the same but for a zero's sign); then a
         // loop over the columns rather than one call per column: unrolled after it is
         // vectorized, it keeps each column's outputs together in vector registers.
-        let mut acc = roots::column_product(&self.cols[U], u, GROWTH_ROW);
+        let mut acc = self.cols[U].product(u, GROWTH_ROW);
         for (j, yj) in [(V, v), (OMEGA_L, w), (TAU_M, tm), (TAU_L, tl), (ONE, 1.0)] {
-            roots::accumulate_column(&mut acc, &self.cols[j], yj, GROWTH_ROW);
+            self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
         }
         // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign).
         if !((dtm == 0.0) & (dtl == 0.0)) {
             for (j, yj) in [(DTAU_M, dtm), (DTAU_L, dtl)] {
-                roots::accumulate_column(&mut acc, &self.cols[j], yj, GROWTH_ROW);
+                self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
             }
         }
         acc
