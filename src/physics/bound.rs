@@ -244,8 +244,6 @@ impl SpeedErrorBound {
         let before = self.state;
         self.advance_within(h, None)?;
         if self.outputs_finite() {
-            // advance_within drifts a settled integral without `reach`.
-            self.refresh_reach();
             return Ok(());
         }
         let (bound, bound_paper) = (self.bound(), self.bound_paper());
@@ -268,6 +266,7 @@ impl SpeedErrorBound {
         if self.settled {
             self.state.integral = self.drift(h);
             self.state.elapsed += h;
+            self.refresh_reach();
             return Ok(0.0);
         }
         let len_ref = self.h_rows.len_ref();
