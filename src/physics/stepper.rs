@@ -111,8 +111,8 @@ impl PieceKernel {
         let acc = self.sums_inline(state.u, state.du, state.omega_l, i.tau_m, i.tau_l, i.dtau_m, i.dtau_l);
         // `black_box` (an identity) keeps the sums whole until they are stored: else the
         // vectorizer, seeing each output used on its own below, pairs products of different
-        // columns, which takes more shuffling (measured by callgrind: 352 instructions per
-        // event-free fmi2DoStep with it, 368 without).
+        // columns, which takes more shuffling (measured by callgrind: 355 instructions per
+        // event-free fmi2DoStep with it, 370 without).
         Self::split(std::hint::black_box(acc))
     }
 
@@ -178,8 +178,6 @@ pub struct Stepper {
     /// Longest step: `MAX_PIECES` pieces.
     max_h: f64,
     cache: Option<StepCache>,
-    /// The cached step size if it is one piece long, else NaN: the step `quiet_step` takes.
-    quiet_h: f64,
 }
 
 /// The exit from the mode in force: when it happens and what follows.
@@ -215,7 +213,6 @@ impl Stepper {
             len_ref,
             max_h: MAX_PIECES as f64 * len_ref,
             cache: None,
-            quiet_h: f64::NAN,
         }
     }
 
@@ -243,7 +240,6 @@ impl Stepper {
             let ModeDynamics { m, sparse, u_rows } = &self.modes[i];
             PieceKernel::new(&roots::exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
         });
-        self.quiet_h = if pieces == 1.0 { h } else { f64::NAN };
         self.cache = Some(StepCache {
             h,
             pieces: pieces as usize,
@@ -282,7 +278,7 @@ impl Stepper {
         for piece in 0..cache.pieces {
             let y = augmented(&next, inputs, piece as f64 * cache.len);
             let (whole, d2, c3) = kernel.apply(&y);
-            if !self.clear(next.mode, &y, d2, c3, cache.len) {
+            if !self.clear(next.mode, y[linear::U], y[linear::V], d2, c3, cache.len) {
                 return self.step_from(piece, next, state, inputs, h, on_switch);
             }
             self.finish_piece(&mut next, &whole);
@@ -295,20 +291,17 @@ impl Stepper {
     }
 
     /// The step of a co-simulation in the common case, with nothing to locate: `h` is the
-    /// size of the previous step and one piece long, and the piece is certified free of
+    /// step size `step` last took and one piece long, and the piece is certified free of
     /// switches. Returns the state at its end if it is finite; else `None`, and `step` does
     /// the step (or says why not). `state` must be finite.
     #[inline]
     pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
         debug_assert!(state.is_finite());
         // The cache holds only step sizes `step` accepted, so h is finite, > 0 and short enough.
-        if self.quiet_h != h {
-            return None;
-        }
-        let cache = self.cache.as_ref()?;
+        let cache = self.cache.as_ref().filter(|c| c.h == h && c.pieces == 1)?;
         let (whole, d2, c3) = cache.kernel[state.mode.index()].apply_at_start(state, inputs);
         // Non-finite inputs make u″ or c3 NaN or infinite, which fails the test.
-        if !self.clear_from(state.mode, state.u, state.du, d2, c3, cache.len) {
+        if !self.clear(state.mode, state.u, state.du, d2, c3, cache.len) {
             return None;
         }
         let mut next = *state;
@@ -364,7 +357,7 @@ impl Stepper {
             let start = piece as f64 * len;
             let mut y = augmented(&next, inputs, start);
             let (whole, d2, c3) = cache.kernel[next.mode.index()].apply(&y);
-            if self.clear(next.mode, &y, d2, c3, len) {
+            if self.clear(next.mode, y[linear::U], y[linear::V], d2, c3, len) {
                 // No switch in this piece: one fused pass did all the work.
                 self.finish_piece(&mut next, &whole);
                 continue;
@@ -425,16 +418,11 @@ impl Stepper {
         Ok(switches)
     }
 
-    /// True when u cannot leave `mode`'s region within `span`, given u″ and the bound c3 on |u‴|.
-    #[inline(always)]
-    fn clear(&self, mode: ContactMode, y: &AugVector, d2: f64, c3: f64, span: f64) -> bool {
-        self.clear_from(mode, y[linear::U], y[linear::V], d2, c3, span)
-    }
-
-    /// `clear` for u and u′ given as scalars.
+    /// True when u cannot leave `mode`'s region within `span`, given u, u′, u″ and the bound c3
+    /// on |u‴|.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn clear_from(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
+    fn clear(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
         let g = self.plant.half_gap();
         if g == 0.0 {
             return true;
@@ -451,7 +439,7 @@ impl Stepper {
         clear || self.clear_exactly(mode, u, du, d2, c3, span, tol)
     }
 
-    /// `clear_from` past its cheap test.
+    /// `clear` past its cheap test.
     #[allow(clippy::too_many_arguments)]
     #[cold]
     #[inline(never)]
