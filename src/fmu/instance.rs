@@ -710,7 +710,7 @@ impl Instance {
             & finite(tau_end[0])
             & finite(tau_end[1]);
         if !accepted {
-            return Err(self.step_refusal(communication_point, h));
+            return Err(self.step_refusal(communication_point, h, tau_end));
         }
         if !sim.quiet_step(&inputs, h) {
             self.general_step(communication_point, &inputs, h)?;
@@ -727,7 +727,7 @@ impl Instance {
     /// Why `do_step_body` refuses its arguments (called only when it does).
     #[cold]
     #[inline(never)]
-    fn step_refusal(&self, communication_point: f64, h: f64) -> FmuError {
+    fn step_refusal(&self, communication_point: f64, h: f64, tau_end: [f64; 2]) -> FmuError {
         let bad = FmuError::InvalidArgument;
         if !communication_point.is_finite() {
             return bad(format!("currentCommunicationPoint {communication_point} is not finite"));
@@ -760,8 +760,6 @@ impl Instance {
                 "the step from {communication_point} by {h} leaves the range of f64"
             ));
         }
-        let inputs = inputs(&self.values, self.input_slopes);
-        let tau_end = [inputs.tau_m + h * inputs.dtau_m, inputs.tau_l + h * inputs.dtau_l];
         if !tau_end.iter().all(|x| x.is_finite()) {
             return FmuError::Overflow(format!(
                 "the input ramps reach tau_m = {:e}, tau_L = {:e} at the end of the step",
