@@ -1,27 +1,18 @@
-//! Writes the value-reference tables of both models into OUT_DIR (included by
-//! `src/fmu/variables.rs`) from the single source of truth `modelDescription/generate.rs`,
-//! together with each model's `modelDescription.xml` for the tests that cross-check them.
+//! Writes the library's generated tables into OUT_DIR from the interface description
+//! (the `model-description` crate in modelDescription/): the variable tables and `Symbol`
+//! (included by `src/fmu/variables.rs`) and the log categories (`src/fmu/logging.rs`).
 
-#[path = "modelDescription/generate.rs"]
-mod generate;
-
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn main() {
-    println!("cargo:rerun-if-changed=modelDescription/generate.rs");
     println!("cargo:rerun-if-changed=build.rs");
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    write(&out.join("model_variables.rs"), &generate::rust_variable_tables());
-    for identifier in generate::model_identifiers() {
-        write(
-            &out.join(format!("{identifier}.xml")),
-            &generate::model_description_xml(identifier),
-        );
-    }
+    write(&out.join("model_variables.rs"), &model_description::rust::variable_tables());
+    write(&out.join("log_categories.rs"), &model_description::rust::log_categories());
 }
 
 /// Writes only when the content changed, so dependants are not rebuilt needlessly.
-fn write(path: &std::path::Path, content: &str) {
+fn write(path: &Path, content: &str) {
     if std::fs::read_to_string(path).ok().as_deref() != Some(content) {
         std::fs::write(path, content).unwrap_or_else(|e| panic!("cannot write {}: {e}", path.display()));
     }

@@ -1,20 +1,12 @@
 //! The generated value-reference table, the generated modelDescription.xml and the instance
 //! agree: every variable is served by the get/set of its type, with its start value, and the
-//! wrong-type get fails. The XML is read here by a separate minimal scanner.
-
-#[path = "../modelDescription/generate.rs"]
-mod generate;
+//! wrong-type get fails. The XML is read here with an XML parser (roxmltree).
 
 use backlash_fmu::fmu::variables::{Causality, Range, VarType};
 use backlash_fmu::fmu::{model_by_identifier, FmuError, Instance, LogCategory, MODELS};
+use model_description::{model_identifiers, xml};
 
-/// Attribute `name` of the first tag in `text`.
-fn attr<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
-    let key = format!(" {name}=\"");
-    let start = tag.find(&key)? + key.len();
-    Some(&tag[start..start + tag[start..].find('"')?])
-}
-
+/// One `<ScalarVariable>` as the description states it.
 struct XmlVar {
     name: String,
     vr: u32,
@@ -24,36 +16,41 @@ struct XmlVar {
     initial: Option<String>,
 }
 
-fn xml_variables(xml: &str) -> Vec<XmlVar> {
-    xml.split("<ScalarVariable ")
-        .skip(1)
-        .map(|chunk| {
-            let head = &chunk[..chunk.find('>').unwrap()];
-            let head = format!(" {head}");
-            let body = &chunk[chunk.find('<').unwrap() + 1..];
-            let element = body[..body.find(' ').unwrap()].to_string();
-            let inner = format!(" {}", &body[..body.find("/>").unwrap()]);
+fn xml_variables(doc: &roxmltree::Document) -> Vec<XmlVar> {
+    doc.descendants()
+        .filter(|n| n.has_tag_name("ScalarVariable"))
+        .map(|v| {
+            let typed = v.children().find(|n| n.is_element()).expect("a type element");
             XmlVar {
-                name: attr(&head, "name").unwrap().to_string(),
-                vr: attr(&head, "valueReference").unwrap().parse().unwrap(),
-                causality: attr(&head, "causality").unwrap().to_string(),
-                element,
-                start: attr(&inner, "start").map(str::to_string),
-                initial: attr(&head, "initial").map(str::to_string),
+                name: v.attribute("name").unwrap().to_string(),
+                vr: v.attribute("valueReference").unwrap().parse().unwrap(),
+                causality: v.attribute("causality").unwrap().to_string(),
+                element: typed.tag_name().name().to_string(),
+                start: typed.attribute("start").map(str::to_string),
+                initial: v.attribute("initial").map(str::to_string),
             }
         })
         .collect()
 }
 
+fn guid_of(xml: &str) -> String {
+    let doc = roxmltree::Document::parse(xml).unwrap();
+    doc.root_element().attribute("guid").unwrap().to_string()
+}
+
 #[test]
 fn xml_and_rust_table_describe_the_same_variables() {
-    assert_eq!(generate::model_identifiers(), ["BacklashShaft", "BacklashBelt"]);
-    for id in generate::model_identifiers() {
-        let xml = generate::model_description_xml(id);
+    assert_eq!(model_identifiers(), ["BacklashShaft", "BacklashBelt"]);
+    for id in model_identifiers() {
+        let text = xml::model_description(id);
+        let doc = roxmltree::Document::parse(&text).unwrap();
         let model = model_by_identifier(id).unwrap();
-        assert_eq!(attr(&xml, "guid"), Some(model.guid), "{id}");
-        assert!(xml.contains(&format!("modelIdentifier=\"{id}\"")));
-        let vars = xml_variables(&xml);
+        assert_eq!(doc.root_element().attribute("guid"), Some(model.guid), "{id}");
+        let element = |tag: &str| doc.descendants().filter(|n| n.has_tag_name(tag)).collect::<Vec<_>>();
+        let co_simulation = element("CoSimulation");
+        assert_eq!(co_simulation.len(), 1);
+        assert_eq!(co_simulation[0].attribute("modelIdentifier"), Some(*id));
+        let vars = xml_variables(&doc);
         assert_eq!(vars.len(), model.variables.len(), "{id}");
         for (x, v) in vars.iter().zip(model.variables) {
             assert_eq!((x.name.as_str(), x.vr), (v.name, v.vr));
@@ -82,35 +79,26 @@ fn xml_and_rust_table_describe_the_same_variables() {
             assert_eq!(x.start.is_some(), needs_start, "{}", v.name);
             assert!(!v.description.is_empty());
         }
-        for c in LogCategory::ALL {
-            assert!(
-                xml.contains(&format!("<Category name=\"{}\"", c.name())),
-                "{id} lacks {}",
-                c.name()
-            );
-        }
-        for unit in ["rpm", "deg"] {
-            assert!(
-                xml.contains(&format!("<DisplayUnit name=\"{unit}\"")),
-                "{id} lacks display unit {unit}"
-            );
-        }
+        let categories: Vec<_> = element("Category").iter().map(|c| c.attribute("name").unwrap()).collect();
+        let names: Vec<_> = LogCategory::ALL.iter().map(|c| c.name()).collect();
+        assert_eq!(categories, names, "{id}");
+        let mut display_units: Vec<_> = element("DisplayUnit").iter().map(|c| c.attribute("name").unwrap()).collect();
+        display_units.sort_unstable();
+        let expected: &[&str] = if *id == "BacklashBelt" { &["deg", "mm", "rpm"] } else { &["deg", "rpm"] };
+        assert_eq!(display_units, expected, "{id}");
     }
-    assert!(generate::model_description_xml("BacklashBelt").contains("<DisplayUnit name=\"mm\""));
 }
 
 #[test]
 fn the_guid_is_the_hash_of_the_description_and_differs_per_model() {
-    let shaft = generate::model_description_xml("BacklashShaft");
-    let guid = attr(&shaft, "guid").unwrap();
+    let shaft = xml::model_description("BacklashShaft");
+    let guid = guid_of(&shaft);
+    let guid = guid.as_str();
     // The same description gives the same guid; another description another one.
-    assert_eq!(generate::model_description_xml("BacklashShaft"), shaft);
-    assert_ne!(
-        attr(&generate::model_description_xml("BacklashBelt"), "guid").unwrap(),
-        guid
-    );
+    assert_eq!(xml::model_description("BacklashShaft"), shaft);
+    assert_ne!(guid_of(&xml::model_description("BacklashBelt")), guid);
     let blanked = shaft.replacen(guid, "", 1);
-    assert_eq!(generate::guid("BacklashShaft"), guid);
+    assert_eq!(xml::guid("BacklashShaft"), guid);
     assert_ne!(blanked, shaft);
     assert!(guid.len() == 38 && guid.starts_with('{') && guid.ends_with('}'));
 }

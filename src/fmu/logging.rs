@@ -3,32 +3,10 @@
 
 use super::error::{FmuError, Status};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum LogCategory {
-    ContactEvents,
-    Warnings,
-    Errors,
-    Calls,
-}
+// `LogCategory` with `ALL` and `name`, generated from the description's `<LogCategories>`.
+include!(concat!(env!("OUT_DIR"), "/log_categories.rs"));
 
 impl LogCategory {
-    /// Same order and names as `LOG_CATEGORIES` in `modelDescription/generate.rs`.
-    pub const ALL: [LogCategory; 4] = [
-        LogCategory::ContactEvents,
-        LogCategory::Warnings,
-        LogCategory::Errors,
-        LogCategory::Calls,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            LogCategory::ContactEvents => "logContactEvents",
-            LogCategory::Warnings => "logWarnings",
-            LogCategory::Errors => "logErrors",
-            LogCategory::Calls => "logCalls",
-        }
-    }
-
     pub fn from_name(name: &str) -> Option<LogCategory> {
         LogCategory::ALL.into_iter().find(|c| c.name() == name)
     }
@@ -50,7 +28,7 @@ impl LogSink for Collected {
 }
 
 pub struct Logging {
-    enabled: [bool; 4],
+    enabled: [bool; LogCategory::ALL.len()],
     sink: Option<Box<dyn LogSink>>,
 }
 
@@ -58,7 +36,7 @@ impl Logging {
     /// Errors and warnings reach the logger from the start, so every refusal comes with its
     /// reason; contact events and call traces only when `logging_on` (fmi2Instantiate).
     pub fn new(sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Logging {
-        let mut enabled = [false; 4];
+        let mut enabled = [false; LogCategory::ALL.len()];
         for c in LogCategory::ALL {
             enabled[c as usize] = logging_on || matches!(c, LogCategory::Errors | LogCategory::Warnings);
         }

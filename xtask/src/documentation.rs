@@ -18,16 +18,17 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
     let template = read(dir.join("template.html"))?;
     let drive_train = read(dir.join(id).join("drive_train.html"))?;
 
-    let root = opening_tags(xml, "fmiModelDescription")
-        .into_iter()
-        .next()
-        .ok_or_else(|| format!("{id}: no <fmiModelDescription> element"))?;
-    let description = attribute(&root, "description").unwrap_or_default();
-    let table = variable_table(xml)?;
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
+    let root = doc.root_element();
+    if !root.has_tag_name("fmiModelDescription") {
+        return Err(format!("{id}: no <fmiModelDescription> element"));
+    }
+    let description = escape(root.attribute("description").unwrap_or_default());
+    let table = variable_table(&doc)?;
 
     let page = template
         .replace("{{MODEL}}", id)
-        .replace("{{DESCRIPTION}}", description)
+        .replace("{{DESCRIPTION}}", &description)
         .replace("{{DRIVE_TRAIN}}", &drive_train)
         .replace("{{VARIABLES}}", &table);
     if let Some(at) = page.find("{{") {
@@ -37,103 +38,41 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
     Ok(page)
 }
 
-/// One `<tag ...>` opening: its attributes as they appear (values still XML-escaped, which is
-/// also valid HTML text).
-type Attributes = Vec<(String, String)>;
-
-fn attribute<'a>(attributes: &'a Attributes, name: &str) -> Option<&'a str> {
-    attributes.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str())
-}
-
-/// Attributes of every opening tag named `tag`, in document order. Quote-aware, so a `>` inside
-/// a description does not end the tag.
-fn opening_tags(xml: &str, tag: &str) -> Vec<Attributes> {
-    let pattern = format!("<{tag}");
-    let mut found = Vec::new();
-    let mut rest = xml;
-    while let Some(at) = rest.find(&pattern) {
-        let after = &rest[at + pattern.len()..];
-        // `<Real` must not match `<RealType`.
-        if !after.starts_with(|c: char| c.is_whitespace() || c == '>' || c == '/') {
-            rest = after;
-            continue;
-        }
-        let (attributes, consumed) = parse_attributes(after);
-        found.push(attributes);
-        rest = &after[consumed..];
-    }
-    found
-}
-
-fn parse_attributes(text: &str) -> (Attributes, usize) {
-    let bytes = text.as_bytes();
-    let mut attributes = Vec::new();
-    let mut i = 0;
-    loop {
-        while i < bytes.len() && bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        if i >= bytes.len() || bytes[i] == b'>' || bytes[i] == b'/' {
-            return (attributes, i);
-        }
-        let name_start = i;
-        while i < bytes.len() && bytes[i] != b'=' && !bytes[i].is_ascii_whitespace() && bytes[i] != b'>' {
-            i += 1;
-        }
-        let name = text[name_start..i].to_string();
-        while i < bytes.len() && (bytes[i] == b'=' || bytes[i].is_ascii_whitespace()) {
-            i += 1;
-        }
-        if i >= bytes.len() || !(bytes[i] == b'"' || bytes[i] == b'\'') {
-            return (attributes, i);
-        }
-        let quote = bytes[i];
-        let value_start = i + 1;
-        let value_end = text[value_start..]
-            .find(quote as char)
-            .map_or(text.len(), |e| value_start + e);
-        attributes.push((name, text[value_start..value_end].to_string()));
-        i = value_end + 1;
-    }
+/// `text` as HTML text or attribute value.
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// The variable table: one row per `<ScalarVariable>`, with the unit, start and bounds of its
 /// type element (`<Real>`, `<Integer>`, ...).
-fn variable_table(xml: &str) -> Result<String, String> {
-    let start = xml
-        .find("<ModelVariables")
+fn variable_table(doc: &roxmltree::Document) -> Result<String, String> {
+    let variables = doc
+        .descendants()
+        .find(|n| n.has_tag_name("ModelVariables"))
         .ok_or("model description has no <ModelVariables>")?;
-    let end = xml[start..].find("</ModelVariables>").map_or(xml.len(), |e| start + e);
-    let section = &xml[start..end];
-
     let mut rows = String::new();
     let mut count = 0;
-    let mut pieces = section.split("<ScalarVariable").skip(1);
-    for piece in &mut pieces {
-        if !piece.starts_with(|c: char| c.is_whitespace()) {
-            continue;
-        }
-        let (variable, consumed) = parse_attributes(piece);
-        let body = &piece[consumed..];
-        let (kind, typed) = ["Real", "Integer", "Boolean", "String", "Enumeration"]
-            .iter()
-            .find_map(|kind| opening_tags(body, kind).into_iter().next().map(|a| (*kind, a)))
-            .unwrap_or(("?", Vec::new()));
-        let get = |a: &Attributes, k: &str| attribute(a, k).unwrap_or("").to_string();
-        let range = match (attribute(&typed, "min"), attribute(&typed, "max")) {
+    for variable in variables.children().filter(|n| n.has_tag_name("ScalarVariable")) {
+        let typed = variable.children().find(|n| n.is_element());
+        let kind = typed.map_or("?", |t| t.tag_name().name());
+        let get = |node: Option<roxmltree::Node>, k: &str| escape(node.and_then(|n| n.attribute(k)).unwrap_or(""));
+        let range = match (typed.and_then(|t| t.attribute("min")), typed.and_then(|t| t.attribute("max"))) {
             (None, None) => String::new(),
             (min, max) => format!("[{}, {}]", min.unwrap_or("−∞"), max.unwrap_or("∞")),
         };
         rows.push_str(&format!(
             "      <tr><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
-            get(&variable, "name"),
-            get(&variable, "causality"),
-            get(&variable, "variability"),
+            get(Some(variable), "name"),
+            get(Some(variable), "causality"),
+            get(Some(variable), "variability"),
             kind,
-            get(&typed, "unit"),
-            get(&typed, "start"),
+            get(typed, "unit"),
+            get(typed, "start"),
             range,
-            get(&variable, "description"),
+            get(Some(variable), "description"),
         ));
         count += 1;
     }
@@ -151,23 +90,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn attributes_survive_a_greater_than_sign_in_a_value() {
-        let tags = opening_tags(r#"<A x="1" d="J > 0"/><A x="2">"#, "A");
-        assert_eq!(tags.len(), 2);
-        assert_eq!(attribute(&tags[0], "d"), Some("J > 0"));
-        assert_eq!(attribute(&tags[1], "x"), Some("2"));
-    }
-
-    #[test]
     fn table_has_one_row_per_variable_with_its_type_attributes() {
         let xml = r#"<fmiModelDescription><ModelVariables>
-            <ScalarVariable name="J_m" valueReference="0" causality="parameter" variability="fixed" description="inertia">
+            <ScalarVariable name="J_m" valueReference="0" causality="parameter" variability="fixed" description="J &gt; 0 &amp; finite">
               <Real unit="kg.m2" start="2.28" min="0"/></ScalarVariable>
             <ScalarVariable name="contact" valueReference="1" causality="output"><Integer/></ScalarVariable>
             </ModelVariables><RealType name="x"/></fmiModelDescription>"#;
-        let table = variable_table(xml).unwrap();
+        let table = variable_table(&roxmltree::Document::parse(xml).unwrap()).unwrap();
         assert_eq!(table.matches("<tr><td>").count(), 2);
-        assert!(table.contains("<td><code>J_m</code></td><td>parameter</td><td>fixed</td><td>Real</td><td>kg.m2</td><td>2.28</td><td>[0, ∞]</td><td>inertia</td>"));
+        assert!(table.contains("<td><code>J_m</code></td><td>parameter</td><td>fixed</td><td>Real</td><td>kg.m2</td><td>2.28</td><td>[0, ∞]</td><td>J &gt; 0 &amp; finite</td>"));
         assert!(table.contains("<td><code>contact</code></td><td>output</td><td></td><td>Integer</td>"));
     }
 }

@@ -11,7 +11,6 @@ use zip::write::SimpleFileOptions;
 use zip::CompressionMethod;
 
 use crate::documentation;
-use crate::generate;
 use crate::util::{self, step};
 
 /// Name of the cdylib that cargo writes for the `backlash_fmu` library.
@@ -45,8 +44,8 @@ pub fn package_all() -> Result<Vec<PathBuf>, String> {
     let out_dir = util::fmu_dir();
     fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
     let mut written = Vec::new();
-    for &id in generate::model_identifiers() {
-        let xml = generate::model_description_xml(id);
+    for &id in model_description::model_identifiers() {
+        let xml = model_description::xml::model_description(id);
         check_description(id, &xml)?;
         let html = documentation::render(id, &xml)?;
         let path = out_dir.join(format!("{id}.fmu"));
@@ -60,7 +59,7 @@ pub fn package_all() -> Result<Vec<PathBuf>, String> {
         written.push(path);
     }
     if written.is_empty() {
-        return Err("modelDescription/generate.rs lists no model identifiers".into());
+        return Err("the model-description crate lists no model identifiers".into());
     }
     Ok(written)
 }
@@ -77,18 +76,19 @@ fn build_library() -> Result<(), String> {
     Ok(())
 }
 
-/// The description must name this model in its CoSimulation element, or an importer would look
-/// for a library that is not in the archive.
+/// The description must be an FMI 2.0 description naming this model in its CoSimulation
+/// element, or an importer would look for a library that is not in the archive.
 fn check_description(id: &str, xml: &str) -> Result<(), String> {
-    if !xml.contains("<fmiModelDescription") || !xml.contains("fmiVersion=\"2.0\"") {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
+    let root = doc.root_element();
+    if !root.has_tag_name("fmiModelDescription") || root.attribute("fmiVersion") != Some("2.0") {
         return Err(format!("{id}: generated text is not an FMI 2.0 model description"));
     }
-    let co_simulation = xml
-        .find("<CoSimulation")
-        .map(|at| &xml[at..])
+    let co_simulation = root
+        .children()
+        .find(|n| n.has_tag_name("CoSimulation"))
         .ok_or_else(|| format!("{id}: model description has no <CoSimulation> element"))?;
-    let end = co_simulation.find('>').unwrap_or(co_simulation.len());
-    if !co_simulation[..end].contains(&format!("modelIdentifier=\"{id}\"")) {
+    if co_simulation.attribute("modelIdentifier") != Some(id) {
         return Err(format!("{id}: <CoSimulation> does not carry modelIdentifier=\"{id}\""));
     }
     Ok(())

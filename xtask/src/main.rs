@@ -10,10 +10,6 @@ mod python;
 mod test;
 mod util;
 
-/// The single source of the model descriptions, shared with build.rs.
-#[path = "../../modelDescription/generate.rs"]
-mod generate;
-
 const USAGE: &str = "\
 usage: cargo xtask <command> [args]
 

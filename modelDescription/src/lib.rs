@@ -1,0 +1,176 @@
+//! The interface description of the FMUs: one table per model (variables, units, log
+//! categories, default experiment; docs/model.md §4), and the generators of everything derived
+//! from it.
+//!
+//! Std only. Used by `build.rs` (the Rust tables of the library: [`rust::variable_tables`],
+//! [`rust::log_categories`]), by the library itself (the kinds of variables), by `cargo xtask
+//! fmu` (the `modelDescription.xml` of [`xml::model_description`]) and by the tests. The XML and
+//! the Rust code come from the same tables, so they cannot disagree. The guid is a hash of the
+//! description itself: a changed description gets a new guid, and a binary built from the old
+//! one refuses to instantiate it.
+
+mod models;
+pub mod rust;
+pub mod xml;
+
+pub use models::model;
+
+/// The models this crate describes, in a fixed order.
+pub fn model_identifiers() -> &'static [&'static str] {
+    &["BacklashShaft", "BacklashBelt"]
+}
+
+/// Scalar type of a variable.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Type {
+    Real,
+    Integer,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Causality {
+    Input,
+    Output,
+    Parameter,
+    CalculatedParameter,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variability {
+    Fixed,
+    Discrete,
+    Continuous,
+}
+
+/// The `initial` attribute; `Unset` where FMI 2.0 forbids it (inputs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Initial {
+    Unset,
+    Exact,
+    Calculated,
+}
+
+/// Admissible values, checked when a value is set (FMI's min is inclusive, so `Positive` is
+/// stated in the description only).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Range {
+    /// Any finite value.
+    Finite,
+    /// Finite and >= 0.
+    NonNegative,
+    /// Finite and > 0.
+    Positive,
+}
+
+impl Range {
+    pub fn admits(self, value: f64) -> bool {
+        value.is_finite()
+            && match self {
+                Range::Finite => true,
+                Range::NonNegative => value >= 0.0,
+                Range::Positive => value > 0.0,
+            }
+    }
+
+    pub fn describe(self) -> &'static str {
+        match self {
+            Range::Finite => "finite",
+            Range::NonNegative => "finite and >= 0",
+            Range::Positive => "finite and > 0",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriveTrain {
+    Shaft,
+    Belt,
+}
+
+impl DriveTrain {
+    /// The variant's name, as written into generated Rust.
+    pub fn rust(self) -> &'static str {
+        match self {
+            DriveTrain::Shaft => "Shaft",
+            DriveTrain::Belt => "Belt",
+        }
+    }
+}
+
+/// One scalar variable. `symbol` names the variant of the generated `Symbol` enum that the
+/// library's model adapter maps to the physics.
+#[derive(Clone, Debug)]
+pub struct Var {
+    pub name: &'static str,
+    pub symbol: &'static str,
+    pub vr: u32,
+    pub ty: Type,
+    pub causality: Causality,
+    pub variability: Variability,
+    pub initial: Initial,
+    pub start: Option<f64>,
+    pub range: Range,
+    /// Unit name from [`UNITS`], "" for none.
+    pub unit: &'static str,
+    /// The FMI `declaredType`-free `quantity` attribute.
+    pub quantity: &'static str,
+    pub description: &'static str,
+}
+
+pub struct Model {
+    pub identifier: &'static str,
+    pub drive_train: DriveTrain,
+    pub description: &'static str,
+    /// startTime, stopTime, stepSize [s].
+    pub default_experiment: (f64, f64, f64),
+    pub variables: Vec<Var>,
+}
+
+/// Unit name, SI base-unit exponents (kg, m, s, rad) and display units (name, factor):
+/// display value = factor · value.
+type UnitRow = (&'static str, [i32; 4], &'static [(&'static str, f64)]);
+
+pub(crate) const UNITS: &[UnitRow] = &[
+    ("N.m", [1, 2, -2, 0], &[]),
+    ("N", [1, 1, -2, 0], &[]),
+    ("rad/s", [0, 0, -1, 1], &[("rpm", 30.0 / std::f64::consts::PI)]),
+    ("rad", [0, 0, 0, 1], &[("deg", 180.0 / std::f64::consts::PI)]),
+    ("m", [0, 1, 0, 0], &[("mm", 1000.0)]),
+    ("kg.m2", [1, 2, 0, 0], &[]),
+    ("N.m.s/rad", [1, 2, -1, -1], &[]),
+    ("N.m/rad", [1, 2, -2, -1], &[]),
+    ("N/m", [1, 0, -2, 0], &[]),
+];
+
+/// One log category (FMI 2.0 §2.2.4): the Rust variant that names it in the library, its
+/// name in the description and its description.
+pub struct LogCategory {
+    pub variant: &'static str,
+    pub name: &'static str,
+    pub description: &'static str,
+}
+
+/// The log categories of every model (docs/model.md §4), in the order of the description.
+pub const LOG_CATEGORIES: &[LogCategory] = &[
+    LogCategory {
+        variant: "ContactEvents",
+        name: "logContactEvents",
+        description: "Every contact switch located inside a communication step (time, old and new mode)",
+    },
+    LogCategory {
+        variant: "Warnings",
+        name: "logWarnings",
+        description: "Warnings, e.g. bound_sup is infinite because the loop is not asymptotically stable",
+    },
+    LogCategory {
+        variant: "Errors",
+        name: "logErrors",
+        description: "Reasons for every fmi2Error and fmi2Discard: illegal calls, invalid arguments or values",
+    },
+    LogCategory {
+        variant: "Calls",
+        name: "logCalls",
+        description: "Every call of an FMI function and the status it returned",
+    },
+];
+

@@ -1,0 +1,410 @@
+//! The two models' variable tables: value references, kinds, start values, units and texts
+//! (docs/model.md §4; the defaults of BacklashShaft are the paper's rig).
+
+use crate::{model_identifiers, Causality, DriveTrain, Initial, Model, Range, Type, Var, Variability};
+
+#[allow(clippy::too_many_arguments)]
+const fn var(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    ty: Type,
+    causality: Causality,
+    variability: Variability,
+    initial: Initial,
+    start: Option<f64>,
+    range: Range,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    Var {
+        name,
+        symbol,
+        vr,
+        ty,
+        causality,
+        variability,
+        initial,
+        start,
+        range,
+        unit,
+        quantity,
+        description,
+    }
+}
+
+fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
+    use Causality::*;
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Input,
+        Variability::Continuous,
+        Initial::Unset,
+        Some(0.0),
+        Range::Finite,
+        "N.m",
+        "Torque",
+        description,
+    )
+}
+
+fn state_output(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    use Causality::*;
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Output,
+        Variability::Continuous,
+        Initial::Exact,
+        Some(0.0),
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn parameter(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    start: f64,
+    range: Range,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    use Causality::*;
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Parameter,
+        Variability::Fixed,
+        Initial::Exact,
+        Some(start),
+        range,
+        unit,
+        quantity,
+        description,
+    )
+}
+
+/// Value references are unique across types, so a reference alone names a variable.
+/// The PI gains (value references 17 and 18), the same in both models: they parameterize
+/// the bounds only.
+fn pi_gains() -> [Var; 2] {
+    [
+        parameter(
+            "Kp",
+            "Kp",
+            17,
+            0.0,
+            Range::Finite,
+            "N.m.s/rad",
+            "",
+            "Proportional gain of the PI loop on omega_m used by the bounds only (0 with Ki = 0: open loop)",
+        ),
+        parameter(
+            "Ki",
+            "Ki",
+            18,
+            0.0,
+            Range::Finite,
+            "N.m/rad",
+            "",
+            "Integral gain of the PI loop on omega_m used by the bounds only",
+        ),
+    ]
+}
+
+fn common_head(drive_train: DriveTrain) -> Vec<Var> {
+    use Causality::*;
+    let (psi_unit, psi_quantity, psi_text) = match drive_train {
+        DriveTrain::Shaft => ("N.m", "Torque", "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft"),
+        DriveTrain::Belt => (
+            "N",
+            "Force",
+            "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1",
+        ),
+    };
+    vec![
+        input("tau_m", "TauM", 1, "Motor torque, held constant over each communication step unless input derivatives are set"),
+        input("tau_L", "TauL", 2, "Load torque, held constant over each communication step unless input derivatives are set"),
+        state_output("theta_m", "ThetaM", 3, "rad", "Angle", "Motor angle; its start value is the initial state"),
+        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
+        state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
+        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
+        var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
+        var(
+            "contact",
+            "Contact",
+            8,
+            Type::Integer,
+            Output,
+            Variability::Discrete,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "",
+            "",
+            "Contact mode at the communication point: +1 positive flank, 0 free (inside the gap), -1 negative flank",
+        ),
+        var(
+            "bound",
+            "Bound",
+            9,
+            Type::Real,
+            Output,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "rad/s",
+            "AngularVelocity",
+            "Rigorous bound on |omega_L with backlash - omega_L without backlash| since the start time: K*g*integral of |h|",
+        ),
+        var(
+            "bound_paper",
+            "BoundPaper",
+            10,
+            Type::Real,
+            Output,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "rad/s",
+            "AngularVelocity",
+            "Paper eq. (37)/(41) as printed: K*g*norm of the integral of exp(A s)*D_1; reproduction only, not a guarantee",
+        ),
+        var(
+            "bound_sup",
+            "BoundSup",
+            11,
+            Type::Real,
+            CalculatedParameter,
+            Variability::Fixed,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "rad/s",
+            "AngularVelocity",
+            "Supremum of bound over all times: K*g*integral of |h| to infinity; +inf (with a warning) if the loop is not asymptotically stable",
+        ),
+    ]
+}
+
+/// The description of `identifier`. Panics on an identifier not in [`model_identifiers`].
+pub fn model(identifier: &str) -> Model {
+    use Range::*;
+    match identifier {
+        "BacklashShaft" => {
+            let mut v = common_head(DriveTrain::Shaft);
+            v.extend([
+                parameter(
+                    "J_m",
+                    "JM",
+                    12,
+                    2.28,
+                    Positive,
+                    "kg.m2",
+                    "MomentOfInertia",
+                    "Motor inertia (> 0)",
+                ),
+                parameter(
+                    "J_L",
+                    "JL",
+                    13,
+                    2.55,
+                    Positive,
+                    "kg.m2",
+                    "MomentOfInertia",
+                    "Load inertia (> 0)",
+                ),
+                parameter(
+                    "b_m",
+                    "BM",
+                    14,
+                    0.05,
+                    NonNegative,
+                    "N.m.s/rad",
+                    "RotationalDampingConstant",
+                    "Motor viscous friction (>= 0)",
+                ),
+                parameter(
+                    "b_L",
+                    "BL",
+                    15,
+                    0.05,
+                    NonNegative,
+                    "N.m.s/rad",
+                    "RotationalDampingConstant",
+                    "Load viscous friction (>= 0)",
+                ),
+                parameter(
+                    "Delta",
+                    "Delta",
+                    16,
+                    0.775e-3,
+                    NonNegative,
+                    "rad",
+                    "Angle",
+                    "Half backlash gap (>= 0): total free play is 2*Delta; default is half the paper's 1.55 mm gap",
+                ),
+            ]);
+            v.extend(pi_gains());
+            v.extend([parameter(
+                "k",
+                "K",
+                19,
+                200.0,
+                Positive,
+                "N.m/rad",
+                "RotationalSpringConstant",
+                "Shaft stiffness (> 0)",
+            )]);
+            Model {
+                identifier: "BacklashShaft",
+                drive_train: DriveTrain::Shaft,
+                description: "Compliant shaft and gear backlash in series (paper Fig. 5, eqs. 11-12), exact stepping with located contact switches; defaults are the paper's rig",
+                default_experiment: (0.0, 10.0, 1e-2),
+                variables: v,
+            }
+        }
+        "BacklashBelt" => {
+            let mut v = common_head(DriveTrain::Belt);
+            // A small servo belt drive: 2:1 belt (R_2/R_1), 3:1 gear (R_g2/R_g1), 6:1 overall;
+            // belt-gear natural frequency about 190 Hz, half gap 50 um on the pitch circle.
+            v.extend([
+                parameter(
+                    "J_m",
+                    "JM",
+                    12,
+                    1e-4,
+                    Positive,
+                    "kg.m2",
+                    "MomentOfInertia",
+                    "Motor inertia including the motor pulley (> 0)",
+                ),
+                parameter(
+                    "J_L",
+                    "JL",
+                    13,
+                    5e-3,
+                    Positive,
+                    "kg.m2",
+                    "MomentOfInertia",
+                    "Load inertia including gear 2 (> 0)",
+                ),
+                parameter(
+                    "b_m",
+                    "BM",
+                    14,
+                    1e-4,
+                    NonNegative,
+                    "N.m.s/rad",
+                    "RotationalDampingConstant",
+                    "Motor viscous friction (>= 0)",
+                ),
+                parameter(
+                    "b_L",
+                    "BL",
+                    15,
+                    1e-3,
+                    NonNegative,
+                    "N.m.s/rad",
+                    "RotationalDampingConstant",
+                    "Load viscous friction (>= 0)",
+                ),
+                parameter(
+                    "Delta",
+                    "Delta",
+                    16,
+                    5e-5,
+                    NonNegative,
+                    "m",
+                    "Length",
+                    "Half backlash gap on the pitch circle of the gears (>= 0): total free play is 2*Delta",
+                ),
+            ]);
+            v.extend(pi_gains());
+            v.extend([
+                parameter(
+                    "K_b",
+                    "KB",
+                    19,
+                    2e5,
+                    Positive,
+                    "N/m",
+                    "TranslationalSpringConstant",
+                    "Belt stiffness (> 0)",
+                ),
+                parameter(
+                    "R_1",
+                    "R1",
+                    20,
+                    0.02,
+                    Positive,
+                    "m",
+                    "Length",
+                    "Radius of the motor pulley (> 0)",
+                ),
+                parameter(
+                    "R_2",
+                    "R2",
+                    21,
+                    0.04,
+                    Positive,
+                    "m",
+                    "Length",
+                    "Radius of the driven pulley (> 0)",
+                ),
+                parameter(
+                    "R_g1",
+                    "Rg1",
+                    22,
+                    0.015,
+                    Positive,
+                    "m",
+                    "Length",
+                    "Pitch radius of gear 1, on the driven pulley's shaft (> 0)",
+                ),
+                parameter(
+                    "R_g2",
+                    "Rg2",
+                    23,
+                    0.045,
+                    Positive,
+                    "m",
+                    "Length",
+                    "Pitch radius of gear 2, on the load (> 0)",
+                ),
+            ]);
+            Model {
+                identifier: "BacklashBelt",
+                drive_train: DriveTrain::Belt,
+                description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
+                default_experiment: (0.0, 0.2, 1e-4),
+                variables: v,
+            }
+        }
+        other => panic!("unknown model identifier {other:?}; known: {:?}", model_identifiers()),
+    }
+}
+
