@@ -2,6 +2,7 @@
 //! dispatch over the generated variable table, stepping, and FMU states. No FFI here; the C
 //! ABI in `crate::ffi` converts pointers and calls [`Instance::run`].
 
+pub mod adapter;
 pub mod error;
 pub mod instance;
 pub mod logging;

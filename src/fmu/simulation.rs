@@ -1,48 +1,12 @@
 //! The physics behind one instance after initialization: plant, exact stepper, state and the
 //! speed-error bound (spec §1–§3), assembled from the variable values.
 
+use super::adapter::{self, Values};
 use super::error::FmuError;
-use super::variables::{Causality, DriveTrain, ModelInfo, Symbol};
+use super::variables::{Causality, ModelInfo};
 use crate::physics::{
-    finite, BoundState, Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, Unbounded,
+    finite, max_step, BoundState, Inputs, Plant, PlantState, SpeedErrorBound, Stepper, Unbounded,
 };
-
-/// Values of the settable variables, indexed by [`Symbol`].
-pub type Values = [f64; Symbol::COUNT];
-
-pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
-    let at = |s: Symbol| v[s.index()];
-    let geometry = match model.drive_train {
-        DriveTrain::Shaft => Geometry::Shaft {
-            k: at(Symbol::K),
-            delta: at(Symbol::Delta),
-        },
-        DriveTrain::Belt => Geometry::Belt {
-            k_b: at(Symbol::KB),
-            r_1: at(Symbol::R1),
-            r_2: at(Symbol::R2),
-            r_g1: at(Symbol::Rg1),
-            r_g2: at(Symbol::Rg2),
-            delta: at(Symbol::Delta),
-        },
-    };
-    PlantParams {
-        j_m: at(Symbol::JM),
-        j_l: at(Symbol::JL),
-        b_m: at(Symbol::BM),
-        b_l: at(Symbol::BL),
-        geometry,
-    }
-}
-
-pub fn inputs(v: &Values, slopes: [f64; 2]) -> Inputs {
-    Inputs {
-        tau_m: v[Symbol::TauM.index()],
-        tau_l: v[Symbol::TauL.index()],
-        dtau_m: slopes[0],
-        dtau_l: slopes[1],
-    }
-}
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
@@ -51,20 +15,8 @@ pub struct Simulation {
     pub bound: SpeedErrorBound,
     /// bound_sup, or why it is +∞ (spec §3).
     pub bound_sup: Result<f64, Unbounded>,
-    /// The longest step accepted, see [`max_step`].
+    /// The longest step accepted ([`max_step`]).
     pub max_step: f64,
-}
-
-/// The largest step, in periods of the fastest contact oscillation: bounds the number of
-/// contact switches one step can contain, so no step runs for long.
-pub const MAX_PERIODS_PER_STEP: f64 = 1e4;
-
-/// The largest admissible step: [`MAX_PERIODS_PER_STEP`] periods of the undamped contact
-/// oscillation, ω² = K (r_m²/J_m + r_L²/J_L); finite, so that a step no longer than it is.
-fn max_step(p: &Plant) -> f64 {
-    let params = p.params();
-    let omega_sq = p.stiffness() * (p.r_m() * p.r_m() / params.j_m + p.r_l() * p.r_l() / params.j_l);
-    (MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / omega_sq.sqrt()).min(f64::MAX)
 }
 
 impl Simulation {
@@ -72,14 +24,7 @@ impl Simulation {
     /// from the start values of θ and ω, bound at elapsed time 0.
     pub fn build(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         let mut sim = template(model, v)?;
-        let at = |s: Symbol| v[s.index()];
-        sim.state = PlantState::new(
-            sim.plant(),
-            at(Symbol::ThetaM),
-            at(Symbol::OmegaM),
-            at(Symbol::ThetaL),
-            at(Symbol::OmegaL),
-        );
+        sim.state = adapter::initial_state(sim.plant(), v);
         sim.check_state(&sim.state, format_args!("the initial state overflows"))?;
         Ok(sim)
     }
@@ -152,29 +97,6 @@ impl Simulation {
     pub fn bound_sup_value(&self) -> f64 {
         self.bound_sup.unwrap_or(f64::INFINITY)
     }
-
-    /// K·g, the largest |φ| (spec §3): the scale of both bounds.
-    fn disturbance_scale(&self) -> f64 {
-        self.plant().stiffness() * self.plant().half_gap()
-    }
-
-    /// d bound/dt = K g |h(t)|, h = ω_L entry (index 3) of e^{A t} D_1 (spec §3).
-    pub fn bound_rate(&self) -> f64 {
-        self.disturbance_scale() * self.bound.state().response[3].abs()
-    }
-
-    /// d bound_paper/dt = K g (I·r)/‖I‖ with I = ∫ e^{A s} D_1 ds and r = e^{A t} D_1; at I = 0
-    /// (t = start) the right derivative K g ‖r‖, since I ≈ t r there.
-    pub fn bound_paper_rate(&self) -> f64 {
-        let s = self.bound.state();
-        let norm = s.integral.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let rate = if norm > 0.0 {
-            s.integral.iter().zip(&s.response).map(|(i, r)| i * r).sum::<f64>() / norm
-        } else {
-            s.response.iter().map(|x| x * x).sum::<f64>().sqrt()
-        };
-        self.disturbance_scale() * rate
-    }
 }
 
 /// How many parameter sets keep their built physics.
@@ -203,12 +125,8 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         return Ok(sim.clone());
     }
     // Built outside the lock: other instances need not wait for it.
-    let plant = Plant::new(plant_params(model, v))?;
-    let gains = PiGains {
-        kp: v[Symbol::Kp.index()],
-        ki: v[Symbol::Ki.index()],
-    };
-    let bound = SpeedErrorBound::new(&plant, gains)?;
+    let plant = Plant::new(adapter::plant_params(model, v))?;
+    let bound = SpeedErrorBound::new(&plant, adapter::gains(v))?;
     let bound_sup = bound.sup();
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
     let sim = Simulation {

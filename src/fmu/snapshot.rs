@@ -23,7 +23,7 @@
 
 use super::error::FmuError;
 use super::instance::Experiment;
-use super::simulation::Values;
+use super::adapter::Values;
 use super::state_machine::Phase;
 use super::variables::{ModelInfo, Symbol};
 use crate::physics::{BoundState, ContactMode, PlantState};

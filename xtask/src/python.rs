@@ -26,8 +26,14 @@ fn venv_python() -> PathBuf {
     venv_dir().join("bin").join("python")
 }
 
-fn requirements() -> PathBuf {
-    util::repo_root().join("tests").join("python").join("requirements.txt")
+/// The pinned requirements installed into `.venv`: the pytest suite's, and the libclang that
+/// the importer test's build needs.
+fn requirements() -> [PathBuf; 2] {
+    let tests = util::repo_root().join("tests");
+    [
+        tests.join("python").join("requirements.txt"),
+        tests.join("importer").join("requirements.txt"),
+    ]
 }
 
 /// Records what the venv was installed from; pip runs again only when this text changes.
@@ -39,9 +45,11 @@ fn stamp_path() -> PathBuf {
 /// last install.
 pub fn ensure_venv() -> Result<(), String> {
     step("Python environment (.venv)");
-    let requirements_path = requirements();
-    let pinned = fs::read_to_string(&requirements_path)
-        .map_err(|e| format!("reading {}: {e}", util::shown(&requirements_path)))?;
+    let requirements = requirements();
+    let mut pinned = String::new();
+    for path in &requirements {
+        pinned += &fs::read_to_string(path).map_err(|e| format!("reading {}: {e}", util::shown(path)))?;
+    }
 
     if !venv_python().is_file() {
         let base = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
@@ -57,11 +65,12 @@ pub fn ensure_venv() -> Result<(), String> {
         return Ok(());
     }
     let _ = fs::remove_file(stamp_path());
-    util::run(
-        Command::new(venv_python())
-            .args(["-m", "pip", "install", "--disable-pip-version-check", "--quiet", "-r"])
-            .arg(&requirements_path),
-    )?;
+    let mut install = Command::new(venv_python());
+    install.args(["-m", "pip", "install", "--disable-pip-version-check", "--quiet"]);
+    for path in &requirements {
+        install.arg("-r").arg(path);
+    }
+    util::run(&mut install)?;
     fs::write(stamp_path(), wanted).map_err(|e| format!("writing {}: {e}", stamp_path().display()))
 }
 
@@ -83,18 +92,28 @@ pub fn run_pytest() -> Result<(), String> {
     }
 }
 
-/// fmpy's copy of the official FMI 2.0 headers, if the venv has fmpy.
-pub fn fmpy_header_dir() -> Option<PathBuf> {
+/// `relative` inside the venv's site-packages, where it holds `file`.
+fn site_package_dir(relative: &[&str], file: &str) -> Option<PathBuf> {
     let lib = venv_dir().join("lib");
     let mut found: Vec<PathBuf> = fs::read_dir(&lib)
         .ok()?
         .filter_map(|entry| entry.ok())
         .filter(|entry| entry.file_name().to_string_lossy().starts_with("python3"))
-        .map(|entry| entry.path().join("site-packages").join("fmpy").join("c-code"))
-        .filter(|dir| dir.join("fmi2Functions.h").is_file())
+        .map(|entry| relative.iter().fold(entry.path().join("site-packages"), |dir, part| dir.join(part)))
+        .filter(|dir| dir.join(file).is_file())
         .collect();
     found.sort();
     found.pop()
+}
+
+/// fmpy's copy of the official FMI 2.0 headers, if the venv has fmpy.
+pub fn fmpy_header_dir() -> Option<PathBuf> {
+    site_package_dir(&["fmpy", "c-code"], "fmi2Functions.h")
+}
+
+/// The folder of the libclang shared library that the venv's `libclang` wheel carries.
+pub fn libclang_dir() -> Option<PathBuf> {
+    site_package_dir(&["clang", "native"], "libclang.so")
 }
 
 /// Runs the first ```python block of README.md in the venv from the repository root, so the

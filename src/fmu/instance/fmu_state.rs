@@ -1,0 +1,45 @@
+//! FMU states: the snapshot of an instance and its restoration (checked before anything
+//! changes).
+
+use super::Instance;
+use crate::fmu::error::{FmuError, Status};
+use crate::fmu::simulation::Simulation;
+use crate::fmu::snapshot::{PhysicsSnapshot, Snapshot};
+
+impl Instance {
+    pub(crate) fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            guid: self.model.guid,
+            phase: self.phase,
+            time: self.time,
+            experiment: self.experiment,
+            values: self.values,
+            input_slopes: self.input_slopes,
+            physics: self.sim.as_ref().map(|sim| PhysicsSnapshot {
+                plant: sim.state,
+                bound: sim.bound.state(),
+            }),
+        }
+    }
+
+    pub(crate) fn restore_body(&mut self, snapshot: &Snapshot) -> Result<Status, FmuError> {
+        if snapshot.guid != self.model.guid {
+            return Err(FmuError::StateRefused(format!(
+                "it belongs to the model with guid {}, this instance is {} ({})",
+                snapshot.guid, self.model.identifier, self.model.guid
+            )));
+        }
+        let sim = match &snapshot.physics {
+            Some(p) => Some(Simulation::restore(self.model, &snapshot.values, p.plant, &p.bound)?),
+            None => None,
+        };
+        self.phase = snapshot.phase;
+        self.time = snapshot.time;
+        self.experiment = snapshot.experiment;
+        self.values = snapshot.values;
+        self.input_slopes = snapshot.input_slopes;
+        self.sim = sim;
+        self.preview = None;
+        Ok(Status::Ok)
+    }
+}

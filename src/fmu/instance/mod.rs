@@ -1,0 +1,404 @@
+//! One FMU instance: the state machine of FMI 2.0 Co-Simulation and its lifecycle calls. The
+//! other calls are in the files beside this one: get/set by value reference and derivatives
+//! (`values`), stepping (`stepping`), status queries (`status`), FMU states (`fmu_state`).
+//!
+//! Every public call goes through [`Instance::run`]: legal-state check, the work, and on
+//! failure one place that logs the reason and (for fmi2Error) enters state Error.
+
+mod fmu_state;
+mod status;
+mod stepping;
+mod values;
+
+use super::adapter::{self, Values};
+use super::error::{FmuError, Status};
+use super::logging::{LogCategory, LogSink, Logging};
+use super::simulation::Simulation;
+use super::snapshot::Snapshot;
+use super::state_machine::{Function, Phase};
+use super::variables::{model_by_guid, ModelInfo};
+
+/// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
+/// exitInitializationMode warns.
+const SUP_SLACK_WARNING: f64 = 1e-9;
+
+/// Experiment set by fmi2SetupExperiment (defaults: start 0, no stop time).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Experiment {
+    pub start_time: f64,
+    pub stop_time: Option<f64>,
+    /// Accepted and kept, but unused: stepping is exact (spec §2).
+    pub tolerance: Option<f64>,
+}
+
+impl Default for Experiment {
+    fn default() -> Self {
+        Experiment {
+            start_time: 0.0,
+            stop_time: None,
+            tolerance: None,
+        }
+    }
+}
+
+/// What fmi2GetXXXStatus is asked for (fmi2StatusKind).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StatusKind {
+    DoStepStatus,
+    PendingStatus,
+    LastSuccessfulTime,
+    Terminated,
+}
+
+pub struct Instance {
+    model: &'static ModelInfo,
+    phase: Phase,
+    /// Inputs, parameters and start values (θ, ω before initialization), by [`Symbol`].
+    values: Values,
+    /// dτ_m/dt, dτ_L/dt set by fmi2SetRealInputDerivatives (order 1).
+    input_slopes: [f64; 2],
+    experiment: Experiment,
+    time: f64,
+    /// Present from fmi2ExitInitializationMode on.
+    sim: Option<Simulation>,
+    /// Built on demand for fmi2GetXXX in Initialization Mode, dropped on every set.
+    preview: Option<Simulation>,
+    log: Logging,
+}
+
+impl Instance {
+    /// A fresh instance of `model` (state Instantiated, all start values).
+    pub fn new(model: &'static ModelInfo, sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Instance {
+        Instance {
+            model,
+            phase: Phase::Instantiated,
+            values: adapter::start_values(model),
+            input_slopes: [0.0; 2],
+            experiment: Experiment::default(),
+            time: 0.0,
+            sim: None,
+            preview: None,
+            log: Logging::new(sink, logging_on),
+        }
+    }
+
+    /// fmi2Instantiate for Co-Simulation: the model is chosen by its guid.
+    pub fn instantiate(guid: &str, sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Result<Instance, FmuError> {
+        let model = model_by_guid(guid).ok_or_else(|| {
+            FmuError::InvalidArgument(format!(
+                "guid {guid:?} is not the guid of any model in this binary (BacklashShaft, BacklashBelt): the \
+                 modelDescription.xml and the binary come from different builds"
+            ))
+        })?;
+        Ok(Instance::new(model, sink, logging_on))
+    }
+
+    pub fn model(&self) -> &'static ModelInfo {
+        self.model
+    }
+
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// Current communication point [s].
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    pub fn experiment(&self) -> Experiment {
+        self.experiment
+    }
+
+    /// The one entry point: checks that `function` is legal now, runs `body`, and on failure
+    /// logs the reason and enters state Error (fmi2Error) or stays (fmi2Discard).
+    pub fn run<T>(
+        &mut self,
+        function: Function,
+        body: impl FnOnce(&mut Instance) -> Result<T, FmuError>,
+    ) -> Result<T, FmuError> {
+        let result = self.check_legal(function).and_then(|()| body(self));
+        match &result {
+            Ok(_) => self.log.emit(Status::Ok, LogCategory::Calls, || {
+                format!("{} -> OK", function.c_name())
+            }),
+            Err(e) => self.fail(function, e),
+        }
+        result
+    }
+
+    /// Inlined, so that the mask of a known `function` is a constant.
+    #[inline]
+    pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
+        // No phase bit is set in the mask of a Model Exchange function.
+        if function.is_legal_in(self.phase) {
+            return Ok(());
+        }
+        self.illegal(function)
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn illegal(&self, function: Function) -> Result<(), FmuError> {
+        if function.is_model_exchange_only() {
+            Err(FmuError::ModelExchangeOnly {
+                function: function.c_name(),
+            })
+        } else if function.is_legal_in(self.phase) {
+            Ok(())
+        } else {
+            Err(FmuError::IllegalCall {
+                function: function.c_name(),
+                phase: self.phase,
+            })
+        }
+    }
+
+    fn fail(&mut self, function: Function, e: &FmuError) {
+        let status = e.status();
+        self.log
+            .emit(status, LogCategory::Errors, || format!("{}: {e}", function.c_name()));
+        self.log.emit(status, LogCategory::Calls, || {
+            format!("{} -> {status:?}", function.c_name())
+        });
+        if status == Status::Error {
+            self.phase = Phase::Error;
+        }
+    }
+
+    /// After a panic inside a call: whatever was half done is discarded by entering Error.
+    pub fn fail_after_panic(&mut self, function: Function, message: String) {
+        let e = FmuError::Panic {
+            function: function.c_name(),
+            message,
+        };
+        self.fail(function, &e);
+        self.phase = Phase::Error;
+    }
+
+    /// Logs through the instance's filter (used by the C layer for its own messages).
+    pub fn log(&mut self, status: Status, category: LogCategory, message: impl FnOnce() -> String) {
+        self.log.emit(status, category, message)
+    }
+
+    // ---- checked calls (the Rust API; the C layer calls `run` with the bodies below) ----
+
+    pub fn set_debug_logging(&mut self, logging_on: bool, categories: &[&str]) -> Result<Status, FmuError> {
+        self.run(Function::SetDebugLogging, |s| {
+            s.set_debug_logging_body(logging_on, categories)
+        })
+    }
+
+    pub fn setup_experiment(
+        &mut self,
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<Status, FmuError> {
+        self.run(Function::SetupExperiment, |s| {
+            s.setup_experiment_body(tolerance, start, stop)
+        })
+    }
+
+    pub fn enter_initialization_mode(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::EnterInitializationMode, |s| {
+            s.enter_initialization_mode_body()
+        })
+    }
+
+    pub fn exit_initialization_mode(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::ExitInitializationMode, |s| s.exit_initialization_mode_body())
+    }
+
+    pub fn terminate(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::Terminate, |s| s.terminate_body())
+    }
+
+    pub fn reset(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::Reset, |s| s.reset_body())
+    }
+
+    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Result<Status, FmuError> {
+        self.run(Function::GetReal, |s| s.get_real_body(vrs, values))
+    }
+
+    pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> Result<Status, FmuError> {
+        self.run(Function::GetInteger, |s| s.get_integer_body(vrs, values))
+    }
+
+    pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [i32]) -> Result<Status, FmuError> {
+        self.run(Function::GetBoolean, |s| {
+            s.get_untyped_body(vrs, values.len(), "Boolean")
+        })
+    }
+
+    pub fn get_string(&mut self, vrs: &[u32], count: usize) -> Result<Status, FmuError> {
+        self.run(Function::GetString, |s| s.get_untyped_body(vrs, count, "String"))
+    }
+
+    pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
+        self.run(Function::SetReal, |s| s.set_real_body(vrs, values))
+    }
+
+    pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> Result<Status, FmuError> {
+        self.run(Function::SetInteger, |s| {
+            s.set_untyped_body(vrs, values.len(), "Integer")
+        })
+    }
+
+    pub fn set_boolean(&mut self, vrs: &[u32], values: &[i32]) -> Result<Status, FmuError> {
+        self.run(Function::SetBoolean, |s| {
+            s.set_untyped_body(vrs, values.len(), "Boolean")
+        })
+    }
+
+    pub fn set_string(&mut self, vrs: &[u32], count: usize) -> Result<Status, FmuError> {
+        self.run(Function::SetString, |s| s.set_untyped_body(vrs, count, "String"))
+    }
+
+    pub fn set_real_input_derivatives(
+        &mut self,
+        vrs: &[u32],
+        orders: &[i32],
+        values: &[f64],
+    ) -> Result<Status, FmuError> {
+        self.run(Function::SetRealInputDerivatives, |s| {
+            s.set_real_input_derivatives_body(vrs, orders, values)
+        })
+    }
+
+    pub fn get_real_output_derivatives(
+        &mut self,
+        vrs: &[u32],
+        orders: &[i32],
+        values: &mut [f64],
+    ) -> Result<Status, FmuError> {
+        self.run(Function::GetRealOutputDerivatives, |s| {
+            s.get_real_output_derivatives_body(vrs, orders, values)
+        })
+    }
+
+    pub fn do_step(&mut self, communication_point: f64, step_size: f64) -> Result<Status, FmuError> {
+        self.run(Function::DoStep, |s| s.do_step_body(communication_point, step_size))
+    }
+
+    pub fn cancel_step(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::CancelStep, |_| Ok(Status::Ok))
+    }
+
+    pub fn get_status(&mut self, kind: StatusKind) -> Result<Status, FmuError> {
+        self.run(Function::GetStatus, |s| s.get_status_body(kind))
+    }
+
+    pub fn get_real_status(&mut self, kind: StatusKind) -> Result<f64, FmuError> {
+        self.run(Function::GetRealStatus, |s| s.get_real_status_body(kind))
+    }
+
+    pub fn get_boolean_status(&mut self, kind: StatusKind) -> Result<bool, FmuError> {
+        self.run(Function::GetBooleanStatus, |s| s.get_boolean_status_body(kind))
+    }
+
+    pub fn get_fmu_state(&mut self) -> Result<Snapshot, FmuError> {
+        self.run(Function::GetFmuState, |s| Ok(s.snapshot()))
+    }
+
+    pub fn set_fmu_state(&mut self, snapshot: &Snapshot) -> Result<Status, FmuError> {
+        self.run(Function::SetFmuState, |s| s.restore_body(snapshot))
+    }
+
+    pub fn serialize_fmu_state(&mut self, snapshot: &Snapshot) -> Result<Vec<u8>, FmuError> {
+        self.run(Function::SerializeFmuState, |_| Ok(snapshot.to_bytes()))
+    }
+
+    pub fn deserialize_fmu_state(&mut self, bytes: &[u8]) -> Result<Snapshot, FmuError> {
+        self.run(Function::DeSerializeFmuState, |s| Snapshot::from_bytes(s.model, bytes))
+    }
+
+    // ---- bodies: called only through `run`, which has checked the state ----
+
+    pub(crate) fn set_debug_logging_body(&mut self, logging_on: bool, categories: &[&str]) -> Result<Status, FmuError> {
+        self.log.configure(logging_on, categories)?;
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn setup_experiment_body(
+        &mut self,
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<Status, FmuError> {
+        if !start.is_finite() {
+            return Err(FmuError::InvalidArgument(format!("startTime {start} must be finite")));
+        }
+        if let Some(stop) = stop {
+            if !stop.is_finite() || stop < start {
+                return Err(FmuError::InvalidArgument(format!(
+                    "stopTime {stop} must be finite and >= startTime {start}"
+                )));
+            }
+        }
+        self.experiment = Experiment {
+            start_time: start,
+            stop_time: stop,
+            tolerance,
+        };
+        self.time = start;
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn enter_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
+        self.phase = Phase::InitializationMode;
+        self.time = self.experiment.start_time;
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn exit_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
+        let sim = match self.preview.take() {
+            Some(sim) => sim,
+            None => Simulation::build(self.model, &self.values)?,
+        };
+        let unbounded = sim.bound_sup.err();
+        let slack = sim.bound.sup_slack().unwrap_or(0.0);
+        self.sim = Some(sim);
+        self.time = self.experiment.start_time;
+        self.phase = Phase::StepComplete;
+        match unbounded {
+            None if slack > SUP_SLACK_WARNING => {
+                self.log.emit(Status::Warning, LogCategory::Warnings, || {
+                    format!(
+                        "bound_sup is an upper bound that may exceed K*g*integral(|h|) by {:.2e} (relative): \
+                         the loop decays too slowly for the integration horizon",
+                        slack
+                    )
+                });
+                Ok(Status::Warning)
+            }
+            None => Ok(Status::Ok),
+            Some(why) => {
+                self.log.emit(Status::Warning, LogCategory::Warnings, || {
+                    format!("bound_sup = +inf: {why}")
+                });
+                Ok(Status::Warning)
+            }
+        }
+    }
+
+    pub(crate) fn terminate_body(&mut self) -> Result<Status, FmuError> {
+        self.phase = Phase::Terminated;
+        Ok(Status::Ok)
+    }
+
+    /// Back to the state right after fmi2Instantiate; the logging configuration is the
+    /// importer's and stays.
+    pub(crate) fn reset_body(&mut self) -> Result<Status, FmuError> {
+        self.phase = Phase::Instantiated;
+        self.values = adapter::start_values(self.model);
+        self.input_slopes = [0.0; 2];
+        self.experiment = Experiment::default();
+        self.time = 0.0;
+        self.sim = None;
+        self.preview = None;
+        Ok(Status::Ok)
+    }
+
+}

@@ -1,0 +1,143 @@
+//! fmi2DoStep: argument checks, the quiet path for an event-free step, and the general step
+//! with located contact switches.
+
+use super::Instance;
+use crate::fmu::adapter;
+use crate::fmu::error::{FmuError, Status};
+use crate::fmu::logging::LogCategory;
+use crate::physics::{finite, BoundError, Inputs, MAX_PERIODS_PER_STEP};
+
+/// Relative tolerance for "the communication point equals the current time": steps are
+/// accumulated by the importer in floating point, so they drift by a few ulps per step.
+const TIME_TOLERANCE: f64 = 1e-9;
+
+impl Instance {
+    pub(crate) fn do_step_body(&mut self, communication_point: f64, h: f64) -> Result<Status, FmuError> {
+        let inputs = adapter::inputs(&self.values, self.input_slopes);
+        // The input lines at the end of the step (see below); refused before stepping if they
+        // leave f64, so that a refused step changes nothing.
+        let tau_end = [inputs.tau_m + h * inputs.dtau_m, inputs.tau_l + h * inputs.dtau_l];
+        let end = communication_point + h;
+        let now = self.time;
+        // Where steps must end: finite, so that time stays finite.
+        let limit = match self.experiment.stop_time {
+            Some(stop) => stop + TIME_TOLERANCE * stop.abs().max(1.0),
+            None => f64::MAX,
+        };
+        let Some(sim) = self.sim.as_mut() else {
+            unreachable!("StepComplete implies a simulation")
+        };
+        // All argument checks in one branch (non-short-circuit `&`, each false on NaN); the
+        // reason is sorted out by `step_refusal` only when one fails. `max_step` is finite.
+        let accepted = finite(communication_point)
+            & (h > 0.0)
+            & (h <= sim.max_step)
+            & ((communication_point - now).abs() <= TIME_TOLERANCE * now.abs().max(1.0))
+            & (end > communication_point)
+            & (end <= limit)
+            & finite(tau_end[0])
+            & finite(tau_end[1]);
+        if !accepted {
+            return Err(self.step_refusal(communication_point, h, tau_end));
+        }
+        if !sim.quiet_step(&inputs, h) {
+            self.general_step(communication_point, &inputs, h)?;
+        }
+        // The input lines continue over the next step unless set again (see
+        // `set_real_input_derivatives_body`).
+        adapter::store_inputs(&mut self.values, tau_end);
+        // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
+        self.time = end;
+        Ok(Status::Ok)
+    }
+
+    /// Why `do_step_body` refuses its arguments (called only when it does).
+    #[cold]
+    #[inline(never)]
+    fn step_refusal(&self, communication_point: f64, h: f64, tau_end: [f64; 2]) -> FmuError {
+        let bad = FmuError::InvalidArgument;
+        if !communication_point.is_finite() {
+            return bad(format!("currentCommunicationPoint {communication_point} is not finite"));
+        }
+        if !(h.is_finite() && h > 0.0) {
+            return bad(format!("communicationStepSize {h} must be finite and > 0"));
+        }
+        let now = self.time;
+        if (communication_point - now).abs() > TIME_TOLERANCE * now.abs().max(1.0) {
+            return bad(format!(
+                "currentCommunicationPoint {communication_point} differs from the FMU's time {now}; restore an FMU \
+                 state to step from another time"
+            ));
+        }
+        let end = communication_point + h;
+        if end <= communication_point {
+            return bad(format!(
+                "communicationStepSize {h} is below the resolution of time {communication_point}"
+            ));
+        }
+        if let Some(stop) = self.experiment.stop_time {
+            if end > stop + TIME_TOLERANCE * stop.abs().max(1.0) {
+                return bad(format!(
+                    "the step to {end} passes the stopTime {stop} set in fmi2SetupExperiment"
+                ));
+            }
+        }
+        if !end.is_finite() {
+            return bad(format!(
+                "the step from {communication_point} by {h} leaves the range of f64"
+            ));
+        }
+        if !tau_end.iter().all(|x| x.is_finite()) {
+            return FmuError::Overflow(format!(
+                "the input ramps reach tau_m = {:e}, tau_L = {:e} at the end of the step",
+                tau_end[0], tau_end[1]
+            ));
+        }
+        let max_step = self.sim.as_ref().map_or(f64::NAN, |sim| sim.max_step);
+        bad(format!(
+            "communicationStepSize {h} exceeds {max_step:e} s ({MAX_PERIODS_PER_STEP:e} periods of the contact \
+             oscillation); split it into smaller steps"
+        ))
+    }
+
+    /// The step of `do_step_body` past its argument checks, when the quiet path did not take
+    /// it: contact switches located and logged, overflow of plant or bounds refused.
+    #[cold]
+    #[inline(never)]
+    fn general_step(&mut self, communication_point: f64, inputs: &Inputs, h: f64) -> Result<(), FmuError> {
+        let end = communication_point + h;
+        let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
+        // The plant steps a copy of its state, and the bound fails (on a bad h, excluded above)
+        // before changing anything: a failed step leaves the instance as it was.
+        let mut state = sim.state;
+        let mut switches = Vec::new();
+        let want_switches = self.log.is_enabled(LogCategory::ContactEvents);
+        sim.stepper.step(&mut state, inputs, h, &mut |event| {
+            if want_switches {
+                switches.push(event)
+            }
+        })?;
+        if !sim.state_ok(&state) {
+            return Err(sim.overflow(&state, format_args!("the step to t = {end} overflows")));
+        }
+        // Fails before changing anything (a bad h is excluded above).
+        sim.bound.advance(h).map_err(|e| match e {
+            BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
+                "the step to t = {end} overflows the bounds: bound = {bound:e}, bound_paper = {bound_paper:e}"
+            )),
+            e => e.into(),
+        })?;
+        sim.state = state;
+        let half_gap = sim.plant().half_gap();
+        for e in switches {
+            let t = communication_point + e.offset;
+            self.log.emit(Status::Ok, LogCategory::ContactEvents, || {
+                format!(
+                    "contact switch at t = {t} s: {:?} -> {:?} (g = {half_gap})",
+                    e.from, e.to
+                )
+            });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,280 @@
+//! Get and set by value reference (all or nothing), input and output derivatives: every
+//! variable is reached through the model adapter.
+
+use super::Instance;
+use crate::fmu::adapter::{self, Calculated, Source};
+use crate::fmu::error::{FmuError, Status};
+use crate::fmu::simulation::Simulation;
+use crate::fmu::state_machine::Phase;
+use crate::fmu::variables::{Causality, VarType, Variable};
+use crate::physics::contact_indicator;
+
+impl Instance {
+    fn variable(&self, vr: u32) -> Result<&'static Variable, FmuError> {
+        self.model.by_vr(vr).ok_or(FmuError::UnknownValueReference {
+            vr,
+            model: self.model.identifier,
+        })
+    }
+
+    fn typed_variable(&self, vr: u32, ty: VarType) -> Result<&'static Variable, FmuError> {
+        let v = self.variable(vr)?;
+        if v.ty != ty {
+            let requested = match ty {
+                VarType::Real => "Real",
+                VarType::Integer => "Integer",
+            };
+            return Err(Self::wrong_type(v, requested));
+        }
+        Ok(v)
+    }
+
+    fn same_length(what: &'static str, length: usize, expected: usize) -> Result<(), FmuError> {
+        if length == expected {
+            Ok(())
+        } else {
+            Err(FmuError::LengthMismatch { what, length, expected })
+        }
+    }
+
+    /// The physics in force: the simulation after initialization, before it the plant the
+    /// current parameters and start values describe (built once per change).
+    fn physics(&mut self) -> Result<&Simulation, FmuError> {
+        if let Some(sim) = &self.sim {
+            return Ok(sim);
+        }
+        if self.preview.is_none() {
+            self.preview = Some(Simulation::build(self.model, &self.values)?);
+        }
+        Ok(self.preview.as_ref().expect("built above"))
+    }
+
+    fn real_value(&mut self, v: &Variable) -> Result<f64, FmuError> {
+        Ok(match adapter::source(v.symbol) {
+            Source::Input(_) | Source::Parameter => self.values[v.symbol.index()],
+            Source::State(entry) => match &self.sim {
+                Some(sim) => entry.of(&sim.state),
+                None => self.values[v.symbol.index()],
+            },
+            Source::Calculated(quantity) => quantity.of(self.physics()?),
+            Source::Contact => return Err(Self::wrong_type(v, "Real")),
+        })
+    }
+
+    /// The refusal of a `requested` access to `v` of another type.
+    fn wrong_type(v: &Variable, requested: &'static str) -> FmuError {
+        FmuError::WrongType {
+            name: v.name,
+            vr: v.vr,
+            actual: v.ty,
+            requested,
+        }
+    }
+
+    pub(crate) fn get_real_body(&mut self, vrs: &[u32], out: &mut [f64]) -> Result<Status, FmuError> {
+        Self::same_length("fmi2GetReal values", out.len(), vrs.len())?;
+        for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            let x = self.real_value(v)?;
+            // bound_sup is +∞ by definition when the loop is unstable (spec §4); nothing else
+            // may leave the FMU as ∞ or NaN.
+            if x.is_nan() || (x.is_infinite() && adapter::source(v.symbol) != Source::Calculated(Calculated::BoundSup)) {
+                return Err(FmuError::Overflow(format!("{} evaluates to {x}", v.name)));
+            }
+            *slot = x;
+        }
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn get_integer_body(&mut self, vrs: &[u32], out: &mut [i32]) -> Result<Status, FmuError> {
+        Self::same_length("fmi2GetInteger values", out.len(), vrs.len())?;
+        for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
+            let v = self.typed_variable(*vr, VarType::Integer)?;
+            if adapter::source(v.symbol) != Source::Contact {
+                return Err(Self::wrong_type(v, "Integer"));
+            }
+            let sim = self.physics()?;
+            *slot = contact_indicator(&sim.state, sim.plant().half_gap());
+        }
+        Ok(Status::Ok)
+    }
+
+    /// Boolean and String: the models have no such variables, so any reference is refused
+    /// (by name and type when it is a variable of another type).
+    pub(crate) fn get_untyped_body(
+        &mut self,
+        vrs: &[u32],
+        count: usize,
+        requested: &'static str,
+    ) -> Result<Status, FmuError> {
+        Self::same_length("values", count, vrs.len())?;
+        match vrs.first() {
+            None => Ok(Status::Ok),
+            Some(vr) => {
+                let v = self.variable(*vr)?;
+                Err(FmuError::WrongType {
+                    name: v.name,
+                    vr: *vr,
+                    actual: v.ty,
+                    requested,
+                })
+            }
+        }
+    }
+
+    /// As `get_untyped_body`; setting `contact` (the only Integer, a calculated output) is
+    /// refused as not settable first.
+    pub(crate) fn set_untyped_body(
+        &mut self,
+        vrs: &[u32],
+        count: usize,
+        requested: &'static str,
+    ) -> Result<Status, FmuError> {
+        Self::same_length("values", count, vrs.len())?;
+        let integer = vrs
+            .first()
+            .and_then(|vr| self.model.by_vr(*vr))
+            .filter(|v| v.ty == VarType::Integer);
+        if let (Some(v), "Integer") = (integer, requested) {
+            self.check_settable(v)?;
+        }
+        self.get_untyped_body(vrs, count, requested)
+    }
+
+    /// FMI 2.0.4 Co-Simulation table of allowed calls, per variable: before and during
+    /// initialization inputs, parameters and initial = exact outputs (the initial state); in
+    /// StepComplete inputs only (all parameters are fixed).
+    fn check_settable(&self, v: &Variable) -> Result<(), FmuError> {
+        let refuse = |reason| {
+            Err(FmuError::NotSettable {
+                name: v.name,
+                phase: self.phase,
+                reason,
+            })
+        };
+        match v.causality {
+            Causality::CalculatedParameter => refuse("it is a calculatedParameter, computed by the FMU"),
+            Causality::Output if !v.is_initial_state() => refuse("it is an output computed by the FMU"),
+            _ => match self.phase {
+                Phase::Instantiated | Phase::InitializationMode => Ok(()),
+                Phase::StepComplete => match v.causality {
+                    Causality::Input => Ok(()),
+                    Causality::Parameter => {
+                        refuse("it is a fixed parameter; it can change only before fmi2ExitInitializationMode")
+                    }
+                    _ => refuse(
+                        "its start value is the initial state; it can change only before fmi2ExitInitializationMode",
+                    ),
+                },
+                _ => refuse("no variable can be set in this state"),
+            },
+        }
+    }
+
+    /// All values are checked before any is stored, so a refused call changes nothing.
+    pub(crate) fn set_real_body(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
+        Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
+        // All or nothing: every element is checked before any is stored.
+        for (vr, value) in vrs.iter().zip(values) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            self.check_settable(v)?;
+            if !v.range.admits(*value) {
+                return Err(FmuError::ValueRefused {
+                    name: v.name,
+                    value: *value,
+                    range: v.range.describe(),
+                });
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            self.values[v.symbol.index()] = *value;
+        }
+        if self.sim.is_none() {
+            self.preview = None;
+        }
+        Ok(Status::Ok)
+    }
+
+    /// Order-1 derivatives of the inputs, with respect to the start of the next step (FMI
+    /// 2.0.4 §4.2.1). They stay in force until set again, and the input value moves along
+    /// the line: after a step of size h, τ ← τ + h·dτ/dt (a continuous piecewise-linear input).
+    pub(crate) fn set_real_input_derivatives_body(
+        &mut self,
+        vrs: &[u32],
+        orders: &[i32],
+        values: &[f64],
+    ) -> Result<Status, FmuError> {
+        Self::same_length("fmi2SetRealInputDerivatives orders", orders.len(), vrs.len())?;
+        Self::same_length("fmi2SetRealInputDerivatives values", values.len(), vrs.len())?;
+        let mut targets = Vec::with_capacity(vrs.len());
+        for ((vr, order), value) in vrs.iter().zip(orders).zip(values) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            let Source::Input(slot) = adapter::source(v.symbol) else {
+                return Err(FmuError::InvalidArgument(format!(
+                    "{} is not an input; only inputs have input derivatives",
+                    v.name
+                )));
+            };
+            if *order != 1 {
+                return Err(FmuError::InvalidArgument(format!(
+                    "derivative order {order} of {}: inputs are interpolated linearly, only order 1 is accepted",
+                    v.name
+                )));
+            }
+            if !value.is_finite() {
+                return Err(FmuError::ValueRefused {
+                    name: v.name,
+                    value: *value,
+                    range: "a finite derivative",
+                });
+            }
+            targets.push(slot);
+        }
+        for (slot, value) in targets.into_iter().zip(values) {
+            self.input_slopes[slot] = *value;
+        }
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn get_real_output_derivatives_body(
+        &mut self,
+        vrs: &[u32],
+        orders: &[i32],
+        out: &mut [f64],
+    ) -> Result<Status, FmuError> {
+        Self::same_length("fmi2GetRealOutputDerivatives orders", orders.len(), vrs.len())?;
+        Self::same_length("fmi2GetRealOutputDerivatives values", out.len(), vrs.len())?;
+        let inputs = adapter::inputs(&self.values, self.input_slopes);
+        let Some(sim) = &self.sim else {
+            return Err(FmuError::InvalidArgument(
+                "no output derivatives before initialization has ended".into(),
+            ));
+        };
+        let mut rates: Option<[f64; 4]> = None;
+        for ((vr, order), slot) in vrs.iter().zip(orders).zip(out.iter_mut()) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            if v.causality != Causality::Output {
+                return Err(FmuError::InvalidArgument(format!("{} is not an output", v.name)));
+            }
+            if *order != 1 {
+                return Err(FmuError::InvalidArgument(format!(
+                    "derivative order {order} of {}: maxOutputDerivativeOrder is 1",
+                    v.name
+                )));
+            }
+            // d/dt [θ_m, ω_m, θ_L, ω_L] in the mode in force (at a switch: the mode entered).
+            let z_dot = *rates.get_or_insert_with(|| sim.stepper.time_derivative(&sim.state, &inputs, 1));
+            let rate = match adapter::source(v.symbol) {
+                Source::State(entry) => Some(z_dot[entry.index()]),
+                Source::Calculated(quantity) => quantity.rate(sim, &z_dot),
+                Source::Input(_) | Source::Parameter | Source::Contact => None,
+            };
+            *slot = rate.ok_or_else(|| FmuError::InvalidArgument(format!("{} has no output derivative", v.name)))?;
+            if !slot.is_finite() {
+                return Err(FmuError::Overflow(format!("d{}/dt evaluates to {slot}", v.name)));
+            }
+        }
+        Ok(Status::Ok)
+    }
+}
