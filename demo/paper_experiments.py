@@ -1,20 +1,20 @@
 """The paper's closed-loop experiments (Figs. 11-13) reproduced with BacklashShaft.fmu, and its
 open design question answered.
 
-Rig (paper, "Experiments"; spec model.md section 4): the rectilinear ECP system in shaft form,
+Rig (paper, "Experiments"; docs/model.md §4): the rectilinear ECP system in shaft form,
 M_1 = J_m = 2.28 kg, M_2 = J_L = 2.55 kg, k = 200 N/m, b_m = b_L = 0.05 N.s/m; metres play the
-role of radians (spec section 1, last bullet), so speeds are in m/s and "torques" in N.
+role of radians (docs/model.md §1, rectilinear analogue), so speeds are in m/s and "torques" in N.
 
-Loop (paper Fig. 8, spec section 3): a PI controller on the motor speed, closed OUTSIDE the FMU
+Loop (paper Fig. 8, docs/model.md §3): a PI controller on the motor speed, closed OUTSIDE the FMU
 through fmpy and sampled at every communication point (step h, zero-order hold on the force):
     e_n = w_ref(t_n) - omega_m(t_n),  tau_m = Kp e_n + Ki x_n,  x_{n+1} = x_n + h e_n.
 Two instances run side by side from rest: one with the backlash (Delta > 0) and its twin without
 (Delta = 0). The deviation |omega_L^b - omega_L^0| is compared with the FMU's outputs `bound`
-(spec section 3, rigorous) and `bound_paper` (eq. 37 as printed) and with `bound_sup` (the
+(docs/model.md §3, rigorous) and `bound_paper` (eq. 37 as printed) and with `bound_sup` (the
 horizontal line of the paper's figures). The gains come from results/design.json, written by
 `cargo xtask demo` with the same Rust code as `cargo xtask design` (best-damped rule).
 
-The paper's gaps (1.55, 3.56, 5.38 mm) are ambiguous (spec section 5): both readings are run,
+The paper's gaps (1.55, 3.56, 5.38 mm) are ambiguous (docs/model.md §5): both readings are run,
 Delta = gap/2 (the nomenclature: Delta is the half gap) and Delta = gap.
 
 Run by `cargo xtask demo [--short]`; standalone:

@@ -101,7 +101,7 @@ class Instance:
             self.initialise(start_time)
 
     def initialise(self, start_time: float = 0.0):
-        """Parameters (variability fixed, spec §4) are set before initialisation."""
+        """Parameters (variability fixed, docs/model.md §4) are set before initialisation."""
         self.t0 = start_time
         self.set(self.params)
         self.slave.setupExperiment(startTime=start_time)

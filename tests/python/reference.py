@@ -1,6 +1,6 @@
-"""Independent reference solution of the compliance + backlash plant (spec model.md §1).
+"""Independent reference solution of the compliance + backlash plant (docs/model.md §1).
 
-Written from the spec alone, with a different method from the FMU's exact stepping (§2):
+Written from docs/model.md alone, with a different method from the FMU's exact stepping (§2):
 a high-order explicit integrator (scipy DOP853, rtol 1e-13, atol 1e-17; Radau as a check)
 inside each contact mode, with the mode switches located as terminal events on u - g and
 u + g and the integration restarted in the new mode at each event. Inputs are held over each
@@ -18,13 +18,13 @@ from typing import Callable
 import numpy as np
 from scipy.integrate import solve_ivp
 
-# Contact modes, numbered as the FMU's `contact` output (spec §4).
+# Contact modes, numbered as the FMU's `contact` output (docs/model.md §4).
 FREE, PLUS, MINUS = 0, 1, -1
 
 
 @dataclass(frozen=True)
 class Plant:
-    """Generic form of spec §1: inertias J (kg.m2), viscous frictions b (N.m.s/rad),
+    """Generic form of docs/model.md §1: inertias J (kg.m2), viscous frictions b (N.m.s/rad),
     transmission radii r_m, r_L, stiffness K and half gap g measured in u."""
 
     J_m: float
@@ -55,7 +55,7 @@ class Plant:
         return self.r_m * z[1] - self.r_L * z[3]
 
     def dead_zone(self, u: float) -> float:
-        """dz(u, g) of spec §1."""
+        """dz(u, g) of docs/model.md §1."""
         if u >= self.g:
             return u - self.g
         if u <= -self.g:
@@ -76,7 +76,7 @@ class Plant:
         return FREE if self.g > 0.0 else 0
 
     def linear_matrices(self):
-        """A_p and the input matrix [B_p C_p] of the backlash-free plant (spec §3)."""
+        """A_p and the input matrix [B_p C_p] of the backlash-free plant (docs/model.md §3)."""
         J_m, J_L, K, r_m, r_L = self.J_m, self.J_L, self.K, self.r_m, self.r_L
         A = np.array(
             [
@@ -91,7 +91,7 @@ class Plant:
 
 
 def _rhs(plant: Plant, mode: int, tau_m: float, tau_L: float) -> Callable:
-    """Right-hand side of spec §1 in the coordinates x = [theta_m, omega_m, u, omega_L].
+    """Right-hand side of docs/model.md §1 in the coordinates x = [theta_m, omega_m, u, omega_L].
 
     u is integrated directly (u' = r_m omega_m - r_L omega_L) rather than recovered from two
     large angles, so that the integrator's error control acts on the quantity that decides
@@ -122,7 +122,7 @@ def _to_state(plant: Plant, x) -> np.ndarray:
 
 def entering_mode(plant: Plant, z, tau_m: float, tau_L: float) -> int:
     """Mode in force at state z: the side of +-g that u is on, and exactly on +-g the mode
-    the trajectory is entering (spec §4), from the sign of du/dt, then of d2u/dt2."""
+    the trajectory is entering (docs/model.md §4), from the sign of du/dt, then of d2u/dt2."""
     if plant.g == 0.0:
         return PLUS
     u = plant.u(z)
@@ -225,7 +225,7 @@ class ReferencePlant:
 class SampledPI:
     """PI speed controller on the motor speed, sampled at the communication points.
 
-    Discretisation (forward Euler on x_c' = e, spec §3): at t_k
+    Discretisation (forward Euler on x_c' = e, docs/model.md §3): at t_k
         e_k   = w_ref(t_k) - omega_m(t_k)
         tau_k = Kp e_k + Ki x_k        held over [t_k, t_k + h]
         x_k+1 = x_k + h e_k

@@ -1,4 +1,4 @@
-"""Independent computation of the speed-error bounds of spec model.md §3.
+"""Independent computation of the speed-error bounds of docs/model.md §3.
 
     h(s)           = L_c expm(A s) D_1                       impulse response phi -> omega_L
     bound(t)       = K g  int_0^t |h(s)| ds
@@ -6,7 +6,7 @@
     bound_sup      = K g  int_0^inf |h(s)| ds
 
 A is the 5-state closed loop A_cl (PI on the motor speed) when Kp or Ki is non-zero, else the
-4-state plant A_p (spec §4). The integrals are computed by Gauss-Legendre quadrature of
+4-state plant A_p (docs/model.md §4). The integrals are computed by Gauss-Legendre quadrature of
 scipy.linalg.expm on cells cut at the sign changes of h (located with brentq), so that
 |h| is smooth on every piece. (The FMU is expected to use closed forms instead.)
 """
@@ -26,7 +26,7 @@ _NODES, _WEIGHTS = leggauss(20)
 
 
 def loop_matrices(plant: Plant, Kp: float, Ki: float):
-    """(A, D_1, L_c) of spec §3: closed loop if any gain is non-zero, else the open plant."""
+    """(A, D_1, L_c) of docs/model.md §3: closed loop if any gain is non-zero, else the open plant."""
     A_p, B = plant.linear_matrices()
     B_p = B[:, :1]
     D = np.array([0.0, plant.r_m / plant.J_m, 0.0, -plant.r_L / plant.J_L])

@@ -1,11 +1,11 @@
-"""Parameter sets shared by the tests, named as the FMU parameters of spec model.md §4."""
+"""Parameter sets shared by the tests, named as the FMU parameters of docs/model.md §4."""
 
 from __future__ import annotations
 
 from reference import Plant
 
-# The paper's experiment in shaft form (spec §4): J_m, J_L, k, b. Its largest gap, 5.38 mm,
-# read as the total free play 2 Delta (the paper's nomenclature, spec §5).
+# The paper's experiment in shaft form (docs/model.md §4): J_m, J_L, k, b. Its largest gap,
+# 5.38 mm, read as the total free play 2 Delta (the paper's nomenclature, docs/model.md §5).
 PAPER = {"J_m": 2.28, "J_L": 2.55, "b_m": 0.05, "b_L": 0.05}
 SHAFT = {**PAPER, "k": 200.0, "Delta": 5.38e-3 / 2}
 
@@ -15,7 +15,7 @@ SHAFT = {**PAPER, "k": 200.0, "Delta": 5.38e-3 / 2}
 BELT = {**PAPER, "K_b": 2.0e4, "R_1": 0.1, "R_2": 0.08, "R_g1": 0.05, "R_g2": 0.075, "Delta": 2.0e-3}
 
 # PI gains (Kp in N.m.s/rad, Ki in N.m/rad) chosen by a grid search that maximises the smallest
-# damping ratio among the eigenvalues of A_cl (spec §3); the tests re-check the damping.
+# damping ratio among the eigenvalues of A_cl (docs/model.md §3); the tests re-check the damping.
 # Shaft: min zeta = 0.51, slowest decay rate 4.0 /s.  Belt: min zeta = 0.31, slowest 3.9 /s.
 SHAFT_GAINS = {"Kp": 42.0, "Ki": 180.0}
 BELT_GAINS = {"Kp": 38.0, "Ki": 200.0}
@@ -27,7 +27,7 @@ RIGS = {
 
 
 def plant_of(model: str, params: dict) -> Plant:
-    """The generic plant (spec §1 table) for an FMU's parameter values."""
+    """The generic plant (docs/model.md §1 table) for an FMU's parameter values."""
     p = {k: v for k, v in params.items() if k not in ("Kp", "Ki")}
     if model == "BacklashShaft":
         return Plant.shaft(**p)

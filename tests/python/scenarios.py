@@ -61,7 +61,7 @@ def pi_loop(model: str):
     return out, z, u, taus, ref
 
 
-# Twin runs for the bound (spec §3) on the paper's rig: step size and speed references.
+# Twin runs for the bound (docs/model.md §3) on the paper's rig: step size and speed references.
 TWIN_STEP = 1e-3
 TWIN_REFERENCES = {
     "step": (step_reference(10.0), 3.0),  # rad/s, duration s

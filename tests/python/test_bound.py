@@ -1,4 +1,4 @@
-"""The speed-error bound of spec §3 through the FMU.
+"""The speed-error bound of docs/model.md §3 through the FMU.
 
 Twin runs: two shaft instances side by side (Delta > 0 and Delta = 0) under the same external
 sampled PI, whose gains are also the FMUs' Kp, Ki. The bound assumes a continuous-time PI; the
@@ -54,7 +54,7 @@ def test_twin_difference_never_exceeds_bound(shaft, name):
 
 
 def test_reversing_reference_exceeds_printed_bound(shaft):
-    """Spec §3: the printed bound (37)/(41) is violated by more than 2x on the paper's rig."""
+    """docs/model.md §3: the printed bound (37)/(41) is violated by more than 2x on the paper's rig."""
     diff, backlash, _ = _diff_and_bounds("sine")
     ratio = np.max(diff[1:] / backlash["bound_paper"][1:])
     assert ratio > 2.0, f"max |dw_L| / bound_paper = {ratio}"
@@ -120,7 +120,7 @@ def test_bound_sup_is_the_limit_of_bound(model):
 
 
 def test_bound_sup_of_damped_open_plant_is_finite():
-    """Kp = Ki = 0 with b > 0: the open plant's bound (A_p) is finite (spec §3)."""
+    """Kp = Ki = 0 with b > 0: the open plant's bound (A_p) is finite (docs/model.md §3)."""
     fmu = fmu_driver.require("BacklashShaft")
     params = {**RIGS["BacklashShaft"][0], "b_m": 2.0, "b_L": 2.0}
     gains = {"Kp": 0.0, "Ki": 0.0}

@@ -1,4 +1,4 @@
-"""`contact` and `psi` outputs against the FMU's own angle outputs (spec §1, §4).
+"""`contact` and `psi` outputs against the FMU's own angle outputs (docs/model.md §1, §4).
 
 u = r_m theta_m - r_L theta_L is recomputed from theta_m, theta_L as read through fmpy, while
 the FMU computes psi and contact from its internal state: the two agree to round-off, taken as
@@ -45,7 +45,7 @@ def test_psi_is_K_times_dead_zone(fmu, case):
 
 
 def test_contact_without_backlash_is_sign_of_u(shaft):
-    """Delta = 0 (spec §4): contact = sign(u); psi = K u."""
+    """Delta = 0 (docs/model.md §4): contact = sign(u); psi = K u."""
     _, linear = scenarios.twin("sine")
     plant = plant_of("BacklashShaft", {**RIGS["BacklashShaft"][0], "Delta": 0.0})
     u, slack = _u_and_slack(plant, linear)

@@ -1,7 +1,8 @@
 """An FMU used as shipped: instantiate, initialise with the start values, step.
 
 Run in a child process with a time limit, so that a hang is reported as a failure instead of
-stopping the suite (spec standards: bad or default input never crashes or hangs)."""
+stopping the suite (bad or default input never crashes or hangs: docs/model.md §4, refusals
+and limits)."""
 
 from __future__ import annotations
 

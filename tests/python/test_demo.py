@@ -51,7 +51,7 @@ def test_summary_table_true_bound_holds_and_printed_bound_fails_under_reversal(d
         assert r["bound_holds"] == "True", r
         assert float(r["max_deviation"]) <= float(r["sup_bound"]) <= float(r["bound_sup"]) * (1 + 1e-9)
         if r["reference"] == "sine":
-            # Spec section 3: a reversing reference exceeds eq. (37) by more than 2x.
+            # docs/model.md §3: a reversing reference exceeds eq. (37) by more than 2x.
             assert r["paper_holds"] == "False", r
             assert float(r["ratio_to_paper"]) > 2.0
 

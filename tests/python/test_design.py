@@ -138,7 +138,7 @@ def test_stiffness_is_not_monotone_and_the_report_says_so(design):
 
 
 def closed_loop_eigenvalues(kp: float, ki: float) -> np.ndarray:
-    """Spec section 3 A_cl (5 states), written out here; its extra eigenvalue 0 is the rigid
+    """docs/model.md §3 A_cl (5 states), written out here; its extra eigenvalue 0 is the rigid
     rotation of the whole train, which the bound never sees, and is dropped."""
     jm, jl, bm, bl, k = (RIG[n] for n in ("J_m", "J_L", "b_m", "b_L", "k"))
     a = np.array([

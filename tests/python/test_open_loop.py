@@ -3,7 +3,7 @@
 Tolerance 1e-9 relative (max abs error / max abs value, per signal; u = r_m theta_m - r_L
 theta_L and psi included): the reference is good to ~2e-10 (reference.py: its runs at
 different tolerances differ by that much), and an FMU that steps over a switch instead of
-locating it is off by ~1e-7 (spec §1), so 1e-9 separates the two."""
+locating it is off by ~1e-7 (docs/model.md §1), so 1e-9 separates the two."""
 
 from __future__ import annotations
 

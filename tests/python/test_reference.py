@@ -51,7 +51,7 @@ def test_no_contact_each_inertia_obeys_its_own_ode(name):
 
 @pytest.mark.parametrize("name", GEOMETRIES)
 def test_zero_gap_matches_matrix_exponential(name):
-    """Delta = 0 is the linear plant z' = A_p z + B w: one augmented expm per held step (spec §2)."""
+    """Delta = 0 is the linear plant z' = A_p z + B w: one augmented expm per held step (docs/model.md §2)."""
     plant = _plant(name, Delta=0.0)
     h, n = 0.05, 200
     tau_m, tau_L = reversing_torques(n, h, 1.5, 0.6)
@@ -72,7 +72,7 @@ def test_zero_gap_matches_matrix_exponential(name):
 
 @pytest.mark.parametrize("name", GEOMETRIES)
 def test_energy_is_conserved_across_contact_switches(name):
-    """With b = 0 and no torque the contact is elastic (spec §5): the kinetic energy plus the
+    """With b = 0 and no torque the contact is elastic (docs/model.md §5): the kinetic energy plus the
     spring energy K dz(u, g)^2 / 2 stays constant through every switch."""
     plant = _plant(name, b_m=0.0, b_L=0.0)
     ref = ReferencePlant(plant, [0.0, 0.5, 0.0, 0.0])
@@ -141,7 +141,7 @@ def test_bound_integral_is_consistent():
 
 def test_bound_holds_for_the_open_loop_twin():
     """Without a controller there is no sampling: under the same held torques the load speeds of
-    the plant with and without backlash differ by at most K g int_0^t |h| with A_p (spec §3)."""
+    the plant with and without backlash differ by at most K g int_0^t |h| with A_p (docs/model.md §3)."""
     plant = plant_of("BacklashShaft", SHAFT)
     linear = plant_of("BacklashShaft", with_delta(SHAFT, 0.0))
     h, n = 0.01, 600

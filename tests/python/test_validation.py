@@ -1,4 +1,4 @@
-"""The packaged FMUs as a tool sees them: fmpy's validator and the interface of spec §4."""
+"""The packaged FMUs as a tool sees them: fmpy's validator and the interface of docs/model.md §4."""
 
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ BASE = {
     "N/m": (1, 0, -2, 0),
     "m": (0, 1, 0, 0),
 }
-# Display units users expect (spec §4): value_display = factor * value_SI.
+# Display units users expect (docs/model.md §4): value_display = factor * value_SI.
 DISPLAY = {"rad/s": ("rpm", 30.0 / math.pi), "rad": ("deg", 180.0 / math.pi), "m": ("mm", 1000.0)}
 
 
