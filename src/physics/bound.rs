@@ -1,8 +1,10 @@
 //! The speed-error bounds of spec §3 for a PI loop on motor speed.
 
+use super::kernel::KernelColumn;
 use super::linear;
 use super::params::Plant;
-use super::roots::{self, Side, SignalRows, Sparse, TaylorModel, Undecided};
+use super::roots::{self, Side, SignalRows, Undecided};
+use super::taylor::{exp_series, Sparse, TaylorModel};
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use thiserror::Error;
 
@@ -79,7 +81,7 @@ struct AdvanceCache {
 /// Stored by column, sixteen outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel {
-    cols: [roots::KernelColumn<KERNEL_OUT>; CL],
+    cols: [KernelColumn<KERNEL_OUT>; CL],
 }
 
 const KERNEL_OUT: usize = 16;
@@ -97,7 +99,7 @@ struct Piece {
 impl PieceKernel {
     fn new(phi: &BoundMatrix, rows: &SignalRows<BA>, remainder: &BoundVector) -> PieceKernel {
         PieceKernel {
-            cols: roots::KernelColumn::table(|r, j| match r {
+            cols: KernelColumn::table(|r, j| match r {
                 0..BA => phi[(r, j)],
                 10..=12 => rows.row(r - 9)[j],
                 GROWTH_ROW => remainder[j],
@@ -279,7 +281,7 @@ impl SpeedErrorBound {
         if !self.cache.as_ref().is_some_and(|c| c.h == h) {
             let pieces = (h / self.h_rows.len_ref()).ceil().max(1.0);
             let len = h / pieces;
-            let phi = roots::exp_series(&self.sparse, len);
+            let phi = exp_series(&self.sparse, len);
             self.cache = Some(AdvanceCache {
                 h,
                 pieces: pieces as usize,

@@ -4,11 +4,13 @@
 //! stepping, switches located to round-off) and [`SpeedErrorBound`] (spec §3 bounds).
 
 pub mod bound;
+pub mod kernel;
 pub mod linear;
 pub mod mode;
 pub mod params;
 pub mod roots;
 pub mod stepper;
+pub mod taylor;
 
 pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded};
 pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
