@@ -9,10 +9,11 @@
 //!   logarithmic scan and refined by a bracketing root finder (Illinois regula falsi), with the
 //!   monotonicity of every bracket checked.
 
-use nalgebra::{Complex, Matrix4};
+use nalgebra::Complex;
 use thiserror::Error;
 
 use crate::physics::bound::BoundError;
+use crate::physics::closed_loop::reduced_loop_poles;
 use crate::physics::{Geometry, ParamError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
 
 /// Why a design computation has no answer.
@@ -74,32 +75,6 @@ pub fn with_half_gap(params: &PlantParams, value: f64) -> PlantParams {
 // The backlash-free closed loop and the gain rule
 // ---------------------------------------------------------------------------------------------
 
-/// The backlash-free closed loop of spec §3 in the minimal state x = [u, ω_m, ω_L, x_c].
-///
-/// θ_m and θ_L enter the dynamics only through u = r_m θ_m − r_L θ_L, so the 5-state A_cl of
-/// spec §3 has the spectrum of this matrix plus one eigenvalue 0 (a rigid rotation of the whole
-/// train), which neither τ_m nor the backlash disturbance φ excites and ω_L does not see.
-pub fn closed_loop_matrix(plant: &Plant, gains: PiGains) -> Matrix4<f64> {
-    let p = plant.params();
-    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
-    #[rustfmt::skip]
-    let a = Matrix4::new(
-        0.0,              r_m,                     -r_l,          0.0,
-        -k * r_m / p.j_m, -(p.b_m + gains.kp) / p.j_m, 0.0,       gains.ki / p.j_m,
-        k * r_l / p.j_l,  0.0,                     -p.b_l / p.j_l, 0.0,
-        0.0,              -1.0,                    0.0,           0.0,
-    );
-    a
-}
-
-/// The four poles of the backlash-free closed loop (see [`closed_loop_matrix`]).
-pub fn closed_loop_poles(plant: &Plant, gains: PiGains) -> [Complex<f64>; 4] {
-    let ev = closed_loop_matrix(plant, gains).complex_eigenvalues();
-    let mut poles = [ev[0], ev[1], ev[2], ev[3]];
-    poles.sort_by(|a, b| a.re.total_cmp(&b.re).then(a.im.total_cmp(&b.im)));
-    poles
-}
-
 /// Damping ratio ζ = −Re λ / |λ| of a pole (0 for a pole at the origin; negative if unstable).
 pub fn damping_ratio(pole: Complex<f64>) -> f64 {
     let modulus = pole.norm();
@@ -112,7 +87,7 @@ pub fn damping_ratio(pole: Complex<f64>) -> f64 {
 
 /// The smallest damping ratio among the closed-loop poles: the gain rule's objective.
 pub fn min_damping_ratio(plant: &Plant, gains: PiGains) -> f64 {
-    closed_loop_poles(plant, gains)
+    reduced_loop_poles(plant, gains)
         .iter()
         .map(|&p| damping_ratio(p))
         .fold(f64::INFINITY, f64::min)
@@ -190,7 +165,7 @@ pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
     Ok(GainDesign {
         gains,
         min_damping: -best.1,
-        poles: closed_loop_poles(plant, gains),
+        poles: reduced_loop_poles(plant, gains),
     })
 }
 
@@ -613,7 +588,7 @@ mod tests {
             jm * jl,
         ];
         let plant = Plant::new(rig(0.0)).unwrap();
-        for pole in closed_loop_poles(&plant, gains) {
+        for pole in reduced_loop_poles(&plant, gains) {
             let mut value = Complex::new(0.0, 0.0);
             let mut scale = 0.0;
             for (n, &cn) in c.iter().enumerate() {

@@ -4,6 +4,7 @@
 //! stepping, switches located to round-off) and [`SpeedErrorBound`] (spec §3 bounds).
 
 pub mod bound;
+pub mod closed_loop;
 pub mod kernel;
 pub mod linear;
 pub mod mode;

@@ -2,7 +2,7 @@
 //! backlash to yield a given accuracy") answered for one plant, from `backlash_fmu::design`.
 
 use backlash_fmu::design::{self, Crossing, GainDesign, StiffnessStudy};
-use backlash_fmu::physics::{Geometry, PiGains, Plant, PlantParams};
+use backlash_fmu::physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
 
 const USAGE: &str = "\
 usage: cargo xtask design --accuracy EPS [options] [--json]
@@ -309,7 +309,7 @@ pub fn to_json(a: &Answer) -> String {
         Some(d) => d.poles.to_vec(),
         None => {
             let plant = Plant::new(design::with_half_gap(p, 0.0)).expect("validated in solve");
-            design::closed_loop_poles(&plant, a.gains).to_vec()
+            closed_loop::reduced_loop_poles(&plant, a.gains).to_vec()
         }
     };
     let poles = poles
