@@ -111,10 +111,10 @@ pub struct GainDesign {
 /// objective is a max–min, not smooth at the optimum, where two pole pairs meet).
 pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
     let p = plant.params();
-    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
+    let (r_m, r_l) = (plant.r_m(), plant.r_l());
     // Load inertia reflected to the motor, and the locked-free resonance of the two inertias.
     let j_eq = p.j_m + p.j_l * (r_m / r_l).powi(2);
-    let omega_p = (k * (r_m * r_m / p.j_m + r_l * r_l / p.j_l)).sqrt();
+    let omega_p = plant.contact_frequency();
     let (ln_kp0, ln_ki0) = ((j_eq * omega_p).ln(), (j_eq * omega_p * omega_p).ln());
 
     let objective = |x: [f64; 2]| -> f64 {

@@ -419,6 +419,24 @@ impl SpeedErrorBound {
         self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
+    /// d bound/dt = K g |h(t)|, h = ω_L entry of e^{A t} D_1 (spec §3) [rad/s²].
+    pub fn bound_rate(&self) -> f64 {
+        self.scale * self.state.response[OMEGA_L].abs()
+    }
+
+    /// d bound_paper/dt = K g (I·r)/‖I‖ with I = ∫ e^{A s} D_1 ds and r = e^{A t} D_1; at I = 0
+    /// (t = start) the right derivative K g ‖r‖, since I ≈ t r there [rad/s²].
+    pub fn bound_paper_rate(&self) -> f64 {
+        let s = &self.state;
+        let norm = s.integral.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let rate = if norm > 0.0 {
+            s.integral.iter().zip(&s.response).map(|(i, r)| i * r).sum::<f64>() / norm
+        } else {
+            s.response.iter().map(|x| x * x).sum::<f64>().sqrt()
+        };
+        self.scale * rate
+    }
+
     /// K g ∫_0^∞ |h(s)| ds, or why it is infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
         self.sup.map(|(value, _)| value)

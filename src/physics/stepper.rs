@@ -61,6 +61,15 @@ pub enum StepError {
 /// Most pieces one step may be cut into (bounds the work of a step: about 0.1 s of CPU).
 pub const MAX_PIECES: usize = 1 << 20;
 
+/// Longest admissible step, in periods of the undamped contact oscillation.
+pub const MAX_PERIODS_PER_STEP: f64 = 1e4;
+
+/// The largest admissible step [s]: [`MAX_PERIODS_PER_STEP`] periods of the undamped contact
+/// oscillation (see [`Plant::contact_frequency`]); finite, so that a step no longer than it is.
+pub fn max_step(plant: &Plant) -> f64 {
+    (MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / plant.contact_frequency()).min(f64::MAX)
+}
+
 /// One contact mode: its augmented matrix and the derivative rows of u along it.
 #[derive(Clone, Debug)]
 struct ModeDynamics {
