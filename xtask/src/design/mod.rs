@@ -1,8 +1,10 @@
 //! `cargo xtask design`: the paper's open question ("permissible values of compliance and
-//! backlash to yield a given accuracy") answered for one plant, from `backlash_fmu::design`.
+//! backlash to yield a given accuracy") answered for one plant: the computations are in [`study`], this module parses and prints.
 
-use backlash_fmu::design::{self, Crossing, GainDesign, StiffnessStudy};
+pub mod study;
+
 use backlash_fmu::physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
+use study::{Crossing, GainDesign, StiffnessStudy};
 
 const USAGE: &str = "\
 usage: cargo xtask design --accuracy EPS [options] [--json]
@@ -123,8 +125,8 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
         };
         match flag {
             "--accuracy" => accuracy = Some(positive(value)?),
-            "--delta" => params = design::with_half_gap(&params, positive(value)?),
-            "--k" => params = design::with_stiffness(&params, positive(value)?),
+            "--delta" => params = study::with_half_gap(&params, positive(value)?),
+            "--k" => params = study::with_stiffness(&params, positive(value)?),
             "--kp" => kp = Some(value),
             "--ki" => ki = Some(value),
             "--jm" => params.j_m = positive(value)?,
@@ -150,23 +152,23 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
     )))
 }
 
-/// Runs the design computations of `backlash_fmu::design` for `request`.
+/// Runs the design computations of [`study`] for `request`.
 pub fn solve(request: Request) -> Result<Answer, String> {
     let params = request.params;
-    let plant = Plant::new(design::with_half_gap(&params, 0.0)).map_err(|e| e.to_string())?;
+    let plant = Plant::new(study::with_half_gap(&params, 0.0)).map_err(|e| e.to_string())?;
     let (gains, rule) = match request.gains {
         Some(g) => (g, None),
         None => {
-            let d = design::best_damped_gains(&plant).map_err(|e| e.to_string())?;
+            let d = study::best_damped_gains(&plant).map_err(|e| e.to_string())?;
             (d.gains, Some(d))
         }
     };
-    let min_damping = design::min_damping_ratio(&plant, gains);
+    let min_damping = study::min_damping_ratio(&plant, gains);
     let bound_sup_per_delta =
-        design::bound_sup(&design::with_half_gap(&params, 1.0), gains).map_err(|e| e.to_string())?;
-    let bound_sup_nominal = design::bound_sup(&params, gains).map_err(|e| e.to_string())?;
-    let delta_max = design::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
-    let study = design::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+        study::bound_sup(&study::with_half_gap(&params, 1.0), gains).map_err(|e| e.to_string())?;
+    let bound_sup_nominal = study::bound_sup(&params, gains).map_err(|e| e.to_string())?;
+    let delta_max = study::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+    let study = study::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
     Ok(Answer {
         request,
         gains,
@@ -213,7 +215,7 @@ fn print_text(a: &Answer) {
         p.b_m,
         p.b_l,
         shaft_k(p),
-        design::half_gap(p)
+        study::half_gap(p)
     );
     match &a.rule {
         Some(_) => println!(
@@ -235,7 +237,7 @@ fn print_text(a: &Answer) {
         "delta_max = {:.9e} rad (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
         a.delta_max,
         2.0 * a.delta_max,
-        design::half_gap(p),
+        study::half_gap(p),
         a.bound_sup_nominal
     );
     let s = &a.study;
@@ -308,7 +310,7 @@ pub fn to_json(a: &Answer) -> String {
     let poles = match &a.rule {
         Some(d) => d.poles.to_vec(),
         None => {
-            let plant = Plant::new(design::with_half_gap(p, 0.0)).expect("validated in solve");
+            let plant = Plant::new(study::with_half_gap(p, 0.0)).expect("validated in solve");
             closed_loop::reduced_loop_poles(&plant, a.gains).to_vec()
         }
     };
@@ -342,7 +344,7 @@ pub fn to_json(a: &Answer) -> String {
                 "plant",
                 format!(
             "{{\"form\": \"shaft\", \"J_m\": {}, \"J_L\": {}, \"b_m\": {}, \"b_L\": {}, \"k\": {}, \"Delta\": {}}}",
-            num(p.j_m), num(p.j_l), num(p.b_m), num(p.b_l), num(shaft_k(p)), num(design::half_gap(p))
+            num(p.j_m), num(p.j_l), num(p.b_m), num(p.b_l), num(shaft_k(p)), num(study::half_gap(p))
         ),
             ),
             ("accuracy", num(a.request.accuracy)),
@@ -411,7 +413,7 @@ mod tests {
             .unwrap()
             .unwrap();
         assert_eq!(r.accuracy, 0.02);
-        assert_eq!(design::half_gap(&r.params), 1e-3);
+        assert_eq!(study::half_gap(&r.params), 1e-3);
         assert!(json && r.gains.is_none());
     }
 }

@@ -1,4 +1,4 @@
-//! Design computations on top of [`crate::physics`]: PI gains chosen by a stated rule, and the
+//! Design computations on top of [`backlash_fmu::physics`]: PI gains chosen by a stated rule, and the
 //! paper's open question (its "Summary and future work"): which backlash Δ and which stiffness K
 //! keep the load-speed deviation caused by backlash within a required accuracy ε.
 //!
@@ -12,9 +12,9 @@
 use nalgebra::Complex;
 use thiserror::Error;
 
-use crate::physics::bound::BoundError;
-use crate::physics::closed_loop::reduced_loop_poles;
-use crate::physics::{Geometry, ParamError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
+use backlash_fmu::physics::bound::BoundError;
+use backlash_fmu::physics::closed_loop::reduced_loop_poles;
+use backlash_fmu::physics::{Geometry, ParamError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
 
 /// Why a design computation has no answer.
 #[derive(Clone, Debug, PartialEq, Error)]
