@@ -3,6 +3,12 @@
 
 pub mod study;
 
+use std::io;
+
+use serde::Serialize;
+use serde_json::ser::Formatter;
+use serde_json::{json, Value};
+
 use backlash_fmu::physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
 use study::{Crossing, GainDesign, StiffnessStudy};
 
@@ -279,31 +285,22 @@ fn join(values: &[f64]) -> String {
     values.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", ")
 }
 
-/// A JSON number; JSON has no infinity or NaN, so those become null.
-fn num(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:?}")
-    } else {
-        "null".into()
-    }
-}
-
-fn crossing_json(c: &Option<Crossing>) -> String {
+/// A crossing's details, or null.
+fn crossing_json(c: &Option<Crossing>) -> Value {
     match c {
-        None => "null".into(),
-        Some(c) => format!(
-            "{{\"k\": {}, \"bound_sup\": {}, \"bracket\": [{}, {}], \"monotone_in_bracket\": {}, \"decreasing\": {}}}",
-            num(c.k),
-            num(c.bound_sup),
-            num(c.bracket.0),
-            num(c.bracket.1),
-            c.monotone_in_bracket,
-            c.decreasing
-        ),
+        None => Value::Null,
+        Some(c) => json!({
+            "k": c.k,
+            "bound_sup": c.bound_sup,
+            "bracket": [c.bracket.0, c.bracket.1],
+            "monotone_in_bracket": c.monotone_in_bracket,
+            "decreasing": c.decreasing,
+        }),
     }
 }
 
-/// The answer as one JSON object (keys documented in the README's design section).
+/// The answer as one JSON object (keys documented in the README's design section). Numbers
+/// are shortest round-trip; JSON has no infinity or NaN, so those become null.
 pub fn to_json(a: &Answer) -> String {
     let p = &a.request.params;
     let s = &a.study;
@@ -314,70 +311,96 @@ pub fn to_json(a: &Answer) -> String {
             closed_loop::reduced_loop_poles(&plant, a.gains).to_vec()
         }
     };
-    let poles = poles
-        .iter()
-        .map(|z| format!("[{}, {}]", num(z.re), num(z.im)))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let scan = s
-        .scan
-        .iter()
-        .map(|(k, b)| format!("[{}, {}]", num(*k), num(*b)))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let intervals = s
-        .intervals
-        .iter()
-        .map(|iv| {
-            format!(
-                "[{}, {}]",
-                iv.lo.map_or("null".into(), |c| num(c.k)),
-                iv.hi.map_or("null".into(), |c| num(c.k))
-            )
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
-    let turning = s.turning_points.iter().map(|v| num(*v)).collect::<Vec<_>>().join(", ");
-    let fields =
-        [
-            (
-                "plant",
-                format!(
-            "{{\"form\": \"shaft\", \"J_m\": {}, \"J_L\": {}, \"b_m\": {}, \"b_L\": {}, \"k\": {}, \"Delta\": {}}}",
-            num(p.j_m), num(p.j_l), num(p.b_m), num(p.b_l), num(shaft_k(p)), num(study::half_gap(p))
-        ),
-            ),
-            ("accuracy", num(a.request.accuracy)),
-            (
-                "gain_rule",
-                if a.rule.is_some() {
-                    "\"best-damped: maximise the smallest damping ratio of the backlash-free closed-loop poles\"".into()
-                } else {
-                    "\"given\"".into()
-                },
-            ),
-            ("Kp", num(a.gains.kp)),
-            ("Ki", num(a.gains.ki)),
-            ("min_damping_ratio", num(a.min_damping)),
-            ("poles", format!("[{poles}]")),
-            ("bound_sup_per_unit_delta", num(a.bound_sup_per_delta)),
-            ("bound_sup_at_delta", num(a.bound_sup_nominal)),
-            ("delta_max", num(a.delta_max)),
-            ("k_min", s.k_min().map_or("null".into(), |c| num(c.k))),
-            ("k_max", s.k_max().map_or("null".into(), |c| num(c.k))),
-            ("k_min_detail", crossing_json(&s.k_min())),
-            ("k_max_detail", crossing_json(&s.k_max())),
-            ("k_monotone", s.monotone().to_string()),
-            ("k_turning_points", format!("[{turning}]")),
-            ("k_intervals", format!("[{intervals}]")),
-            ("k_scan", format!("[{scan}]")),
-        ];
-    let body = fields
-        .iter()
-        .map(|(k, v)| format!("  \"{k}\": {v}"))
-        .collect::<Vec<_>>()
-        .join(",\n");
-    format!("{{\n{body}\n}}")
+    let gain_rule = if a.rule.is_some() {
+        "best-damped: maximise the smallest damping ratio of the backlash-free closed-loop poles"
+    } else {
+        "given"
+    };
+    let value = json!({
+        "plant": {
+            "form": "shaft",
+            "J_m": p.j_m,
+            "J_L": p.j_l,
+            "b_m": p.b_m,
+            "b_L": p.b_l,
+            "k": shaft_k(p),
+            "Delta": study::half_gap(p),
+        },
+        "accuracy": a.request.accuracy,
+        "gain_rule": gain_rule,
+        "Kp": a.gains.kp,
+        "Ki": a.gains.ki,
+        "min_damping_ratio": a.min_damping,
+        "poles": poles.iter().map(|z| json!([z.re, z.im])).collect::<Vec<_>>(),
+        "bound_sup_per_unit_delta": a.bound_sup_per_delta,
+        "bound_sup_at_delta": a.bound_sup_nominal,
+        "delta_max": a.delta_max,
+        "k_min": s.k_min().map(|c| c.k),
+        "k_max": s.k_max().map(|c| c.k),
+        "k_min_detail": crossing_json(&s.k_min()),
+        "k_max_detail": crossing_json(&s.k_max()),
+        "k_monotone": s.monotone(),
+        "k_turning_points": s.turning_points,
+        "k_intervals": s.intervals.iter().map(|iv| json!([iv.lo.map(|c| c.k), iv.hi.map(|c| c.k)])).collect::<Vec<_>>(),
+        "k_scan": s.scan.iter().map(|(k, b)| json!([k, b])).collect::<Vec<_>>(),
+    });
+    laid_out(&value)
+}
+
+/// `value` as text in the [`Layout`].
+fn laid_out(value: &Value) -> String {
+    let mut out = Vec::new();
+    let mut writer = serde_json::Serializer::with_formatter(&mut out, Layout { depth: 0 });
+    value
+        .serialize(&mut writer)
+        .expect("a JSON value serializes into memory");
+    String::from_utf8(out).expect("serde_json writes UTF-8")
+}
+
+/// The top-level object one key per line, everything inside it on one line with a space after
+/// each `:` and `,`: one line per answer, and the scan stays a short block.
+struct Layout {
+    depth: usize,
+}
+
+impl Formatter for Layout {
+    fn begin_array<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth += 1;
+        w.write_all(b"[")
+    }
+
+    fn end_array<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth -= 1;
+        w.write_all(b"]")
+    }
+
+    fn begin_array_value<W: ?Sized + io::Write>(&mut self, w: &mut W, first: bool) -> io::Result<()> {
+        w.write_all(if first { b"" } else { b", " })
+    }
+
+    fn begin_object<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth += 1;
+        w.write_all(b"{")
+    }
+
+    fn end_object<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth -= 1;
+        w.write_all(if self.depth == 0 { b"\n}" } else { b"}" })
+    }
+
+    fn begin_object_key<W: ?Sized + io::Write>(&mut self, w: &mut W, first: bool) -> io::Result<()> {
+        let separator: &[u8] = match (self.depth, first) {
+            (1, true) => b"\n  ",
+            (1, false) => b",\n  ",
+            (_, true) => b"",
+            (_, false) => b", ",
+        };
+        w.write_all(separator)
+    }
+
+    fn begin_object_value<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        w.write_all(b": ")
+    }
 }
 
 #[cfg(test)]
@@ -405,6 +428,17 @@ mod tests {
         ] {
             assert!(parse(&args(bad)).is_err(), "{bad:?} accepted");
         }
+    }
+
+    #[test]
+    fn the_layout_puts_each_top_level_key_on_its_line() {
+        let value = json!({"a": {"x": 1.0, "y": [f64::INFINITY, 2.5e-7]}, "b": [], "c": "q\"uote"});
+        let text = laid_out(&value);
+        assert_eq!(
+            text,
+            "{\n  \"a\": {\"x\": 1.0, \"y\": [null, 2.5e-7]},\n  \"b\": [],\n  \"c\": \"q\\\"uote\"\n}"
+        );
+        assert_eq!(serde_json::from_str::<Value>(&text).unwrap()["c"], "q\"uote");
     }
 
     #[test]
