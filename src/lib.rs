@@ -11,6 +11,5 @@ pub mod physics;
 
 pub mod fmu;
 
-pub mod design;
 #[allow(unsafe_code)]
 pub mod ffi;

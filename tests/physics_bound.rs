@@ -312,3 +312,105 @@ fn settled_advance_drifts_exactly_and_refuses_overflow() {
         }
     }
 }
+
+#[test]
+fn bound_rate_is_the_slope_of_bound() {
+    // Centred differences over ±δ, at instants where h keeps its sign over the difference.
+    let params = PlantParams::paper_rig(1.78e-3);
+    let delta = 1e-5;
+    for t in [0.05, 0.5, 2.0] {
+        let mut before = bound_for(&params, KP, KI);
+        before.advance(t - delta).unwrap();
+        let mut at = before.clone();
+        at.advance(delta).unwrap();
+        let mut after = at.clone();
+        after.advance(delta).unwrap();
+        let slope = (after.bound() - before.bound()) / (2.0 * delta);
+        let rate = at.bound_rate();
+        assert!(rate > 0.0);
+        assert!(rel(rate, slope) <= 1e-6, "t = {t}: rate {rate} vs difference {slope}");
+        let paper_slope = (after.bound_paper() - before.bound_paper()) / (2.0 * delta);
+        let paper_rate = at.bound_paper_rate();
+        assert!(
+            rel(paper_rate, paper_slope) <= 1e-6,
+            "t = {t}: paper rate {paper_rate} vs difference {paper_slope}"
+        );
+    }
+}
+
+#[test]
+fn bound_paper_rate_at_the_start_is_the_right_derivative() {
+    // At t = 0 the integral is 0: the rate is K g ‖e^{A·0} D_1‖, the slope of bound_paper from the
+    // right (bound_paper(δ)/δ = K g ‖r‖ + O(δ)).
+    let params = PlantParams::paper_rig(1.78e-3);
+    let start = bound_for(&params, KP, KI);
+    assert_eq!(start.bound_paper(), 0.0);
+    let delta = 1e-8;
+    let mut after = start.clone();
+    after.advance(delta).unwrap();
+    let slope = after.bound_paper() / delta;
+    assert!(
+        rel(start.bound_paper_rate(), slope) <= 1e-6,
+        "rate {} vs difference {slope}",
+        start.bound_paper_rate()
+    );
+    // And bound's rate is K g |h(0)|, h(0) = −r_L/J_L.
+    let plant = Plant::new(params).unwrap();
+    let expected = plant.stiffness() * plant.half_gap() * plant.r_l() / params.j_l;
+    assert!(rel(start.bound_rate(), expected) <= 1e-15);
+}
+
+#[test]
+fn force_rate_is_the_slope_of_the_force() {
+    use backlash_fmu::physics::{ContactMode, Inputs, PlantState, Stepper};
+    // A belt, so that the radii differ from 1; centred differences of ψ = K dz(u, g) along the
+    // exact trajectory, in contact on both flanks, and 0 in the gap.
+    let params = support::rigs::belt(1e-3);
+    let plant = Plant::new(params).unwrap();
+    let g = plant.half_gap();
+    let mut stepper = Stepper::new(plant);
+    let inputs = Inputs::held(0.3, -0.1);
+    let delta = 1e-6;
+    for (u, mode) in [
+        (3.0 * g, ContactMode::Positive),
+        (-3.0 * g, ContactMode::Negative),
+        (0.2 * g, ContactMode::Free),
+    ] {
+        let theta_m = u / plant.r_m();
+        let s0 = PlantState::new(&plant, theta_m, 0.4, 0.0, 0.1);
+        assert_eq!(s0.mode, mode);
+        let psi0 = plant.force(s0.u);
+        let mut mid = s0;
+        stepper.step(&mut mid, &inputs, delta, &mut |_| {}).unwrap();
+        let mut end = mid;
+        stepper.step(&mut end, &inputs, delta, &mut |_| {}).unwrap();
+        assert_eq!(end.mode, mode, "no switch within the difference");
+        let slope = (plant.force(end.u) - psi0) / (2.0 * delta);
+        let rates = stepper.time_derivative(&mid, &inputs, 1);
+        let rate = plant.force_rate(mid.mode, rates[0], rates[2]);
+        if mode == ContactMode::Free {
+            assert_eq!(rate, 0.0);
+            assert_eq!(slope, 0.0);
+        } else {
+            assert!(rel(rate, slope) <= 1e-6, "{mode:?}: rate {rate} vs difference {slope}");
+            // K (r_m ω_m − r_L ω_L) from the state itself.
+            let direct = plant.stiffness() * (plant.r_m() * mid.omega_m - plant.r_l() * mid.omega_l);
+            assert!(rel(rate, direct) <= 1e-12, "{mode:?}: rate {rate} vs {direct}");
+        }
+    }
+}
+
+#[test]
+fn max_step_is_the_period_cap_of_the_contact_oscillation() {
+    use backlash_fmu::physics::{max_step, MAX_PERIODS_PER_STEP};
+    for params in [PlantParams::paper_rig(1.78e-3), support::rigs::belt(1e-3)] {
+        let plant = Plant::new(params).unwrap();
+        let (k, r_m, r_l) = (plant.stiffness(), plant.r_m(), plant.r_l());
+        let omega0 = (k * (r_m * r_m / params.j_m + r_l * r_l / params.j_l)).sqrt();
+        assert_eq!(plant.contact_frequency(), omega0);
+        assert_eq!(
+            max_step(&plant),
+            MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / omega0
+        );
+    }
+}

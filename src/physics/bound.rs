@@ -1,18 +1,16 @@
 //! The speed-error bounds of spec §3 for a PI loop on motor speed.
 
+pub use super::closed_loop::PiGains;
+
+// h(s) = v[OMEGA_L] and ∫h = I[OMEGA_L] for the closed-loop state of `CL` entries.
+use super::closed_loop::{closed_loop, spectral_radius, Reduced, TailBound, CL, OMEGA_L};
+use super::kernel::KernelColumn;
 use super::linear;
 use super::params::Plant;
-use super::roots::{self, Side, SignalRows, Sparse, TaylorModel, Undecided};
-use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use super::roots::{self, Side, SignalRows, Undecided};
+use super::taylor::{exp_series, Sparse, TaylorModel};
+use nalgebra::{SMatrix, SVector};
 use thiserror::Error;
-
-/// PI speed controller on ω_m: τ_m = Kp e + Ki ∫e, e = ω_ref − ω_m (spec §3).
-/// Kp [N·m·s/rad], Ki [N·m/rad]; Kp = Ki = 0 means the open-loop plant.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct PiGains {
-    pub kp: f64,
-    pub ki: f64,
-}
 
 /// Why `bound_sup` is +∞.
 #[derive(Clone, Copy, Debug, PartialEq, Error)]
@@ -54,14 +52,10 @@ pub enum BoundError {
     Overflow { bound: f64, bound_paper: f64 },
 }
 
-/// Closed-loop state [θ_m, ω_m, θ_L, ω_L, x_c] (spec §3).
-const CL: usize = 5;
 /// Augmented [v, I] with v = e^{A s} D_1 and I = ∫_0^s v: y' = [A v; v].
 const BA: usize = 2 * CL;
 type BoundMatrix = SMatrix<f64, BA, BA>;
 type BoundVector = SVector<f64, BA>;
-/// ω_L: h(s) = v[OMEGA_L], ∫h = I[OMEGA_L].
-const OMEGA_L: usize = 3;
 const MAX_CROSSINGS: usize = 64;
 
 /// Exponential for the current advance length, cut into `pieces` of `len`.
@@ -79,7 +73,7 @@ struct AdvanceCache {
 /// Stored by column, sixteen outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel {
-    cols: [roots::KernelColumn<KERNEL_OUT>; CL],
+    cols: [KernelColumn<KERNEL_OUT>; CL],
 }
 
 const KERNEL_OUT: usize = 16;
@@ -97,7 +91,7 @@ struct Piece {
 impl PieceKernel {
     fn new(phi: &BoundMatrix, rows: &SignalRows<BA>, remainder: &BoundVector) -> PieceKernel {
         PieceKernel {
-            cols: roots::KernelColumn::table(|r, j| match r {
+            cols: KernelColumn::table(|r, j| match r {
                 0..BA => phi[(r, j)],
                 10..=12 => rows.row(r - 9)[j],
                 GROWTH_ROW => remainder[j],
@@ -279,7 +273,7 @@ impl SpeedErrorBound {
         if !self.cache.as_ref().is_some_and(|c| c.h == h) {
             let pieces = (h / self.h_rows.len_ref()).ceil().max(1.0);
             let len = h / pieces;
-            let phi = roots::exp_series(&self.sparse, len);
+            let phi = exp_series(&self.sparse, len);
             self.cache = Some(AdvanceCache {
                 h,
                 pieces: pieces as usize,
@@ -425,6 +419,24 @@ impl SpeedErrorBound {
         self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
+    /// d bound/dt = K g |h(t)|, h = ω_L entry of e^{A t} D_1 (spec §3) [rad/s²].
+    pub fn bound_rate(&self) -> f64 {
+        self.scale * self.state.response[OMEGA_L].abs()
+    }
+
+    /// d bound_paper/dt = K g (I·r)/‖I‖ with I = ∫ e^{A s} D_1 ds and r = e^{A t} D_1; at I = 0
+    /// (t = start) the right derivative K g ‖r‖, since I ≈ t r there [rad/s²].
+    pub fn bound_paper_rate(&self) -> f64 {
+        let s = &self.state;
+        let norm = s.integral.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let rate = if norm > 0.0 {
+            s.integral.iter().zip(&s.response).map(|(i, r)| i * r).sum::<f64>() / norm
+        } else {
+            s.response.iter().map(|x| x * x).sum::<f64>().sqrt()
+        };
+        self.scale * rate
+    }
+
     /// K g ∫_0^∞ |h(s)| ds, or why it is infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
         self.sup.map(|(value, _)| value)
@@ -503,143 +515,3 @@ const SUP_CHECK_PIECES: usize = 256;
 const SUP_MAX_PIECES: usize = 1 << 21;
 /// The sign-change searches of the whole sup computation get the budget of this many pieces.
 const SUP_SEARCH_PIECES: usize = 1 << 12;
-
-/// A_cl of spec §3 (A_p with the PI loop on ω_m); with Kp = Ki = 0 the x_c row and column
-/// are zero, so x_c stays 0 and the 5-vector norms equal the open-loop 4-vector ones.
-fn closed_loop(plant: &Plant, gains: PiGains) -> SMatrix<f64, CL, CL> {
-    let p = plant.params();
-    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
-    let mut a = SMatrix::<f64, CL, CL>::zeros();
-    a[(0, 1)] = 1.0;
-    a[(1, 0)] = -k * r_m * r_m / p.j_m;
-    a[(1, 1)] = -(p.b_m + gains.kp) / p.j_m;
-    a[(1, 2)] = k * r_m * r_l / p.j_m;
-    a[(1, 4)] = gains.ki / p.j_m;
-    a[(2, 3)] = 1.0;
-    a[(3, 0)] = k * r_m * r_l / p.j_l;
-    a[(3, 2)] = -k * r_l * r_l / p.j_l;
-    a[(3, 3)] = -p.b_l / p.j_l;
-    if gains.kp != 0.0 || gains.ki != 0.0 {
-        a[(4, 1)] = -1.0;
-    }
-    a
-}
-
-/// ρ(A) from a Schur decomposition with a capped iteration count; if that fails to converge,
-/// the Frobenius norm, which bounds ρ(A) from above (pieces then come out shorter, not wrong).
-fn spectral_radius<const N: usize>(a: &SMatrix<f64, N, N>) -> f64 {
-    let d = DMatrix::from_iterator(N, N, a.iter().copied());
-    match eigenvalues(&d) {
-        Some(eig) => eig.iter().map(|l| l.norm()).fold(0.0, f64::max),
-        None => d.norm(),
-    }
-}
-
-/// Eigenvalues by a Schur decomposition of at most `SCHUR_ITERATIONS` sweeps: None if it does
-/// not converge (nalgebra's default would iterate without limit).
-fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<nalgebra::Complex<f64>>> {
-    const SCHUR_ITERATIONS: usize = 10_000;
-    let schur = a.clone().try_schur(f64::EPSILON, SCHUR_ITERATIONS)?;
-    Some(schur.complex_eigenvalues().iter().copied().collect())
-}
-
-/// The loop in the coordinates h depends on: [u, ω_m, ω_L] and x_c when Ki ≠ 0. The angle
-/// translation (u fixed) is neither excited by D_1 nor seen by ω_L, and x_c without Ki feeds
-/// nothing back, so these are exactly the modes that h excites (spec §4 `bound_sup`).
-struct Reduced {
-    a: DMatrix<f64>,
-    out: DVector<f64>,
-    r_m: f64,
-    r_l: f64,
-}
-
-/// A bound on ∫_T^∞ |h| from the reduced state x(T). With ε = −α/2 (α the spectral abscissa),
-/// Cauchy–Schwarz with the weight e^{ε(s−T)} gives
-/// ∫_T^∞ |h| ≤ sqrt(1/(2ε)) · sqrt(xᵀ W x), W the observability Gramian of (A + εI, L):
-/// (A + εI)ᵀ W + W (A + εI) = −Lᵀ L. It decays at half the true rate, so it is never loose
-/// by more than the state's own decay.
-#[derive(Clone, Debug)]
-struct TailBound {
-    /// W in the reduced coordinates, zero-padded to 4×4 when x_c is not among them.
-    gramian: SMatrix<f64, 4, 4>,
-    epsilon: f64,
-    r_m: f64,
-    r_l: f64,
-    with_xc: bool,
-}
-
-impl TailBound {
-    /// The bound for the full response v (projected on the reduced coordinates).
-    fn of(&self, v: &[f64; CL]) -> f64 {
-        (self.squared(v) / (2.0 * self.epsilon)).sqrt()
-    }
-
-    /// Whether `of(v)` ≤ `limit` (≥ 0), without the square root and the division: a test
-    /// made after every advance until the response has decayed.
-    fn at_most(&self, v: &[f64; CL], limit: f64) -> bool {
-        self.squared(v) <= 2.0 * self.epsilon * limit * limit
-    }
-
-    fn squared(&self, v: &[f64; CL]) -> f64 {
-        let xc = if self.with_xc { v[4] } else { 0.0 };
-        let x = SVector::<f64, 4>::new(self.r_m * v[0] - self.r_l * v[2], v[1], v[OMEGA_L], xc);
-        x.dot(&(self.gramian * x)).max(0.0)
-    }
-}
-
-impl Reduced {
-    fn new(plant: &Plant, gains: PiGains) -> Reduced {
-        let p = plant.params();
-        let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
-        let n = if gains.ki != 0.0 { 4 } else { 3 };
-        let mut a = DMatrix::zeros(n, n);
-        a[(0, 1)] = r_m;
-        a[(0, 2)] = -r_l;
-        a[(1, 0)] = -k * r_m / p.j_m;
-        a[(1, 1)] = -(p.b_m + gains.kp) / p.j_m;
-        a[(2, 0)] = k * r_l / p.j_l;
-        a[(2, 2)] = -p.b_l / p.j_l;
-        if n == 4 {
-            a[(1, 3)] = gains.ki / p.j_m;
-            a[(3, 1)] = -1.0;
-        }
-        let mut out = DVector::zeros(n);
-        out[2] = 1.0;
-        Reduced { a, out, r_m, r_l }
-    }
-
-    fn tail_bound(&self) -> Result<TailBound, Unbounded> {
-        let n = self.a.nrows();
-        let eig = eigenvalues(&self.a).ok_or(Unbounded::Indeterminate)?;
-        let radius = eig.iter().map(|l| l.norm()).fold(0.0, f64::max);
-        let abscissa = eig.iter().map(|l| l.re).fold(f64::NEG_INFINITY, f64::max);
-        if abscissa >= -1e-12 * radius {
-            return Err(if abscissa.abs() <= 1e-12 * radius {
-                Unbounded::Undamped
-            } else {
-                Unbounded::Unstable { abscissa }
-            });
-        }
-        let epsilon = -0.5 * abscissa;
-        // (A + εI)ᵀ W + W (A + εI) = −Lᵀ L as (I ⊗ Bᵀ + Bᵀ ⊗ I) vec(W) = −vec(Lᵀ L), B = A + εI.
-        let eye = DMatrix::<f64>::identity(n, n);
-        let bt = (&self.a + &eye * epsilon).transpose();
-        let kron = eye.kronecker(&bt) + bt.kronecker(&eye);
-        let rhs = -DVector::from_iterator(n * n, (&self.out * self.out.transpose()).iter().copied());
-        let vec_w = kron.lu().solve(&rhs).ok_or(Unbounded::Undamped)?;
-        let w = DMatrix::from_iterator(n, n, vec_w.iter().copied());
-        let mut gramian = SMatrix::<f64, 4, 4>::zeros();
-        for i in 0..n {
-            for j in 0..n {
-                gramian[(i, j)] = 0.5 * (w[(i, j)] + w[(j, i)]);
-            }
-        }
-        Ok(TailBound {
-            gramian,
-            epsilon,
-            r_m: self.r_m,
-            r_l: self.r_l,
-            with_xc: n == 4,
-        })
-    }
-}

@@ -70,9 +70,7 @@ pub fn mode_matrix(plant: &Plant, mode: ContactMode) -> AugMatrix {
 /// piece converge fast and the remainder bounds of `roots` stay tight.
 pub fn fastest_rate(plant: &Plant) -> f64 {
     let p = plant.params();
-    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
-    let omega0 = (k * (r_m * r_m / p.j_m + r_l * r_l / p.j_l)).sqrt();
-    omega0.max(p.b_m / p.j_m).max(p.b_l / p.j_l)
+    plant.contact_frequency().max(p.b_m / p.j_m).max(p.b_l / p.j_l)
 }
 
 /// Length of a piece times the fastest rate.

@@ -4,16 +4,19 @@
 //! stepping, switches located to round-off) and [`SpeedErrorBound`] (spec §3 bounds).
 
 pub mod bound;
+pub mod closed_loop;
+pub mod kernel;
 pub mod linear;
 pub mod mode;
 pub mod params;
 pub mod roots;
 pub mod stepper;
+pub mod taylor;
 
 pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded};
 pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, Geometry, ParamError, Plant, PlantParams};
-pub use stepper::{Inputs, StepError, Stepper, SwitchEvent};
+pub use stepper::{max_step, Inputs, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP};
 
 /// `x.is_finite()` as one floating-point comparison, for the tests that run on every step:
 /// `is_finite` moves x to the integer unit and back.

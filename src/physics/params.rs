@@ -1,5 +1,6 @@
 //! Plant parameters for both drive trains and their validation (spec §1).
 
+use super::mode::ContactMode;
 use thiserror::Error;
 
 /// Which drive train the generic plant of spec §1 describes.
@@ -199,6 +200,20 @@ impl Plant {
     /// Transmission coordinate u = r_m θ_m − r_L θ_L.
     pub fn transmission(&self, theta_m: f64, theta_l: f64) -> f64 {
         self.r_m * theta_m - self.r_l * theta_l
+    }
+    /// Contact natural frequency ω₀ = sqrt(K (r_m²/J_m + r_L²/J_L)) [rad/s]: the undamped
+    /// oscillation of u on a flank, the fastest motion of an undamped plant.
+    pub fn contact_frequency(&self) -> f64 {
+        let p = &self.params;
+        (self.stiffness * (self.r_m * self.r_m / p.j_m + self.r_l * self.r_l / p.j_l)).sqrt()
+    }
+    /// dψ/dt = K u' in contact and 0 in the gap (spec §1), from the angle rates θ_m' and θ_L'
+    /// in the mode in force (at a switch: the mode entered).
+    pub fn force_rate(&self, mode: ContactMode, theta_m_rate: f64, theta_l_rate: f64) -> f64 {
+        match mode {
+            ContactMode::Free => 0.0,
+            _ => self.stiffness * self.transmission(theta_m_rate, theta_l_rate),
+        }
     }
     /// Force in the compliant member ψ = K·dz(u, g) (spec §1).
     pub fn force(&self, u: f64) -> f64 {

@@ -1,9 +1,11 @@
 //! Exact stepping between contact switches (spec §2).
 
+use super::kernel::KernelColumn;
 use super::linear::{self, AugMatrix, AugVector, AUG};
 use super::mode::{ContactMode, PlantState};
 use super::params::Plant;
-use super::roots::{self, Side, SignalRows, Sparse, TaylorModel};
+use super::roots::{self, Side, SignalRows};
+use super::taylor::{exp_series, Sparse, TaylorModel};
 use thiserror::Error;
 
 /// Inputs over one step: values at the step start and their slopes over the step.
@@ -59,6 +61,15 @@ pub enum StepError {
 /// Most pieces one step may be cut into (bounds the work of a step: about 0.1 s of CPU).
 pub const MAX_PIECES: usize = 1 << 20;
 
+/// Longest admissible step, in periods of the undamped contact oscillation.
+pub const MAX_PERIODS_PER_STEP: f64 = 1e4;
+
+/// The largest admissible step [s]: [`MAX_PERIODS_PER_STEP`] periods of the undamped contact
+/// oscillation (see [`Plant::contact_frequency`]); finite, so that a step no longer than it is.
+pub fn max_step(plant: &Plant) -> f64 {
+    (MAX_PERIODS_PER_STEP * 2.0 * std::f64::consts::PI / plant.contact_frequency()).min(f64::MAX)
+}
+
 /// One contact mode: its augmented matrix and the derivative rows of u along it.
 #[derive(Clone, Debug)]
 struct ModeDynamics {
@@ -73,7 +84,7 @@ struct ModeDynamics {
 /// Stored by column, eight outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel {
-    cols: [roots::KernelColumn<KERNEL_OUT>; AUG],
+    cols: [KernelColumn<KERNEL_OUT>; AUG],
 }
 
 const KERNEL_OUT: usize = 8;
@@ -83,7 +94,7 @@ const GROWTH_ROW: usize = 7;
 impl PieceKernel {
     fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
         PieceKernel {
-            cols: roots::KernelColumn::table(|r, j| match r {
+            cols: KernelColumn::table(|r, j| match r {
                 0..=4 => phi[(r, j)],
                 5 => u_rows.row(2)[j],
                 6 => u_rows.row(3)[j],
@@ -238,7 +249,7 @@ impl Stepper {
         let len = h / pieces;
         let kernel = [0, 1, 2].map(|i| {
             let ModeDynamics { m, sparse, u_rows } = &self.modes[i];
-            PieceKernel::new(&roots::exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
+            PieceKernel::new(&exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
         });
         self.cache = Some(StepCache {
             h,

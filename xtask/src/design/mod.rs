@@ -1,8 +1,16 @@
 //! `cargo xtask design`: the paper's open question ("permissible values of compliance and
-//! backlash to yield a given accuracy") answered for one plant, from `backlash_fmu::design`.
+//! backlash to yield a given accuracy") answered for one plant: the computations are in [`study`], this module parses and prints.
 
-use backlash_fmu::design::{self, Crossing, GainDesign, StiffnessStudy};
-use backlash_fmu::physics::{Geometry, PiGains, Plant, PlantParams};
+pub mod study;
+
+use std::io;
+
+use serde::Serialize;
+use serde_json::ser::Formatter;
+use serde_json::{json, Value};
+
+use backlash_fmu::physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
+use study::{Crossing, GainDesign, StiffnessStudy};
 
 const USAGE: &str = "\
 usage: cargo xtask design --accuracy EPS [options] [--json]
@@ -123,8 +131,8 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
         };
         match flag {
             "--accuracy" => accuracy = Some(positive(value)?),
-            "--delta" => params = design::with_half_gap(&params, positive(value)?),
-            "--k" => params = design::with_stiffness(&params, positive(value)?),
+            "--delta" => params = study::with_half_gap(&params, positive(value)?),
+            "--k" => params = study::with_stiffness(&params, positive(value)?),
             "--kp" => kp = Some(value),
             "--ki" => ki = Some(value),
             "--jm" => params.j_m = positive(value)?,
@@ -150,23 +158,23 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
     )))
 }
 
-/// Runs the design computations of `backlash_fmu::design` for `request`.
+/// Runs the design computations of [`study`] for `request`.
 pub fn solve(request: Request) -> Result<Answer, String> {
     let params = request.params;
-    let plant = Plant::new(design::with_half_gap(&params, 0.0)).map_err(|e| e.to_string())?;
+    let plant = Plant::new(study::with_half_gap(&params, 0.0)).map_err(|e| e.to_string())?;
     let (gains, rule) = match request.gains {
         Some(g) => (g, None),
         None => {
-            let d = design::best_damped_gains(&plant).map_err(|e| e.to_string())?;
+            let d = study::best_damped_gains(&plant).map_err(|e| e.to_string())?;
             (d.gains, Some(d))
         }
     };
-    let min_damping = design::min_damping_ratio(&plant, gains);
+    let min_damping = study::min_damping_ratio(&plant, gains);
     let bound_sup_per_delta =
-        design::bound_sup(&design::with_half_gap(&params, 1.0), gains).map_err(|e| e.to_string())?;
-    let bound_sup_nominal = design::bound_sup(&params, gains).map_err(|e| e.to_string())?;
-    let delta_max = design::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
-    let study = design::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+        study::bound_sup(&study::with_half_gap(&params, 1.0), gains).map_err(|e| e.to_string())?;
+    let bound_sup_nominal = study::bound_sup(&params, gains).map_err(|e| e.to_string())?;
+    let delta_max = study::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+    let study = study::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
     Ok(Answer {
         request,
         gains,
@@ -213,7 +221,7 @@ fn print_text(a: &Answer) {
         p.b_m,
         p.b_l,
         shaft_k(p),
-        design::half_gap(p)
+        study::half_gap(p)
     );
     match &a.rule {
         Some(_) => println!(
@@ -235,7 +243,7 @@ fn print_text(a: &Answer) {
         "delta_max = {:.9e} rad (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
         a.delta_max,
         2.0 * a.delta_max,
-        design::half_gap(p),
+        study::half_gap(p),
         a.bound_sup_nominal
     );
     let s = &a.study;
@@ -277,105 +285,122 @@ fn join(values: &[f64]) -> String {
     values.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", ")
 }
 
-/// A JSON number; JSON has no infinity or NaN, so those become null.
-fn num(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:?}")
-    } else {
-        "null".into()
-    }
-}
-
-fn crossing_json(c: &Option<Crossing>) -> String {
+/// A crossing's details, or null.
+fn crossing_json(c: &Option<Crossing>) -> Value {
     match c {
-        None => "null".into(),
-        Some(c) => format!(
-            "{{\"k\": {}, \"bound_sup\": {}, \"bracket\": [{}, {}], \"monotone_in_bracket\": {}, \"decreasing\": {}}}",
-            num(c.k),
-            num(c.bound_sup),
-            num(c.bracket.0),
-            num(c.bracket.1),
-            c.monotone_in_bracket,
-            c.decreasing
-        ),
+        None => Value::Null,
+        Some(c) => json!({
+            "k": c.k,
+            "bound_sup": c.bound_sup,
+            "bracket": [c.bracket.0, c.bracket.1],
+            "monotone_in_bracket": c.monotone_in_bracket,
+            "decreasing": c.decreasing,
+        }),
     }
 }
 
-/// The answer as one JSON object (keys documented in the README's design section).
+/// The answer as one JSON object (keys documented in the README's design section). Numbers
+/// are shortest round-trip; JSON has no infinity or NaN, so those become null.
 pub fn to_json(a: &Answer) -> String {
     let p = &a.request.params;
     let s = &a.study;
     let poles = match &a.rule {
         Some(d) => d.poles.to_vec(),
         None => {
-            let plant = Plant::new(design::with_half_gap(p, 0.0)).expect("validated in solve");
-            design::closed_loop_poles(&plant, a.gains).to_vec()
+            let plant = Plant::new(study::with_half_gap(p, 0.0)).expect("validated in solve");
+            closed_loop::reduced_loop_poles(&plant, a.gains).to_vec()
         }
     };
-    let poles = poles
-        .iter()
-        .map(|z| format!("[{}, {}]", num(z.re), num(z.im)))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let scan = s
-        .scan
-        .iter()
-        .map(|(k, b)| format!("[{}, {}]", num(*k), num(*b)))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let intervals = s
-        .intervals
-        .iter()
-        .map(|iv| {
-            format!(
-                "[{}, {}]",
-                iv.lo.map_or("null".into(), |c| num(c.k)),
-                iv.hi.map_or("null".into(), |c| num(c.k))
-            )
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
-    let turning = s.turning_points.iter().map(|v| num(*v)).collect::<Vec<_>>().join(", ");
-    let fields =
-        [
-            (
-                "plant",
-                format!(
-            "{{\"form\": \"shaft\", \"J_m\": {}, \"J_L\": {}, \"b_m\": {}, \"b_L\": {}, \"k\": {}, \"Delta\": {}}}",
-            num(p.j_m), num(p.j_l), num(p.b_m), num(p.b_l), num(shaft_k(p)), num(design::half_gap(p))
-        ),
-            ),
-            ("accuracy", num(a.request.accuracy)),
-            (
-                "gain_rule",
-                if a.rule.is_some() {
-                    "\"best-damped: maximise the smallest damping ratio of the backlash-free closed-loop poles\"".into()
-                } else {
-                    "\"given\"".into()
-                },
-            ),
-            ("Kp", num(a.gains.kp)),
-            ("Ki", num(a.gains.ki)),
-            ("min_damping_ratio", num(a.min_damping)),
-            ("poles", format!("[{poles}]")),
-            ("bound_sup_per_unit_delta", num(a.bound_sup_per_delta)),
-            ("bound_sup_at_delta", num(a.bound_sup_nominal)),
-            ("delta_max", num(a.delta_max)),
-            ("k_min", s.k_min().map_or("null".into(), |c| num(c.k))),
-            ("k_max", s.k_max().map_or("null".into(), |c| num(c.k))),
-            ("k_min_detail", crossing_json(&s.k_min())),
-            ("k_max_detail", crossing_json(&s.k_max())),
-            ("k_monotone", s.monotone().to_string()),
-            ("k_turning_points", format!("[{turning}]")),
-            ("k_intervals", format!("[{intervals}]")),
-            ("k_scan", format!("[{scan}]")),
-        ];
-    let body = fields
-        .iter()
-        .map(|(k, v)| format!("  \"{k}\": {v}"))
-        .collect::<Vec<_>>()
-        .join(",\n");
-    format!("{{\n{body}\n}}")
+    let gain_rule = if a.rule.is_some() {
+        "best-damped: maximise the smallest damping ratio of the backlash-free closed-loop poles"
+    } else {
+        "given"
+    };
+    let value = json!({
+        "plant": {
+            "form": "shaft",
+            "J_m": p.j_m,
+            "J_L": p.j_l,
+            "b_m": p.b_m,
+            "b_L": p.b_l,
+            "k": shaft_k(p),
+            "Delta": study::half_gap(p),
+        },
+        "accuracy": a.request.accuracy,
+        "gain_rule": gain_rule,
+        "Kp": a.gains.kp,
+        "Ki": a.gains.ki,
+        "min_damping_ratio": a.min_damping,
+        "poles": poles.iter().map(|z| json!([z.re, z.im])).collect::<Vec<_>>(),
+        "bound_sup_per_unit_delta": a.bound_sup_per_delta,
+        "bound_sup_at_delta": a.bound_sup_nominal,
+        "delta_max": a.delta_max,
+        "k_min": s.k_min().map(|c| c.k),
+        "k_max": s.k_max().map(|c| c.k),
+        "k_min_detail": crossing_json(&s.k_min()),
+        "k_max_detail": crossing_json(&s.k_max()),
+        "k_monotone": s.monotone(),
+        "k_turning_points": s.turning_points,
+        "k_intervals": s.intervals.iter().map(|iv| json!([iv.lo.map(|c| c.k), iv.hi.map(|c| c.k)])).collect::<Vec<_>>(),
+        "k_scan": s.scan.iter().map(|(k, b)| json!([k, b])).collect::<Vec<_>>(),
+    });
+    laid_out(&value)
+}
+
+/// `value` as text in the [`Layout`].
+fn laid_out(value: &Value) -> String {
+    let mut out = Vec::new();
+    let mut writer = serde_json::Serializer::with_formatter(&mut out, Layout { depth: 0 });
+    value
+        .serialize(&mut writer)
+        .expect("a JSON value serializes into memory");
+    String::from_utf8(out).expect("serde_json writes UTF-8")
+}
+
+/// The top-level object one key per line, everything inside it on one line with a space after
+/// each `:` and `,`: one line per answer, and the scan stays a short block.
+struct Layout {
+    depth: usize,
+}
+
+impl Formatter for Layout {
+    fn begin_array<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth += 1;
+        w.write_all(b"[")
+    }
+
+    fn end_array<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth -= 1;
+        w.write_all(b"]")
+    }
+
+    fn begin_array_value<W: ?Sized + io::Write>(&mut self, w: &mut W, first: bool) -> io::Result<()> {
+        w.write_all(if first { b"" } else { b", " })
+    }
+
+    fn begin_object<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth += 1;
+        w.write_all(b"{")
+    }
+
+    fn end_object<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        self.depth -= 1;
+        w.write_all(if self.depth == 0 { b"\n}" } else { b"}" })
+    }
+
+    fn begin_object_key<W: ?Sized + io::Write>(&mut self, w: &mut W, first: bool) -> io::Result<()> {
+        let separator: &[u8] = match (self.depth, first) {
+            (1, true) => b"\n  ",
+            (1, false) => b",\n  ",
+            (_, true) => b"",
+            (_, false) => b", ",
+        };
+        w.write_all(separator)
+    }
+
+    fn begin_object_value<W: ?Sized + io::Write>(&mut self, w: &mut W) -> io::Result<()> {
+        w.write_all(b": ")
+    }
 }
 
 #[cfg(test)]
@@ -406,12 +431,23 @@ mod tests {
     }
 
     #[test]
+    fn the_layout_puts_each_top_level_key_on_its_line() {
+        let value = json!({"a": {"x": 1.0, "y": [f64::INFINITY, 2.5e-7]}, "b": [], "c": "q\"uote"});
+        let text = laid_out(&value);
+        assert_eq!(
+            text,
+            "{\n  \"a\": {\"x\": 1.0, \"y\": [null, 2.5e-7]},\n  \"b\": [],\n  \"c\": \"q\\\"uote\"\n}"
+        );
+        assert_eq!(serde_json::from_str::<Value>(&text).unwrap()["c"], "q\"uote");
+    }
+
+    #[test]
     fn parses_both_flag_forms() {
         let (r, json) = parse(&args(&["--accuracy=0.02", "--delta", "1e-3", "--json"]))
             .unwrap()
             .unwrap();
         assert_eq!(r.accuracy, 0.02);
-        assert_eq!(design::half_gap(&r.params), 1e-3);
+        assert_eq!(study::half_gap(&r.params), 1e-3);
         assert!(json && r.gains.is_none());
     }
 }

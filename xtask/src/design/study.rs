@@ -1,4 +1,4 @@
-//! Design computations on top of [`crate::physics`]: PI gains chosen by a stated rule, and the
+//! Design computations on top of [`backlash_fmu::physics`]: PI gains chosen by a stated rule, and the
 //! paper's open question (its "Summary and future work"): which backlash Δ and which stiffness K
 //! keep the load-speed deviation caused by backlash within a required accuracy ε.
 //!
@@ -9,11 +9,12 @@
 //!   logarithmic scan and refined by a bracketing root finder (Illinois regula falsi), with the
 //!   monotonicity of every bracket checked.
 
-use nalgebra::{Complex, Matrix4};
+use nalgebra::Complex;
 use thiserror::Error;
 
-use crate::physics::bound::BoundError;
-use crate::physics::{Geometry, ParamError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
+use backlash_fmu::physics::bound::BoundError;
+use backlash_fmu::physics::closed_loop::reduced_loop_poles;
+use backlash_fmu::physics::{Geometry, ParamError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
 
 /// Why a design computation has no answer.
 #[derive(Clone, Debug, PartialEq, Error)]
@@ -74,32 +75,6 @@ pub fn with_half_gap(params: &PlantParams, value: f64) -> PlantParams {
 // The backlash-free closed loop and the gain rule
 // ---------------------------------------------------------------------------------------------
 
-/// The backlash-free closed loop of spec §3 in the minimal state x = [u, ω_m, ω_L, x_c].
-///
-/// θ_m and θ_L enter the dynamics only through u = r_m θ_m − r_L θ_L, so the 5-state A_cl of
-/// spec §3 has the spectrum of this matrix plus one eigenvalue 0 (a rigid rotation of the whole
-/// train), which neither τ_m nor the backlash disturbance φ excites and ω_L does not see.
-pub fn closed_loop_matrix(plant: &Plant, gains: PiGains) -> Matrix4<f64> {
-    let p = plant.params();
-    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
-    #[rustfmt::skip]
-    let a = Matrix4::new(
-        0.0,              r_m,                     -r_l,          0.0,
-        -k * r_m / p.j_m, -(p.b_m + gains.kp) / p.j_m, 0.0,       gains.ki / p.j_m,
-        k * r_l / p.j_l,  0.0,                     -p.b_l / p.j_l, 0.0,
-        0.0,              -1.0,                    0.0,           0.0,
-    );
-    a
-}
-
-/// The four poles of the backlash-free closed loop (see [`closed_loop_matrix`]).
-pub fn closed_loop_poles(plant: &Plant, gains: PiGains) -> [Complex<f64>; 4] {
-    let ev = closed_loop_matrix(plant, gains).complex_eigenvalues();
-    let mut poles = [ev[0], ev[1], ev[2], ev[3]];
-    poles.sort_by(|a, b| a.re.total_cmp(&b.re).then(a.im.total_cmp(&b.im)));
-    poles
-}
-
 /// Damping ratio ζ = −Re λ / |λ| of a pole (0 for a pole at the origin; negative if unstable).
 pub fn damping_ratio(pole: Complex<f64>) -> f64 {
     let modulus = pole.norm();
@@ -112,7 +87,7 @@ pub fn damping_ratio(pole: Complex<f64>) -> f64 {
 
 /// The smallest damping ratio among the closed-loop poles: the gain rule's objective.
 pub fn min_damping_ratio(plant: &Plant, gains: PiGains) -> f64 {
-    closed_loop_poles(plant, gains)
+    reduced_loop_poles(plant, gains)
         .iter()
         .map(|&p| damping_ratio(p))
         .fold(f64::INFINITY, f64::min)
@@ -136,10 +111,10 @@ pub struct GainDesign {
 /// objective is a max–min, not smooth at the optimum, where two pole pairs meet).
 pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
     let p = plant.params();
-    let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
+    let (r_m, r_l) = (plant.r_m(), plant.r_l());
     // Load inertia reflected to the motor, and the locked-free resonance of the two inertias.
     let j_eq = p.j_m + p.j_l * (r_m / r_l).powi(2);
-    let omega_p = (k * (r_m * r_m / p.j_m + r_l * r_l / p.j_l)).sqrt();
+    let omega_p = plant.contact_frequency();
     let (ln_kp0, ln_ki0) = ((j_eq * omega_p).ln(), (j_eq * omega_p * omega_p).ln());
 
     let objective = |x: [f64; 2]| -> f64 {
@@ -190,7 +165,7 @@ pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
     Ok(GainDesign {
         gains,
         min_damping: -best.1,
-        poles: closed_loop_poles(plant, gains),
+        poles: reduced_loop_poles(plant, gains),
     })
 }
 
@@ -613,7 +588,7 @@ mod tests {
             jm * jl,
         ];
         let plant = Plant::new(rig(0.0)).unwrap();
-        for pole in closed_loop_poles(&plant, gains) {
+        for pole in reduced_loop_poles(&plant, gains) {
             let mut value = Complex::new(0.0, 0.0);
             let mut scale = 0.0;
             for (n, &cn) in c.iter().enumerate() {
