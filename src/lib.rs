@@ -1,4 +1,4 @@
-//! Compliance and backlash in series: an exact drive-train model (spec `model.md`), served as
+//! Compliance and backlash in series: an exact drive-train model (docs/model.md), served as
 //! FMI 2.0 Co-Simulation units.
 //!
 //! Layers, each depending only on the one before: [`physics`] (pure numerics) ←

@@ -1,5 +1,5 @@
 //! Stepping through the FMU against independent computations: the closed-form solution of the
-//! backlash-free, undamped shaft (spec §1 with Δ = 0), the free-flight contact time, ramp
+//! backlash-free, undamped shaft (docs/model.md §1 with Δ = 0), the free-flight contact time, ramp
 //! inputs, and bit-identical reruns after fmi2Reset and after a serialized FMU state.
 
 use backlash_fmu::fmu::{Collected, Instance, LogCategory, Status, MODELS};
@@ -37,7 +37,7 @@ fn close(actual: f64, expected: f64, scale: f64, what: &str) {
 fn backlash_free_undamped_shaft_follows_the_closed_form_solution() {
     let log = Collected::default();
     let mut inst = shaft(&[("Delta", 0.0), ("b_m", 0.0), ("b_L", 0.0)], Some(log.clone()), false);
-    // Undamped: h never decays, so bound_sup is +inf with a warning (spec §4).
+    // Undamped: h never decays, so bound_sup is +inf with a warning (docs/model.md §4).
     assert_eq!(inst.exit_initialization_mode().unwrap(), Status::Warning);
     assert!(log
         .0

@@ -176,8 +176,8 @@ fn every_variable_is_served_by_its_typed_get_and_set() {
 }
 
 #[test]
-fn calculated_outputs_at_the_start_match_the_spec_formulas() {
-    // Shaft: psi = k dz(theta_m - theta_L, Delta) (spec §1), bounds 0 at the start (spec §4).
+fn calculated_outputs_at_the_start_match_the_model_formulas() {
+    // Shaft: psi = k dz(theta_m - theta_L, Delta) (docs/model.md §1), bounds 0 at the start (docs/model.md §4).
     let model = &MODELS[0];
     let mut inst = Instance::new(model, None, false);
     inst.set_real(&[model.vr("theta_m"), model.vr("theta_L")], &[0.01, -0.002])
@@ -203,7 +203,7 @@ fn calculated_outputs_at_the_start_match_the_spec_formulas() {
     inst.get_integer(&[model.vr("contact")], &mut contact).unwrap();
     assert_eq!(contact, [1]);
 
-    // Belt: u = R_1 theta_m - alpha_1 theta_L, g = alpha_2 Delta (spec §1 table).
+    // Belt: u = R_1 theta_m - alpha_1 theta_L, g = alpha_2 Delta (docs/model.md §1 table).
     let model = &MODELS[1];
     let mut inst = Instance::new(model, None, false);
     inst.set_real(&[model.vr("theta_m"), model.vr("theta_L")], &[-0.01, 0.0])

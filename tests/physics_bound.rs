@@ -1,5 +1,5 @@
-//! `SpeedErrorBound` (spec §3) against computations made here: the loop matrices written out
-//! from the spec (support/closed_loop.rs), the impulse response h(s) = L_c e^{A_cl s} D_1 and
+//! `SpeedErrorBound` (docs/model.md §3) against computations made here: the loop matrices written out
+//! from the documentation (support/closed_loop.rs), the impulse response h(s) = L_c e^{A_cl s} D_1 and
 //! its integrals from the Taylor integrator, the worst admissible disturbance simulated on the
 //! linear loop, and the continuous PI loop simulated with and without backlash.
 
@@ -46,7 +46,7 @@ fn the_chosen_loop_is_stable_and_h_changes_sign() {
     assert!(sigma < -0.2, "the loop should be well damped: {sigma}");
     let mut ir = ImpulseResponse::new(&lp);
     ir.advance(5.0);
-    // With integral action ∫h = 0 (spec §3), so h must change sign.
+    // With integral action ∫h = 0 (docs/model.md §3), so h must change sign.
     assert!(!ir.sign_changes.is_empty());
 }
 
@@ -87,7 +87,7 @@ fn worst_case_disturbance_attains_the_bound() {
 fn bound_holds_for_the_backlash_loop_and_the_printed_formula_does_not() {
     // Reversing reference ω_ref = A sin(w t) through the continuous PI loop, with the gap and
     // without (Δ = 0), from rest: |ω_L^b − ω_L^0| must stay below bound(t) everywhere and is
-    // expected to exceed bound_paper(t) (spec §3: eq. (37) is not a bound).
+    // expected to exceed bound_paper(t) (docs/model.md §3: eq. (37) is not a bound).
     let params = PlantParams::paper_rig(1.78e-3);
     let f = GenericForm::from_params(&params);
     let (amp, w) = (1.0, 2.0 * std::f64::consts::PI * 0.5);

@@ -1,11 +1,11 @@
 //! `Stepper::step` against closed forms, one communication step at a time from the stepper's
 //! own state (so each step's exactness is measured, not an accumulated drift):
-//! - no contact (spec §1 with ψ = 0): each inertia alone, J ω' = τ − b ω, ZOH and FOH inputs;
+//! - no contact (docs/model.md §1 with ψ = 0): each inertia alone, J ω' = τ − b ω, ZOH and FOH inputs;
 //! - permanent undamped contact (b = 0, Δ = 0 or preloaded): q'' + Ω² q = F(t);
-//! - Δ = 0 with damping: the linear plant of spec §3 through the test's own e^{M t}.
+//! - Δ = 0 with damping: the linear plant of docs/model.md §3 through the test's own e^{M t}.
 //!
 //! Tolerance 1e-12 relative to the amplitude of each kind of quantity over the run (angles,
-//! speeds, u; u at least g): spec §2 promises an exact step, so only round-off may remain.
+//! speeds, u; u at least g): docs/model.md §2 promises an exact step, so only round-off may remain.
 
 mod support;
 
@@ -154,7 +154,7 @@ fn undamped_permanent_contact_matches_the_closed_form() {
 
 #[test]
 fn zero_gap_reproduces_the_linear_plant() {
-    // Δ = 0 is the backlash-free plant (spec §1): z' = A_p z + B τ, stepped by e^{M h};
+    // Δ = 0 is the backlash-free plant (docs/model.md §1): z' = A_p z + B τ, stepped by e^{M h};
     // u through the same construction in gap coordinates.
     for params in [rig(0.0, 0.05), rig(0.0, 0.0), belt_damped(0.0, 0.01, 0.01)] {
         let f = GenericForm::from_params(&params);

@@ -1,4 +1,4 @@
-//! `Stepper::time_derivative` against the right-hand side of spec §1 written out here, its
+//! `Stepper::time_derivative` against the right-hand side of docs/model.md §1 written out here, its
 //! second derivative, and a Richardson-extrapolated difference quotient of `Stepper::step`.
 
 use backlash_fmu::physics::{ContactMode, Inputs, Plant, PlantParams, PlantState, Stepper};
@@ -37,7 +37,7 @@ fn first_and_second_derivatives_match_the_equations_of_motion() {
         dtau_l: -0.5,
     };
     // (θ_m, ω_m, θ_L, ω_L), expected mode, δ, σ. The last two sit exactly on u = g: the mode
-    // is the one being entered (spec §4), which decides the second derivative.
+    // is the one being entered (docs/model.md §4), which decides the second derivative.
     let cases = [
         ((0.5e-3, 0.7, 0.0, 0.1), ContactMode::Free, 0.0, 0.0),
         ((0.01, 0.7, 0.002, 0.1), ContactMode::Positive, 1.0, 1.0),

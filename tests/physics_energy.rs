@@ -1,4 +1,4 @@
-//! Energy balance along runs with many switches (spec §1; §5: the contact is elastic, no
+//! Energy balance along runs with many switches (docs/model.md §1; §5: the contact is elastic, no
 //! energy is lost at a switch):
 //!   ½K dz(u,g)² + ½J_m ω_m² + ½J_L ω_L² − ∫(τ_m ω_m + τ_L ω_L) dt + ∫(b_m ω_m² + b_L ω_L²) dt
 //! is constant. The stored energy is taken from the stepper's states at the communication
@@ -10,7 +10,7 @@
 //! dissipation over the run): the stepper's states agree with the reference's to ~1e-13
 //! relative on these runs (physics_switching.rs), which moves ½Jω² and ½K dz² by a few 1e-13
 //! of the scale; 1e-11 leaves that margin and is still 4 orders below the ~1e-7 that a solver
-//! stepping over switches without locating them would show (spec §1).
+//! stepping over switches without locating them would show (docs/model.md §1).
 
 mod support;
 

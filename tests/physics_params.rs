@@ -1,6 +1,6 @@
 //! Bad parameters, step sizes, inputs, states and gains give an error that names the culprit
 //! (a clear error, never a crash or a silent NaN). Expected names are the
-//! spec §4 variable names.
+//! docs/model.md §4 variable names.
 
 mod support;
 
@@ -175,7 +175,7 @@ fn bad_steps_inputs_and_states_are_refused_and_leave_the_state_alone() {
             let r = stepper.step(&mut st, &inputs, 0.01, &mut |_| {});
             match r {
                 Err(StepError::NonFiniteInput { name, value }) => {
-                    // The value inputs carry their spec §4 names; a slope must at least name its input.
+                    // The value inputs carry their docs/model.md §4 names; a slope must at least name its input.
                     let base = label.trim_start_matches('d');
                     assert!(name.contains(base), "{label} = {v}: error names {name}");
                     assert!(value.is_nan() == v.is_nan() && (v.is_nan() || value == v));

@@ -40,7 +40,7 @@ fn phi_and_oscillator_kernels_agree_across_their_branches() {
 
 #[test]
 fn reference_matches_free_inertias_in_closed_form() {
-    // Δ = 1000 rad: the gap is never closed, each inertia obeys J ω' = τ − b ω (spec §1, ψ = 0).
+    // Δ = 1000 rad: the gap is never closed, each inertia obeys J ω' = τ − b ω (docs/model.md §1, ψ = 0).
     let mut worst: f64 = 0.0;
     for b in [0.0, 0.05, 5.0] {
         let params = rig(1000.0, b);
@@ -165,7 +165,7 @@ fn reference_matches_undamped_permanent_contact_in_closed_form() {
 
 #[test]
 fn own_expm_matches_nalgebra_and_reference_matches_damped_linear_plant() {
-    // Damped, Δ = 0: the linear plant of spec §3 (A_p), no closed form short of e^{A t}.
+    // Damped, Δ = 0: the linear plant of docs/model.md §3 (A_p), no closed form short of e^{A t}.
     let params = rig(0.0, 0.05);
     let r = Reference::new(&params);
     let f = r.form;
@@ -277,7 +277,7 @@ fn reference_locates_a_grazing_touch_exactly() {
 #[test]
 fn reference_conserves_energy_across_many_switches() {
     // ½K dz² + ½J_m ω_m² + ½J_L ω_L² − ∫(τ_m ω_m + τ_L ω_L) + ∫(b_m ω_m² + b_L ω_L²) is constant
-    // (spec §1; §5: the contact is elastic). The integrals come from the reference's own dense
+    // (docs/model.md §1; §5: the contact is elastic). The integrals come from the reference's own dense
     // output, integrated exactly as polynomials.
     for params in [rig(3.56e-3, 0.05), rig(5.38e-3, 0.0), belt_damped(1e-4, 0.01, 0.01)] {
         let r = Reference::new(&params);

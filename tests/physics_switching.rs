@@ -2,7 +2,7 @@
 //! (support/reference.rs, validated in physics_reference.rs to ~1e-13): states within 1e-9
 //! relative to the amplitude of each quantity, and the same switches (number, direction) at
 //! the same times within 1e-10 s. Also grazing touches that begin and end inside one step
-//! (spec §2), several switches per step, and step sizes from 1 ns to 10 s; and the FMU's quiet
+//! (docs/model.md §2), several switches per step, and step sizes from 1 ns to 10 s; and the FMU's quiet
 //! path (`Stepper::quiet_step`) against `Stepper::step`.
 
 mod support;
@@ -16,7 +16,7 @@ use support::rigs::belt;
 const TOL_STATE: f64 = 1e-9;
 const TOL_TIME: f64 = 1e-10;
 
-/// The paper's gaps (spec §4): 1.55, 3.56, 5.38 mm, read as Δ = gap/2 and as Δ = gap.
+/// The paper's gaps (docs/model.md §4): 1.55, 3.56, 5.38 mm, read as Δ = gap/2 and as Δ = gap.
 const PAPER_DELTAS: [f64; 4] = [0.775e-3, 1.78e-3, 3.56e-3, 5.38e-3];
 
 #[test]
@@ -57,7 +57,7 @@ fn paper_rig_reversing_torque_communication_steps() {
 
 #[test]
 fn bouncing_in_the_gap_gives_many_switches_per_long_step() {
-    // No torque, a relative speed: the teeth bounce flank to flank (elastic contact, spec §5),
+    // No torque, a relative speed: the teeth bounce flank to flank (elastic contact, docs/model.md §5),
     // tens of switches inside each 1–10 s step.
     for delta in [1.78e-3, 5.38e-3] {
         let params = PlantParams::paper_rig(delta);
@@ -97,7 +97,7 @@ fn belt_geometry_with_reversing_torque() {
 #[test]
 fn each_step_is_exact_to_round_off() {
     // Local error: the reference restarts from the stepper's state at every step, so what is
-    // measured is the error made within one step (spec §2: exact up to round-off), not its
+    // measured is the error made within one step (docs/model.md §2: exact up to round-off), not its
     // growth along a trajectory whose switches amplify earlier differences.
     let cases: Vec<(&str, PlantParams, Vec<(Inputs, f64)>)> = vec![
         (

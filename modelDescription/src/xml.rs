@@ -28,15 +28,15 @@ fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
     let names: Vec<&str> = match v.name {
         // psi = K dz(u, g): angles and geometry.
         "psi" => ["theta_m", "theta_L"].iter().chain(geometry).copied().collect(),
-        // The mode exactly on +-g depends on the sign of u' as well (spec §4 `contact`).
+        // The mode exactly on +-g depends on the sign of u' as well (docs/model.md §4 `contact`).
         "contact" => ["theta_m", "omega_m", "theta_L", "omega_L"]
             .iter()
             .chain(geometry)
             .copied()
             .collect(),
-        // Both bounds are 0 at the start time (spec §4: time measured from the start).
+        // Both bounds are 0 at the start time (docs/model.md §4: time measured from the start).
         "bound" | "bound_paper" => vec![],
-        // bound_sup depends on everything that defines the loop of spec §3.
+        // bound_sup depends on everything that defines the loop of docs/model.md §3.
         "bound_sup" => ["J_m", "J_L", "b_m", "b_L", "Kp", "Ki"]
             .iter()
             .chain(geometry)
@@ -181,7 +181,7 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     x.push_str("  <ModelStructure>\n    <Outputs>\n");
     for (i, v) in model.variables.iter().enumerate() {
         if v.causality == Causality::Output {
-            // No direct feedthrough: every output is a function of the state (spec §1).
+            // No direct feedthrough: every output is a function of the state (docs/model.md §1).
             let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"\"/>", i + 1);
         }
     }

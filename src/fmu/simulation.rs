@@ -1,5 +1,5 @@
 //! The physics behind one instance after initialization: plant, exact stepper, state and the
-//! speed-error bound (spec §1–§3), assembled from the variable values.
+//! speed-error bound (docs/model.md §1–§3), assembled from the variable values.
 
 use super::adapter::{self, Values};
 use super::error::FmuError;
@@ -13,7 +13,7 @@ pub struct Simulation {
     pub stepper: Stepper,
     pub state: PlantState,
     pub bound: SpeedErrorBound,
-    /// bound_sup, or why it is +∞ (spec §3).
+    /// bound_sup, or why it is +∞ (docs/model.md §3).
     pub bound_sup: Result<f64, Unbounded>,
     /// The longest step accepted ([`max_step`]).
     pub max_step: f64,

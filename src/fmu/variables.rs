@@ -29,7 +29,7 @@ pub struct Variable {
 }
 
 impl Variable {
-    /// Outputs with initial = exact carry the settable initial state (spec §4).
+    /// Outputs with initial = exact carry the settable initial state (docs/model.md §4).
     pub fn is_initial_state(&self) -> bool {
         self.causality == Causality::Output && self.initial == Initial::Exact
     }
@@ -64,7 +64,7 @@ impl ModelInfo {
     }
 
     /// The value reference of `name`; panics if the model has no such variable (for tests
-    /// and examples that name variables of spec §4).
+    /// and examples that name variables of docs/model.md §4).
     pub fn vr(&self, name: &str) -> u32 {
         self.by_name(name)
             .unwrap_or_else(|| panic!("{} has no variable {name}", self.identifier))

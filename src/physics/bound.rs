@@ -1,4 +1,4 @@
-//! The speed-error bounds of spec §3 for a PI loop on motor speed.
+//! The speed-error bounds of docs/model.md §3 for a PI loop on motor speed.
 
 pub use super::closed_loop::PiGains;
 
@@ -113,7 +113,7 @@ impl PieceKernel {
     }
 }
 
-/// bound(t), bound_paper(t) and bound_sup of spec §3, advanced alongside the simulation.
+/// bound(t), bound_paper(t) and bound_sup of docs/model.md §3, advanced alongside the simulation.
 ///
 /// h(s) = L_c e^{A s} D_1 is tracked exactly through the augmented state [v, ∫v]; ∫|h| is the
 /// sum of |∫h| between the sign changes of h, which are located like contact switches
@@ -419,7 +419,7 @@ impl SpeedErrorBound {
         self.scale * self.state.integral.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
-    /// d bound/dt = K g |h(t)|, h = ω_L entry of e^{A t} D_1 (spec §3) [rad/s²].
+    /// d bound/dt = K g |h(t)|, h = ω_L entry of e^{A t} D_1 (docs/model.md §3) [rad/s²].
     pub fn bound_rate(&self) -> f64 {
         self.scale * self.state.response[OMEGA_L].abs()
     }

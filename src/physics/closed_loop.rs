@@ -1,8 +1,8 @@
-//! The backlash-free loop of spec §3: the plant with a PI controller on motor speed, its
+//! The backlash-free loop of docs/model.md §3: the plant with a PI controller on motor speed, its
 //! matrix in two coordinate systems, its spectrum, and the tail bound of ∫|h| built on it.
 //!
 //! θ_m and θ_L enter the dynamics only through u = r_m θ_m − r_L θ_L, so the 5-state A_cl of
-//! spec §3 has the spectrum of the 4-state matrix in [u, ω_m, ω_L, x_c] plus one eigenvalue 0
+//! docs/model.md §3 has the spectrum of the 4-state matrix in [u, ω_m, ω_L, x_c] plus one eigenvalue 0
 //! (a rigid rotation of the whole train), which neither τ_m nor the backlash disturbance
 //! excites and ω_L does not see.
 
@@ -10,7 +10,7 @@ use super::bound::Unbounded;
 use super::params::Plant;
 use nalgebra::{Complex, DMatrix, DVector, Matrix4, SMatrix, SVector};
 
-/// PI speed controller on ω_m: τ_m = Kp e + Ki ∫e, e = ω_ref − ω_m (spec §3).
+/// PI speed controller on ω_m: τ_m = Kp e + Ki ∫e, e = ω_ref − ω_m (docs/model.md §3).
 /// Kp [N·m·s/rad], Ki [N·m/rad]; Kp = Ki = 0 means the open-loop plant.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct PiGains {
@@ -18,12 +18,12 @@ pub struct PiGains {
     pub ki: f64,
 }
 
-/// Closed-loop state [θ_m, ω_m, θ_L, ω_L, x_c] (spec §3).
+/// Closed-loop state [θ_m, ω_m, θ_L, ω_L, x_c] (docs/model.md §3).
 pub const CL: usize = 5;
 /// ω_L in the closed-loop state.
 pub const OMEGA_L: usize = 3;
 
-/// A_cl of spec §3 (A_p with the PI loop on ω_m) in θ coordinates: the loop of
+/// A_cl of docs/model.md §3 (A_p with the PI loop on ω_m) in θ coordinates: the loop of
 /// [`reduced_loop_matrix`] with the angles kept apart. Its entries are written out rather than
 /// derived from the 4×4 one: k r_m² / J_m is rounded as one product, not as (k r_m / J_m) r_m.
 /// With Kp = Ki = 0 the x_c row and column are zero, so x_c stays 0 and the 5-vector norms
@@ -91,7 +91,7 @@ fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
 
 /// The loop in the coordinates h depends on: [u, ω_m, ω_L] and x_c when Ki ≠ 0. The angle
 /// translation (u fixed) is neither excited by D_1 nor seen by ω_L, and x_c without Ki feeds
-/// nothing back, so these are exactly the modes that h excites (spec §4 `bound_sup`).
+/// nothing back, so these are exactly the modes that h excites (docs/model.md §3, and §4 `bound_sup`).
 pub(crate) struct Reduced {
     a: DMatrix<f64>,
     out: DVector<f64>,

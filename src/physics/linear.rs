@@ -1,4 +1,4 @@
-//! The affine dynamics of each contact mode as one augmented linear system (spec §1–§2).
+//! The affine dynamics of each contact mode as one augmented linear system (docs/model.md §1–§2).
 //!
 //! Augmented state y (`AUG` entries):
 //! `[u, v, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L]` — the transmission coordinate u and its

@@ -1,7 +1,7 @@
-//! The plant of spec §1–§3 as pure, safe Rust: no FFI, no FMI words.
+//! The plant of docs/model.md §1–§3 as pure, safe Rust: no FFI, no FMI words.
 //!
 //! Data flow: [`PlantParams`] → [`Plant`] (validated generic form) → [`Stepper`] (exact
-//! stepping, switches located to round-off) and [`SpeedErrorBound`] (spec §3 bounds).
+//! stepping, switches located to round-off) and [`SpeedErrorBound`] (docs/model.md §3 bounds).
 
 pub mod bound;
 pub mod closed_loop;

@@ -2,7 +2,7 @@
 
 use super::params::Plant;
 
-/// The mode in force: which side of the gap the gear teeth touch (spec §4 `contact`).
+/// The mode in force: which side of the gap the gear teeth touch (docs/model.md §4 `contact`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ContactMode {
     /// u ≤ −g: contact on the negative flank.
@@ -39,7 +39,7 @@ impl ContactMode {
     }
 }
 
-/// State of the plant: z = [θ_m, ω_m, θ_L, ω_L] (spec §1), the transmission coordinate u
+/// State of the plant: z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1), the transmission coordinate u
 /// carried alongside (so that u keeps full precision when the angles grow large), and the mode.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlantState {
@@ -61,7 +61,7 @@ pub struct PlantState {
 
 impl PlantState {
     /// A state from angles and speeds; the mode is the one u lies in, and exactly on ±g the
-    /// one the trajectory enters given u' (spec §4 `contact`).
+    /// one the trajectory enters given u' (docs/model.md §4 `contact`).
     pub fn new(plant: &Plant, theta_m: f64, omega_m: f64, theta_l: f64, omega_l: f64) -> PlantState {
         let u = plant.transmission(theta_m, theta_l);
         let du = plant.r_m() * omega_m - plant.r_l() * omega_l;
@@ -108,7 +108,7 @@ pub fn mode_at(u: f64, du: f64, g: f64) -> ContactMode {
     }
 }
 
-/// The FMU's `contact` output (spec §4): the mode in force, and with g = 0 the sign of u.
+/// The FMU's `contact` output (docs/model.md §4): the mode in force, and with g = 0 the sign of u.
 pub fn contact_indicator(state: &PlantState, half_gap: f64) -> i32 {
     if half_gap == 0.0 {
         if state.u > 0.0 {

@@ -1,9 +1,9 @@
-//! Plant parameters for both drive trains and their validation (spec §1).
+//! Plant parameters for both drive trains and their validation (docs/model.md §1).
 
 use super::mode::ContactMode;
 use thiserror::Error;
 
-/// Which drive train the generic plant of spec §1 describes.
+/// Which drive train the generic plant of docs/model.md §1 describes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Geometry {
     /// Compliant shaft + gear backlash (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Δ.
@@ -45,7 +45,7 @@ pub struct PlantParams {
 }
 
 impl PlantParams {
-    /// The paper's rectilinear rig (spec §4) in shaft form, with half gap `delta`.
+    /// The paper's rectilinear rig (docs/model.md §4) in shaft form, with half gap `delta`.
     pub fn paper_rig(delta: f64) -> Self {
         PlantParams {
             j_m: 2.28,
@@ -109,7 +109,7 @@ fn non_negative(name: &'static str, value: f64) -> Result<f64, ParamError> {
     }
 }
 
-/// A validated plant in the generic form of spec §1.
+/// A validated plant in the generic form of docs/model.md §1.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Plant {
     params: PlantParams,
@@ -207,7 +207,7 @@ impl Plant {
         let p = &self.params;
         (self.stiffness * (self.r_m * self.r_m / p.j_m + self.r_l * self.r_l / p.j_l)).sqrt()
     }
-    /// dψ/dt = K u' in contact and 0 in the gap (spec §1), from the angle rates θ_m' and θ_L'
+    /// dψ/dt = K u' in contact and 0 in the gap (docs/model.md §1), from the angle rates θ_m' and θ_L'
     /// in the mode in force (at a switch: the mode entered).
     pub fn force_rate(&self, mode: ContactMode, theta_m_rate: f64, theta_l_rate: f64) -> f64 {
         match mode {
@@ -215,13 +215,13 @@ impl Plant {
             _ => self.stiffness * self.transmission(theta_m_rate, theta_l_rate),
         }
     }
-    /// Force in the compliant member ψ = K·dz(u, g) (spec §1).
+    /// Force in the compliant member ψ = K·dz(u, g) (docs/model.md §1).
     pub fn force(&self, u: f64) -> f64 {
         self.stiffness * dead_zone(u, self.half_gap)
     }
 }
 
-/// dz(u, g) of spec §1: zero inside the gap, shifted identity outside.
+/// dz(u, g) of docs/model.md §1: zero inside the gap, shifted identity outside.
 pub fn dead_zone(u: f64, g: f64) -> f64 {
     if u >= g {
         u - g

@@ -1,5 +1,5 @@
 //! Certified search for the first instant a scalar signal of a linear system leaves its
-//! admissible side (spec §2: switches located to round-off, grazing contacts not missed).
+//! admissible side (docs/model.md §2: switches located to round-off, grazing contacts not missed).
 //!
 //! Along y' = M y a linear signal s(σ) = c·y(σ) has exact derivatives s⁽ᵏ⁾ = c Mᵏ y. A piece
 //! [0, w] is cleared when the cubic lower bound f₀ + f₁σ + f₂σ²/2 − C σ³/6, with C ≥ sup|f'''|

@@ -1,4 +1,4 @@
-//! Exact stepping between contact switches (spec §2).
+//! Exact stepping between contact switches (docs/model.md §2).
 
 use super::kernel::KernelColumn;
 use super::linear::{self, AugMatrix, AugVector, AUG};
@@ -178,7 +178,7 @@ struct StepCache {
     kernel: [PieceKernel; 3],
 }
 
-/// Advances the plant exactly (spec §2). Holds the exponentials for the current step size;
+/// Advances the plant exactly (docs/model.md §2). Holds the exponentials for the current step size;
 /// they are recomputed only when the step size changes.
 #[derive(Clone, Debug)]
 pub struct Stepper {

@@ -3,7 +3,7 @@
 //! - the status is one of fmi2OK, fmi2Warning, fmi2Discard, fmi2Error (never Fatal/Pending);
 //! - fmi2Discard and fmi2Error from a live instance come with a logged reason in logErrors,
 //!   fmi2Warning with one in logWarnings;
-//! - values read with fmi2OK are never NaN, and never infinite except bound_sup (spec §4);
+//! - values read with fmi2OK are never NaN, and never infinite except bound_sup (docs/model.md §4);
 //!   after every successful fmi2DoStep every variable is read and checked.
 //!
 //! A panic that unwinds out of an `extern "C"` function aborts the process, so "no panic

@@ -151,7 +151,7 @@ impl Fmu {
     }
 
     /// Reads every variable and asserts the read succeeds and nothing is NaN (bound_sup may
-    /// be +∞ by spec §4; nothing else may be infinite), and contact ∈ {−1, 0, 1}.
+    /// be +∞ by docs/model.md §4; nothing else may be infinite), and contact ∈ {−1, 0, 1}.
     pub fn assert_all_finite(&self, context: &str) {
         let (s, values) = self.all_values();
         assert_eq!(
@@ -250,7 +250,7 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
     f.assert_all_finite("standard run");
     let (_, values) = f.all_values();
     let at = |name: &str| values.iter().find(|(n, _)| *n == name).map(|(_, x)| *x).unwrap();
-    // Spec §1: (J_m ω_m' + b_m ω_m − τ_m)/r_m + (J_L ω_L' + b_L ω_L − τ_L)/r_L = 0 in every
+    // docs/model.md §1: (J_m ω_m' + b_m ω_m − τ_m)/r_m + (J_L ω_L' + b_L ω_L − τ_L)/r_L = 0 in every
     // mode (ψ cancels), so from rest at θ = 0 the integral
     //   (J_m ω_m + b_m θ_m − τ_m t)/r_m + (J_L ω_L + b_L θ_L − τ_L t)/r_L
     // stays 0 whatever the contact history: an independent check that the run is physical.

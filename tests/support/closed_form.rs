@@ -84,7 +84,7 @@ pub fn oscillator_kernels(omega: f64, t: f64) -> [f64; 6] {
     out
 }
 
-/// Permanent contact on flank σ = ±1 with b_m = b_L = 0 (spec §1 with ψ = K (u − σ g)).
+/// Permanent contact on flank σ = ±1 with b_m = b_L = 0 (docs/model.md §1 with ψ = K (u − σ g)).
 /// q = u − σg obeys q'' + Ω² q = F(t), Ω² = K (r_m²/J_m + r_L²/J_L),
 /// F = r_m τ_m/J_m − r_L τ_L/J_L; the speeds follow by integrating the torques.
 /// Returns [θ_m, ω_m, θ_L, ω_L, u] at t. Valid while σ q ≥ 0 on [0, t].

@@ -1,4 +1,4 @@
-//! The PI speed loop of spec §3 written out again for the tests: the linear 5-state loop
+//! The PI speed loop of docs/model.md §3 written out again for the tests: the linear 5-state loop
 //! (A_cl, D_1, L_c), its impulse response h(s) = L_c e^{A_cl s} D_1 with the sign changes
 //! located, and the continuous-time loop with and without backlash driven by a sinusoidal
 //! speed reference. All integration goes through the Taylor integrator of `taylor.rs`.
@@ -6,7 +6,7 @@
 use super::reference::GenericForm;
 use super::taylor::{backlash_modes, component, integrate_poly, Coeffs, Event, Guard, Hybrid, Mode, Piece, ORDER};
 
-/// z_cl = [θ_m, ω_m, θ_L, ω_L, x_c] (spec §3).
+/// z_cl = [θ_m, ω_m, θ_L, ω_L, x_c] (docs/model.md §3).
 #[derive(Clone, Copy, Debug)]
 pub struct LinearLoop {
     pub a: [[f64; 5]; 5],
@@ -14,7 +14,7 @@ pub struct LinearLoop {
     pub lc: [f64; 5],
     /// K g: the bound on |φ|.
     pub kg: f64,
-    /// Kp = Ki = 0: open loop, the bounds use the 4-state plant (spec §4).
+    /// Kp = Ki = 0: open loop, the bounds use the 4-state plant (docs/model.md §4).
     pub open_loop: bool,
 }
 
@@ -135,7 +135,7 @@ impl ImpulseResponse {
 }
 
 /// L_c x(t) for x' = A x + D_1 φ(τ), x(0) = 0, with φ(τ) = K g sgn h(t − τ): the worst
-/// admissible disturbance of spec §3, which should produce exactly K g ∫_0^t |h|.
+/// admissible disturbance of docs/model.md §3, which should produce exactly K g ∫_0^t |h|.
 pub fn worst_case_response(lp: &LinearLoop, t: f64, sign_changes: &[f64], h0_positive: bool) -> f64 {
     // Sign of h on (s_j, s_{j+1}); in τ the pieces run backwards from τ = t.
     let mut breaks: Vec<f64> = sign_changes.iter().copied().filter(|&s| s < t).collect();
@@ -169,7 +169,7 @@ pub fn worst_case_response(lp: &LinearLoop, t: f64, sign_changes: &[f64], h0_pos
     (0..5).map(|i| lp.lc[i] * x[i]).sum()
 }
 
-/// The continuous-time PI loop on the plant of spec §1, with or without the gap:
+/// The continuous-time PI loop on the plant of docs/model.md §1, with or without the gap:
 /// y = [u, ω_m, ω_L, θ_m, θ_L, x_c], τ_m = Kp (ω_ref − ω_m) + Ki x_c, x_c' = ω_ref − ω_m,
 /// ω_ref(t) = amp sin(w t), τ_L = 0.
 pub struct PiLoop {

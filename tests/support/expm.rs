@@ -149,7 +149,7 @@ pub fn scaled<const N: usize>(a: &[[f64; N]; N], t: f64) -> [[f64; N]; N] {
     b
 }
 
-/// A_p of spec §3 (the backlash-free plant, z = [θ_m, ω_m, θ_L, ω_L]).
+/// A_p of docs/model.md §3 (the backlash-free plant, z = [θ_m, ω_m, θ_L, ω_L]).
 #[allow(clippy::too_many_arguments)]
 pub fn a_p(j_m: f64, j_l: f64, b_m: f64, b_l: f64, r_m: f64, r_l: f64, k: f64) -> [[f64; 4]; 4] {
     [

@@ -1,4 +1,4 @@
-//! Independent computations the physics tests compare against (spec §1–§3).
+//! Independent computations the physics tests compare against (docs/model.md §1–§3).
 //! Each test binary uses a subset, hence the `dead_code` allowance.
 #![allow(dead_code)]
 

@@ -1,4 +1,4 @@
-//! Reference solution of the plant of spec §1, built on the Taylor integrator in `taylor.rs`
+//! Reference solution of the plant of docs/model.md §1, built on the Taylor integrator in `taylor.rs`
 //! and on nothing from the crate but the parameter types (the generic-form constants r_m,
 //! r_L, K, g are derived here again from the geometry).
 //!
@@ -23,7 +23,7 @@ pub const NEGATIVE: usize = 0;
 pub const FREE: usize = 1;
 pub const POSITIVE: usize = 2;
 
-/// Generic-form constants of spec §1, from the user's parameters.
+/// Generic-form constants of docs/model.md §1, from the user's parameters.
 #[derive(Clone, Copy, Debug)]
 pub struct GenericForm {
     pub j_m: f64,
@@ -57,7 +57,7 @@ impl GenericForm {
         ]
     }
 
-    /// The table of spec §1: shaft r_m = r_L = 1, K = k, g = Δ; belt r_m = R_1,
+    /// The table of docs/model.md §1: shaft r_m = r_L = 1, K = k, g = Δ; belt r_m = R_1,
     /// r_L = α_1 = R_2 R_g2 / R_g1, K = K_b, g = α_2 Δ with α_2 = R_2 / R_g1.
     pub fn from_params(p: &PlantParams) -> GenericForm {
         let (r_m, r_l, k, g) = match p.geometry {
@@ -83,7 +83,7 @@ impl GenericForm {
         }
     }
 
-    /// dz(u, g) of spec §1.
+    /// dz(u, g) of docs/model.md §1.
     pub fn dead_zone(&self, u: f64) -> f64 {
         if u >= self.g {
             u - self.g
@@ -94,7 +94,7 @@ impl GenericForm {
         }
     }
 
-    /// The mode for u moving at du (spec §4 `contact`: on ±g the mode being entered).
+    /// The mode for u moving at du (docs/model.md §4 `contact`: on ±g the mode being entered).
     pub fn mode_for(&self, u: f64, du: f64) -> usize {
         let g = self.g;
         if g == 0.0 {
@@ -265,7 +265,7 @@ impl Reference {
         }
     }
 
-    /// ½K dz² + ½J_m ω_m² + ½J_L ω_L² (spring energy: the contact is elastic, spec §5).
+    /// ½K dz² + ½J_m ω_m² + ½J_L ω_L² (spring energy: the contact is elastic, docs/model.md §5).
     pub fn stored_energy(&self, u: f64, omega_m: f64, omega_l: f64) -> f64 {
         let f = &self.form;
         let d = f.dead_zone(u);

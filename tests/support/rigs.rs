@@ -2,7 +2,7 @@
 
 use backlash_fmu::physics::{Geometry, PlantParams};
 
-/// The paper's rig (spec §4) with both viscous coefficients set to `b`.
+/// The paper's rig (docs/model.md §4) with both viscous coefficients set to `b`.
 pub fn rig(delta: f64, b: f64) -> PlantParams {
     PlantParams {
         b_m: b,

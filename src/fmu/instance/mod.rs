@@ -16,7 +16,7 @@ use super::logging::{LogCategory, LogSink, Logging};
 use super::simulation::Simulation;
 use super::snapshot::Snapshot;
 use super::state_machine::{Function, Phase};
-use super::variables::{model_by_guid, ModelInfo};
+use super::variables::{model_by_guid, ModelInfo, MODELS};
 
 /// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
 /// exitInitializationMode warns.
@@ -27,7 +27,7 @@ const SUP_SLACK_WARNING: f64 = 1e-9;
 pub struct Experiment {
     pub start_time: f64,
     pub stop_time: Option<f64>,
-    /// Accepted and kept, but unused: stepping is exact (spec §2).
+    /// Accepted and kept, but unused: stepping is exact (docs/model.md §2).
     pub tolerance: Option<f64>,
 }
 
@@ -85,9 +85,11 @@ impl Instance {
     /// fmi2Instantiate for Co-Simulation: the model is chosen by its guid.
     pub fn instantiate(guid: &str, sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Result<Instance, FmuError> {
         let model = model_by_guid(guid).ok_or_else(|| {
+            let served: Vec<&str> = MODELS.iter().map(|m| m.identifier).collect();
             FmuError::InvalidArgument(format!(
-                "guid {guid:?} is not the guid of any model in this binary (BacklashShaft, BacklashBelt): the \
-                 modelDescription.xml and the binary come from different builds"
+                "guid {guid:?} is not the guid of any model in this binary ({}): the modelDescription.xml and \
+                 the binary come from different builds",
+                served.join(", ")
             ))
         })?;
         Ok(Instance::new(model, sink, logging_on))

@@ -76,7 +76,7 @@ impl Instance {
         for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
             let v = self.typed_variable(*vr, VarType::Real)?;
             let x = self.real_value(v)?;
-            // bound_sup is +∞ by definition when the loop is unstable (spec §4); nothing else
+            // bound_sup is +∞ by definition when the loop is unstable (docs/model.md §4); nothing else
             // may leave the FMU as ∞ or NaN.
             if x.is_nan() || (x.is_infinite() && adapter::source(v.symbol) != Source::Calculated(Calculated::BoundSup)) {
                 return Err(FmuError::Overflow(format!("{} evaluates to {x}", v.name)));

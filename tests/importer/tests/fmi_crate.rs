@@ -23,7 +23,7 @@ fn vr(import: &Fmi2Import, name: &str) -> u32 {
         .value_reference
 }
 
-/// Free run of the motor inside the gap (spec §1, mode "free"): with Δ larger than any angle
+/// Free run of the motor inside the gap (docs/model.md §1, mode "free"): with Δ larger than any angle
 /// reached, ψ = 0 and the motor obeys J_m ω_m' = τ_m − b_m ω_m, whose solution from rest is
 /// ω_m(t) = τ/b (1 − e^{−b t/J}) and θ_m(t) = τ/b (t − J/b (1 − e^{−b t/J})). The load, with
 /// τ_L = 0 and no contact, stays at rest.
@@ -94,10 +94,10 @@ fn shaft_free_run_matches_the_closed_form_motor_response() {
     fmu.terminate().expect("fmi2Terminate");
 }
 
-/// Spec §4 fixes the names and causalities; the importer's own parser must find them all.
+/// docs/model.md §4 fixes the names and causalities; the importer's own parser must find them all.
 #[test]
 #[ignore = "needs target/fmu/*.fmu: run by `cargo xtask test`"]
-fn both_descriptions_carry_the_interface_of_spec_section_4() {
+fn both_descriptions_carry_the_documented_interface() {
     let common = [
         ("tau_m", Causality::Input),
         ("tau_L", Causality::Input),

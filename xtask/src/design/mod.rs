@@ -16,14 +16,14 @@ const USAGE: &str = "\
 usage: cargo xtask design --accuracy EPS [options] [--json]
 
 For a required load-speed accuracy EPS (the bound on |omega_L with backlash - omega_L without|,
-spec section 3 bound_sup) and a PI loop on the motor speed, prints
+docs/model.md §3 bound_sup) and a PI loop on the motor speed, prints
   delta_max  the largest half gap Delta with bound_sup <= EPS at the nominal stiffness
              (bound_sup is linear in Delta: delta_max = EPS / bound_sup(Delta = 1));
   k_min      the smallest stiffness reachable from the nominal one by softening while
              bound_sup <= EPS at the given Delta (log scan, then a bracketing root
              finder), and k_max, the largest by stiffening: with fixed gains bound_sup
              is not monotone in k.
-The plant is the shaft form of spec section 1; defaults are the paper's rectilinear rig
+The plant is the shaft form of docs/model.md §1; defaults are the paper's rectilinear rig
 (SI units, metres as the angle unit).
 
 options:

@@ -2,7 +2,7 @@
 //! paper's open question (its "Summary and future work"): which backlash Δ and which stiffness K
 //! keep the load-speed deviation caused by backlash within a required accuracy ε.
 //!
-//! Everything rests on `bound_sup = K g ∫_0^∞ |h(s)| ds` (spec §3, [`SpeedErrorBound::sup`]):
+//! Everything rests on `bound_sup = K g ∫_0^∞ |h(s)| ds` (docs/model.md §3, [`SpeedErrorBound::sup`]):
 //! - it is linear in the half gap g (h does not depend on g), so Δ_max = ε / bound_sup(Δ = 1);
 //! - it is *not* monotone in K with fixed gains: K scales the disturbance bound K g but also moves
 //!   the loop's poles, so the stiffness answer is a set of feasible intervals, found on a
@@ -103,7 +103,7 @@ pub struct GainDesign {
 }
 
 /// The best-damped rule: the PI gains (Kp, Ki > 0) that maximise the smallest damping ratio of
-/// the backlash-free closed-loop poles (spec §3 A_cl). A fast, well-damped loop with no
+/// the backlash-free closed-loop poles (docs/model.md §3 A_cl). A fast, well-damped loop with no
 /// preference between speed and damping beyond that; the paper gives no gains.
 ///
 /// Search: a logarithmic grid over six decades around the natural scales J_eq ω_p (Kp) and
@@ -221,7 +221,7 @@ fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, x0: [f64; 2], size: f64, x_tol: f64,
 // Permissible backlash and stiffness for a required accuracy
 // ---------------------------------------------------------------------------------------------
 
-/// bound_sup [rad/s] of spec §3 for `params` and `gains`, or why it is infinite.
+/// bound_sup [rad/s] of docs/model.md §3 for `params` and `gains`, or why it is infinite.
 pub fn bound_sup(params: &PlantParams, gains: PiGains) -> Result<f64, DesignError> {
     let plant = Plant::new(*params)?;
     let bound = SpeedErrorBound::new(&plant, gains)?;
