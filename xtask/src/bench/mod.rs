@@ -4,8 +4,9 @@
 //! the official FMI 2.0 headers (fmpy's copy in .venv) and the value references of the archive's
 //! modelDescription.xml, then runs: the native per-call costs and their floors, the growth with
 //! steps and instances, the PI loop natively, through fmpy and in scipy (benches/python_bench.py),
-//! and the criterion bench of the physics core. Each tool prints `@ <key> <values>` lines; run.rs
-//! collects them, report.rs writes the report with the machine facts and the exact commands.
+//! and the criterion bench of the physics core. Each tool prints `@ <key> <values>` lines (criterion
+//! writes estimates.json); run.rs collects them, report.rs writes the report with the machine facts
+//! and the exact commands.
 
 mod report;
 mod run;

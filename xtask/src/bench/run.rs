@@ -6,7 +6,9 @@ use std::fs;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Instant;
+use std::time::{Instant, SystemTime};
+
+use serde::Deserialize;
 
 use super::{Plan, MODEL};
 use crate::{python, util};
@@ -265,7 +267,8 @@ impl Runner {
         self.run(&mut py)
     }
 
-    /// The criterion bench of the physics core.
+    /// The criterion bench of the physics core; its figures are read from the estimates.json
+    /// files criterion writes during this run.
     pub(super) fn criterion(&mut self) -> Result<(), String> {
         let mut cmd = util::cargo();
         cmd.args([
@@ -280,10 +283,16 @@ impl Runner {
         ]);
         let text = describe(&cmd);
         println!("$ {text}");
+        // Whole seconds, so that a file system with coarse timestamps still counts this run's files.
+        let since = SystemTime::now() - std::time::Duration::from_secs(1);
         let out = util::output(&mut cmd)?;
-        let found = parse_criterion(&out);
+        let dir = criterion_dir();
+        let found = read_criterion(&dir, since)?;
         if found.is_empty() {
-            return Err(format!("no criterion results in the output of `{text}`:\n{out}"));
+            return Err(format!(
+                "no criterion results written under {} by `{text}`:\n{out}",
+                dir.display()
+            ));
         }
         self.measured.criterion = found;
         self.measured.commands.push(text);
@@ -299,45 +308,100 @@ fn strings(words: &[&str]) -> Vec<String> {
     words.iter().map(|w| w.to_string()).collect()
 }
 
-/// The estimates in ns from criterion's `name  time: [a unit b unit c unit]` lines.
-fn parse_criterion(out: &str) -> Vec<CriterionEstimate> {
-    let mut found = Vec::new();
-    let mut name = String::new();
-    for line in out.lines() {
-        let Some(at) = line.find("time:") else {
-            if !line.trim().is_empty() && !line.starts_with(' ') {
-                name = line.trim().to_string();
-            }
-            continue;
-        };
-        let head = line[..at].trim();
-        if !head.is_empty() {
-            name = head.to_string();
-        }
-        let inside = line[at..].trim_start_matches("time:").trim().trim_matches(['[', ']']);
-        let words: Vec<&str> = inside.split_whitespace().collect();
-        let ns = |i: usize| -> Option<f64> {
-            let value: f64 = words.get(2 * i)?.parse().ok()?;
-            let scale = match *words.get(2 * i + 1)? {
-                "ps" => 1e-3,
-                "ns" => 1.0,
-                "µs" | "us" => 1e3,
-                "ms" => 1e6,
-                "s" => 1e9,
-                _ => return None,
-            };
-            Some(value * scale)
-        };
-        if let (Some(lo), Some(mid), Some(hi)) = (ns(0), ns(1), ns(2)) {
-            found.push(CriterionEstimate {
-                name: name.clone(),
-                low_ns: lo,
-                estimate_ns: mid,
-                high_ns: hi,
-            });
+/// Where criterion writes its results: $CRITERION_HOME, else `<target>/criterion` (criterion's
+/// own order of precedence, cargo's target directory being the one xtask uses).
+fn criterion_dir() -> PathBuf {
+    std::env::var_os("CRITERION_HOME")
+        .filter(|dir| !dir.is_empty())
+        .map_or_else(|| util::target_dir().join("criterion"), PathBuf::from)
+}
+
+/// The parts of criterion's `new/estimates.json` the report uses (values in ns).
+#[derive(Deserialize)]
+struct Estimates {
+    mean: Estimate,
+    /// Present when criterion sampled linearly; null for flat sampling.
+    slope: Option<Estimate>,
+}
+
+#[derive(Deserialize)]
+struct Estimate {
+    point_estimate: f64,
+    confidence_interval: Interval,
+}
+
+#[derive(Deserialize)]
+struct Interval {
+    lower_bound: f64,
+    upper_bound: f64,
+}
+
+/// criterion's `new/benchmark.json`: the id of the bench as criterion prints it.
+#[derive(Deserialize)]
+struct BenchmarkId {
+    title: String,
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, String> {
+    let text = fs::read_to_string(path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Every bench under `dir` whose `new/estimates.json` was written at or after `since`, in the
+/// order criterion ran them. The figure is the one criterion prints as `time:` (its "typical"
+/// estimate): the slope of the linear regression when sampled linearly, else the mean.
+fn read_criterion(dir: &Path, since: SystemTime) -> Result<Vec<CriterionEstimate>, String> {
+    let mut files = Vec::new();
+    estimates_files(dir, &mut files)?;
+    let mut written = Vec::new();
+    for path in files {
+        let modified = fs::metadata(&path)
+            .and_then(|m| m.modified())
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        if modified >= since {
+            written.push((modified, path));
         }
     }
-    found
+    written.sort();
+    written
+        .into_iter()
+        .map(|(_, path)| {
+            let estimates: Estimates = read_json(&path)?;
+            let id: BenchmarkId = read_json(&path.with_file_name("benchmark.json"))?;
+            let typical = estimates.slope.unwrap_or(estimates.mean);
+            Ok(CriterionEstimate {
+                name: id.title,
+                low_ns: typical.confidence_interval.lower_bound,
+                estimate_ns: typical.point_estimate,
+                high_ns: typical.confidence_interval.upper_bound,
+            })
+        })
+        .collect()
+}
+
+/// The `<bench>/new/estimates.json` files below `dir` (a bench id may span several levels);
+/// `base/` and `change/` hold copies and comparisons, not this run's estimates.
+fn estimates_files(dir: &Path, found: &mut Vec<PathBuf>) -> Result<(), String> {
+    let entries = match fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(format!("{}: {e}", dir.display())),
+    };
+    for entry in entries {
+        let path = entry.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        if !path.is_dir() {
+            continue;
+        }
+        if path.file_name().is_some_and(|name| name == "new") {
+            let file = path.join("estimates.json");
+            if file.is_file() {
+                found.push(file);
+            }
+        } else {
+            estimates_files(&path, found)?;
+        }
+    }
+    Ok(())
 }
 
 /// Unpacks the archive into `dir` (fresh) and returns its modelDescription.xml.
@@ -379,4 +443,79 @@ fn vr_header(xml: &str) -> Result<String, String> {
         return Err("modelDescription.xml lists no ScalarVariable".into());
     }
     Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn write_bench(root: &Path, dir: &str, title: &str, estimates: &str, at: SystemTime) {
+        let new = root.join(dir).join("new");
+        fs::create_dir_all(&new).unwrap();
+        fs::write(
+            new.join("benchmark.json"),
+            format!(r#"{{"title":"{title}","full_id":"{title}"}}"#),
+        )
+        .unwrap();
+        let file = new.join("estimates.json");
+        fs::write(&file, estimates).unwrap();
+        fs::File::options()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_modified(at)
+            .unwrap();
+    }
+
+    fn estimate(point: f64) -> String {
+        format!(
+            r#"{{"confidence_interval":{{"confidence_level":0.95,"lower_bound":{},"upper_bound":{}}},"point_estimate":{point},"standard_error":0.1}}"#,
+            point - 1.0,
+            point + 1.0
+        )
+    }
+
+    #[test]
+    fn criterion_estimates_are_read_in_run_order_slope_first() {
+        let root = std::env::temp_dir().join(format!("xtask-criterion-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&root);
+        let since = SystemTime::now() - Duration::from_secs(100);
+        let all = |mean: f64, slope: &str| {
+            format!(
+                r#"{{"mean":{m},"median":{m},"median_abs_dev":{m},"slope":{slope},"std_dev":{m}}}"#,
+                m = estimate(mean)
+            )
+        };
+        // Written in the order b, a: the run order, not the name order.
+        write_bench(
+            &root,
+            "b",
+            "b",
+            &all(20.0, &estimate(21.0)),
+            since + Duration::from_secs(10),
+        );
+        write_bench(&root, "a", "a", &all(30.0, "null"), since + Duration::from_secs(20));
+        // Before this run: left out.
+        write_bench(&root, "old", "old", &all(40.0, "null"), since - Duration::from_secs(10));
+        // A group with a function id, two levels deep, and criterion's copy of a baseline.
+        write_bench(&root, "g/f", "g/f", &all(50.0, "null"), since + Duration::from_secs(30));
+        fs::create_dir_all(root.join("g/f/base")).unwrap();
+        fs::write(root.join("g/f/base/estimates.json"), all(60.0, "null")).unwrap();
+
+        let found = read_criterion(&root, since).unwrap();
+        let got: Vec<(&str, f64, f64, f64)> = found
+            .iter()
+            .map(|e| (e.name.as_str(), e.low_ns, e.estimate_ns, e.high_ns))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("b", 20.0, 21.0, 22.0),
+                ("a", 29.0, 30.0, 31.0),
+                ("g/f", 49.0, 50.0, 51.0)
+            ]
+        );
+        fs::remove_dir_all(&root).unwrap();
+    }
 }
