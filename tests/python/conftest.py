@@ -1,4 +1,4 @@
-"""pytest wiring: FMU fixtures (see fmu_driver.require for what happens when an FMU is missing)."""
+"""pytest wiring: FMU fixtures, and a run without the packaged FMUs fails before any test."""
 
 from __future__ import annotations
 
@@ -12,6 +12,13 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import pytest  # noqa: E402
 
 import fmu_driver  # noqa: E402
+
+
+def pytest_sessionstart(session):
+    """Both archives must exist: skipping the tests that need them would let an unbuilt tree pass."""
+    missing = [str(path) for path in map(fmu_driver.fmu_path, fmu_driver.MODELS) if not path.is_file()]
+    if missing:
+        pytest.exit(f"FMU archive not found: {', '.join(missing)} (build with `cargo xtask fmu`)", returncode=1)
 
 
 @pytest.fixture(scope="session", autouse=True)

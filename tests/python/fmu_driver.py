@@ -68,13 +68,10 @@ def separate_copy(model: str) -> Extracted:
 
 
 def require(model: str) -> Extracted:
-    """The shared copy of an FMU. A missing FMU skips the test on a developer machine (build it
-    with `cargo xtask fmu`) but fails it when CI is set, so CI cannot pass without the FMUs."""
+    """The shared copy of an FMU. A missing FMU fails the test, never skips it (conftest.py already
+    stops the run before any test when an archive is missing)."""
     if not fmu_path(model).is_file():
-        message = f"{fmu_path(model)} not built (cargo xtask fmu)"
-        if os.environ.get("CI"):
-            pytest.fail(message)
-        pytest.skip(message)
+        pytest.fail(f"FMU archive not found: {fmu_path(model)} (build with `cargo xtask fmu`)")
     return shared(model)
 
 

@@ -1,412 +1,8 @@
-//! `cargo xtask bench [--smoke]`: every benchmark in one run, and BENCHMARKS.md generated from it.
-//!
-//! Builds the FMUs, unpacks BacklashShaft.fmu, compiles the C host benches/native_host.c against
-//! the official FMI 2.0 headers (fmpy's copy in .venv) and the value references of the archive's
-//! modelDescription.xml, then runs: the native per-call costs and their floors, the growth with
-//! steps and instances, the PI loop natively, through fmpy and in scipy (benches/python_bench.py),
-//! and the criterion bench of the physics core. Each tool prints `@ <key> <values>` lines; this
-//! file collects them and writes the report with the machine facts and the exact commands.
+//! BENCHMARKS.md from the measurements of one run: the checks that the schedules did what their
+//! names say, the targets, one section per benchmark and the commands.
 
-use std::collections::BTreeMap;
-use std::fs;
-use std::io::Read;
-use std::path::Path;
-use std::process::Command;
-use std::time::Instant;
-
-use crate::util::{self, step};
-use crate::{fmu, python};
-
-const USAGE: &str = "\
-usage: cargo xtask bench [--smoke]
-
-Runs every benchmark (native C host through the FMI C ABI, the PI loop through fmpy and in scipy,
-growth with steps and instances, criterion bench of the physics core) and rewrites BENCHMARKS.md
-with the numbers, the machine facts and the exact commands. Takes a few minutes.
-
-  --smoke   tiny sizes, no criterion: checks that the harness runs (seconds after the build);
-            writes target/bench/BENCHMARKS.smoke.md and leaves BENCHMARKS.md alone";
-
-const MODEL: &str = "BacklashShaft";
-
-/// Sizes of one run; `--smoke` shrinks all of them.
-struct Plan {
-    smoke: bool,
-    /// Rounds of the native per-call suite (section 1): one batch of every row per round.
-    suite_rounds: u32,
-    batches: u32,
-    steps_per_batch: u64,
-    scale_steps: Vec<u64>,
-    instance_counts: Vec<u32>,
-    instance_steps_per_batch: u64,
-    loop_seconds: f64,
-    loop_repeats: u32,
-    sweep: &'static str,
-}
-
-impl Plan {
-    fn full() -> Plan {
-        Plan {
-            smoke: false,
-            // ~10 s in all, longer than the spells of contention seen on shared machines.
-            suite_rounds: 101,
-            batches: 21,
-            steps_per_batch: 20_000,
-            scale_steps: vec![1_000, 10_000, 100_000, 1_000_000, 10_000_000],
-            instance_counts: vec![1, 10, 100, 1000],
-            instance_steps_per_batch: 20_000,
-            loop_seconds: 10.0,
-            loop_repeats: 7,
-            sweep: "RK45:1e-3,RK45:1e-6,RK45:1e-9,RK45:1e-12,DOP853:1e-3,DOP853:1e-8,DOP853:1e-12",
-        }
-    }
-
-    fn smoke() -> Plan {
-        Plan {
-            smoke: true,
-            suite_rounds: 3,
-            batches: 3,
-            steps_per_batch: 200,
-            scale_steps: vec![1_000, 10_000],
-            instance_counts: vec![1, 10],
-            instance_steps_per_batch: 200,
-            loop_seconds: 0.05,
-            loop_repeats: 3,
-            sweep: "RK45:1e-3",
-        }
-    }
-}
-
-/// The `@ key values…` lines of every tool, by key, in order of arrival.
-#[derive(Default)]
-struct Results(BTreeMap<String, Vec<Vec<String>>>);
-
-impl Results {
-    fn collect(&mut self, text: &str) {
-        for line in text.lines() {
-            let mut words = line.split_whitespace();
-            if words.next() != Some("@") {
-                continue;
-            }
-            if let Some(key) = words.next() {
-                self.0
-                    .entry(key.to_string())
-                    .or_default()
-                    .push(words.map(str::to_string).collect());
-            }
-        }
-    }
-
-    fn rows(&self, key: &str) -> &[Vec<String>] {
-        self.0.get(key).map_or(&[], Vec::as_slice)
-    }
-
-    fn row(&self, key: &str) -> Result<&[String], String> {
-        self.rows(key)
-            .last()
-            .map(Vec::as_slice)
-            .ok_or_else(|| format!("no result `{key}` in the benchmark output"))
-    }
-
-    fn num(&self, key: &str, index: usize) -> Result<f64, String> {
-        number(self.row(key)?, index, key)
-    }
-}
-
-fn number(row: &[String], index: usize, key: &str) -> Result<f64, String> {
-    row.get(index)
-        .and_then(|s| s.parse().ok())
-        .ok_or_else(|| format!("result `{key}`: no number at position {index} in {row:?}"))
-}
-
-/// A command line as text for the report, with paths inside the repository made relative.
-fn describe(cmd: &Command) -> String {
-    let root = format!("{}/", util::repo_root().display());
-    let program = cmd.get_program().to_string_lossy().into_owned();
-    // The cargo that runs xtask, shown by name.
-    let program = if program.ends_with("/cargo") {
-        "cargo".to_string()
-    } else {
-        program
-    };
-    let mut words = vec![program];
-    words.extend(cmd.get_args().map(|a| a.to_string_lossy().into_owned()));
-    let words: Vec<String> = words
-        .into_iter()
-        .map(|w| {
-            let w = w.replace(&root, "");
-            if w.contains(['{', '}', ' ']) {
-                format!("'{w}'")
-            } else {
-                w
-            }
-        })
-        .collect();
-    words.join(" ")
-}
-
-struct Runner {
-    results: Results,
-    commands: Vec<String>,
-}
-
-impl Runner {
-    /// Runs a benchmark tool, keeps its command for the report and collects its results.
-    fn run(&mut self, cmd: &mut Command) -> Result<(), String> {
-        let text = describe(cmd);
-        println!("$ {text}");
-        let started = Instant::now();
-        let out = util::output(cmd)?;
-        println!("  ({:.1} s)", started.elapsed().as_secs_f64());
-        self.results.collect(&out);
-        self.commands.push(text);
-        Ok(())
-    }
-}
-
-pub fn run(args: &[String]) -> Result<(), String> {
-    let mut plan = Plan::full();
-    for arg in args {
-        match arg.as_str() {
-            "--smoke" => plan = Plan::smoke(),
-            "--help" | "-h" => {
-                println!("{USAGE}");
-                return Ok(());
-            }
-            other => return Err(format!("unknown argument `{other}`\n\n{USAGE}")),
-        }
-    }
-    let started = Instant::now();
-    let load_start = read_trimmed("/proc/loadavg");
-
-    fmu::package_all()?;
-    python::ensure_venv()?;
-
-    step("compiling the native host (benches/native_host.c)");
-    let work = util::target_dir().join("bench");
-    let unpacked = work.join(MODEL);
-    let xml = unpack(&util::fmu_dir().join(format!("{MODEL}.fmu")), &unpacked)?;
-    let guid = attribute(&xml, "guid").ok_or("modelDescription.xml has no guid")?;
-    fs::write(work.join("bench_vr.h"), vr_header(&xml)?).map_err(|e| format!("writing bench_vr.h: {e}"))?;
-    let headers = python::fmpy_header_dir().ok_or("no fmi2Functions.h in .venv (fmpy's c-code)")?;
-    let host = work.join("native_host");
-    let mut compile = Command::new("cc");
-    compile
-        .current_dir(util::repo_root())
-        .args(["-O2", "-Wall", "-Wextra", "-Werror"])
-        .arg(format!("-I{}", headers.display()))
-        .arg(format!("-I{}", work.display()))
-        .arg("-o")
-        .arg(&host)
-        .arg("benches/native_host.c")
-        .args(["-ldl", "-lm"]);
-    let compile_text = describe(&compile);
-    util::run(&mut compile)?;
-
-    let library = unpacked.join("binaries").join("linux64").join(format!("{MODEL}.so"));
-    let resources = format!("file://{}", unpacked.join("resources").display());
-    let mut runner = Runner {
-        results: Results::default(),
-        commands: vec![compile_text],
-    };
-    let native = |mode: &[String]| {
-        let mut cmd = Command::new(&host);
-        cmd.current_dir(util::repo_root())
-            .arg(&library)
-            .arg(&guid)
-            .arg(&resources)
-            .args(mode);
-        cmd
-    };
-
-    step("native host: per-call costs");
-    runner.run(&mut native(&strings(&[
-        "suite",
-        &plan.suite_rounds.to_string(),
-        &plan.steps_per_batch.to_string(),
-    ])))?;
-    step("native host: growth with the number of steps (one process each)");
-    for n in &plan.scale_steps {
-        runner.run(&mut native(&strings(&["scale", &n.to_string()])))?;
-    }
-    step("native host: many instances stepped round-robin (one process each)");
-    for k in &plan.instance_counts {
-        runner.run(&mut native(&strings(&[
-            "instances",
-            &k.to_string(),
-            &plan.batches.to_string(),
-            &plan.instance_steps_per_batch.to_string(),
-        ])))?;
-    }
-    step("native host: the PI loop");
-    runner.run(&mut native(&strings(&[
-        "piloop",
-        &plan.loop_seconds.to_string(),
-        &plan.batches.to_string(),
-    ])))?;
-
-    step("the PI loop through fmpy and in scipy (benches/python_bench.py)");
-    let mut py = Command::new(util::repo_root().join(".venv").join("bin").join("python"));
-    py.current_dir(util::repo_root())
-        .env("BACKLASH_FMU_DIR", util::fmu_dir())
-        .arg("benches/python_bench.py")
-        .args(["--loop-seconds", &plan.loop_seconds.to_string()])
-        .args(["--repeats", &plan.loop_repeats.to_string()])
-        .args(["--scipy-seconds", &plan.loop_seconds.to_string()])
-        .args(["--sweep", plan.sweep]);
-    runner.run(&mut py)?;
-
-    let mut criterion = Vec::new();
-    if !plan.smoke {
-        step("criterion bench of the physics core (benches/physics.rs)");
-        let mut cmd = util::cargo();
-        cmd.args([
-            "bench",
-            "--bench",
-            "physics",
-            "--",
-            "--warm-up-time",
-            "1",
-            "--measurement-time",
-            "3",
-        ]);
-        let text = describe(&cmd);
-        println!("$ {text}");
-        let out = util::output(&mut cmd)?;
-        criterion = parse_criterion(&out);
-        if criterion.is_empty() {
-            return Err(format!("no criterion results in the output of `{text}`:\n{out}"));
-        }
-        runner.commands.push(text);
-    }
-
-    let facts = Facts {
-        load_start,
-        load_end: read_trimmed("/proc/loadavg"),
-        elapsed_s: started.elapsed().as_secs_f64(),
-    };
-    let report = render(&plan, &runner, &criterion, &facts)?;
-    let path = if plan.smoke {
-        work.join("BENCHMARKS.smoke.md")
-    } else {
-        util::repo_root().join("BENCHMARKS.md")
-    };
-    fs::write(&path, report).map_err(|e| format!("writing {}: {e}", path.display()))?;
-    println!(
-        "\nwrote {} ({:.0} s in all)",
-        util::shown(&path),
-        started.elapsed().as_secs_f64()
-    );
-    Ok(())
-}
-
-fn strings(words: &[&str]) -> Vec<String> {
-    words.iter().map(|w| w.to_string()).collect()
-}
-
-fn read_trimmed(path: &str) -> String {
-    fs::read_to_string(path)
-        .map(|s| s.trim().to_string())
-        .unwrap_or_else(|_| "unknown".into())
-}
-
-/// Unpacks the archive into `dir` (fresh) and returns its modelDescription.xml.
-fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
-    let _ = fs::remove_dir_all(dir);
-    let file = fs::File::open(archive).map_err(|e| format!("{}: {e}", archive.display()))?;
-    let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{}: {e}", archive.display()))?;
-    zip.extract(dir)
-        .map_err(|e| format!("unpacking {}: {e}", archive.display()))?;
-    fs::create_dir_all(dir.join("resources")).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let mut xml = String::new();
-    fs::File::open(dir.join("modelDescription.xml"))
-        .and_then(|mut f| f.read_to_string(&mut xml))
-        .map_err(|e| format!("reading the unpacked modelDescription.xml: {e}"))?;
-    Ok(xml)
-}
-
-/// The first `name="…"` attribute value in `xml`.
-fn attribute(xml: &str, name: &str) -> Option<String> {
-    let key = format!(" {name}=\"");
-    let start = xml.find(&key)? + key.len();
-    let end = xml[start..].find('"')? + start;
-    Some(xml[start..end].to_string())
-}
-
-/// `#define VR_<name> <vr>u` for every ScalarVariable, from the archive's description.
-fn vr_header(xml: &str) -> Result<String, String> {
-    let mut text = String::from("/* Written by cargo xtask bench from the archive's modelDescription.xml. */\n");
-    let mut count = 0;
-    for element in xml.split("<ScalarVariable").skip(1) {
-        let head = &element[..element.find('>').unwrap_or(element.len())];
-        let (Some(name), Some(vr)) = (attribute(head, "name"), attribute(head, "valueReference")) else {
-            return Err(format!("a ScalarVariable without name or valueReference: {head}"));
-        };
-        text.push_str(&format!("#define VR_{name} {vr}u\n"));
-        count += 1;
-    }
-    if count == 0 {
-        return Err("modelDescription.xml lists no ScalarVariable".into());
-    }
-    Ok(text)
-}
-
-/// (name, low, estimate, high) in ns from criterion's `name  time: [a unit b unit c unit]` lines.
-fn parse_criterion(out: &str) -> Vec<(String, f64, f64, f64)> {
-    let mut found = Vec::new();
-    let mut name = String::new();
-    for line in out.lines() {
-        let Some(at) = line.find("time:") else {
-            if !line.trim().is_empty() && !line.starts_with(' ') {
-                name = line.trim().to_string();
-            }
-            continue;
-        };
-        let head = line[..at].trim();
-        if !head.is_empty() {
-            name = head.to_string();
-        }
-        let inside = line[at..].trim_start_matches("time:").trim().trim_matches(['[', ']']);
-        let words: Vec<&str> = inside.split_whitespace().collect();
-        let ns = |i: usize| -> Option<f64> {
-            let value: f64 = words.get(2 * i)?.parse().ok()?;
-            let scale = match *words.get(2 * i + 1)? {
-                "ps" => 1e-3,
-                "ns" => 1.0,
-                "µs" | "us" => 1e3,
-                "ms" => 1e6,
-                "s" => 1e9,
-                _ => return None,
-            };
-            Some(value * scale)
-        };
-        if let (Some(lo), Some(mid), Some(hi)) = (ns(0), ns(1), ns(2)) {
-            found.push((name.clone(), lo, mid, hi));
-        }
-    }
-    found
-}
-
-struct Facts {
-    load_start: String,
-    load_end: String,
-    elapsed_s: f64,
-}
-
-fn first_line(cmd: &mut Command) -> String {
-    util::output(cmd)
-        .ok()
-        .and_then(|s| s.lines().next().map(str::to_string))
-        .unwrap_or_else(|| "unknown".into())
-}
-
-fn cpu_model() -> String {
-    read_trimmed("/proc/cpuinfo")
-        .lines()
-        .find(|l| l.starts_with("model name"))
-        .and_then(|l| l.split(':').nth(1))
-        .map_or_else(|| "unknown".into(), |s| s.trim().to_string())
-}
+use super::run::{number, Facts, Measurements, Results};
+use super::{Plan, MODEL};
 
 /// `median [q1, q3]` of a `@ key median q1 q3` line, in the unit of the line.
 fn stat(r: &Results, key: &str) -> Result<(f64, f64, f64), String> {
@@ -421,13 +17,8 @@ fn yes(met: bool) -> &'static str {
     }
 }
 
-fn render(
-    plan: &Plan,
-    runner: &Runner,
-    criterion: &[(String, f64, f64, f64)],
-    facts: &Facts,
-) -> Result<String, String> {
-    let r = &runner.results;
+pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Result<String, String> {
+    let r = &measured.results;
     let mut md = String::new();
     let mut line = |s: String| {
         md.push_str(&s);
@@ -530,26 +121,17 @@ fn render(
     line(String::new());
     line("| fact | value |".into());
     line("|---|---|".into());
-    line(format!(
-        "| date (UTC) | {} |",
-        first_line(Command::new("date").args(["-u", "+%Y-%m-%d %H:%M"]))
-    ));
-    line(format!("| nproc | {} |", first_line(&mut Command::new("nproc"))));
-    line(format!("| CPU (/proc/cpuinfo) | {} |", cpu_model()));
+    line(format!("| date (UTC) | {} |", facts.date));
+    line(format!("| nproc | {} |", facts.nproc));
+    line(format!("| CPU (/proc/cpuinfo) | {} |", facts.cpu));
     line(format!("| /proc/loadavg at start | `{}` |", facts.load_start));
     line(format!("| /proc/loadavg at end | `{}` |", facts.load_end));
-    line(format!(
-        "| kernel | {} |",
-        first_line(Command::new("uname").args(["-sr"]))
-    ));
-    line(format!(
-        "| rustc | {} |",
-        first_line(Command::new("rustc").arg("--version"))
-    ));
-    line(format!("| cc | {} |", first_line(Command::new("cc").arg("--version"))));
+    line(format!("| kernel | {} |", facts.kernel));
+    line(format!("| rustc | {} |", facts.rustc));
+    line(format!("| cc | {} |", facts.cc));
     line(format!(
         "| Python | {} (fmpy, numpy, scipy as pinned in tests/python/requirements.txt) |",
-        first_line(Command::new(util::repo_root().join(".venv/bin/python")).arg("--version"))
+        facts.python
     ));
     line(String::new());
     line(
@@ -832,15 +414,18 @@ fn render(
 
     line("## Physics core (criterion, benches/physics.rs)".into());
     line(String::new());
-    if criterion.is_empty() {
+    if measured.criterion.is_empty() {
         line("Not run in smoke mode.".into());
     } else {
         line("Rust calls into `backlash_fmu::physics`, no FMI layer; criterion's estimate and 95% interval.".into());
         line(String::new());
         line("| bench | ns | interval ns |".into());
         line("|---|---|---|".into());
-        for (name, lo, mid, hi) in criterion {
-            line(format!("| {name} | {mid:.1} | {lo:.1} – {hi:.1} |"));
+        for c in &measured.criterion {
+            line(format!(
+                "| {} | {:.1} | {:.1} – {:.1} |",
+                c.name, c.estimate_ns, c.low_ns, c.high_ns
+            ));
         }
     }
     line(String::new());
@@ -855,7 +440,7 @@ fn render(
     ));
     line(String::new());
     line("```sh".into());
-    for c in &runner.commands {
+    for c in &measured.commands {
         line(c.clone());
     }
     line("```".into());

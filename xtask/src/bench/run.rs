@@ -1,0 +1,521 @@
+//! Running the benchmarks: the native C host, the Python bench and criterion, each measurement
+//! collected into plain data for report.rs, with the commands that produced it.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Instant, SystemTime};
+
+use serde::Deserialize;
+
+use super::{Plan, MODEL};
+use crate::{python, util};
+
+/// The `@ key values…` lines of every tool, by key, in order of arrival.
+#[derive(Default)]
+pub(super) struct Results(BTreeMap<String, Vec<Vec<String>>>);
+
+impl Results {
+    fn collect(&mut self, text: &str) {
+        for line in text.lines() {
+            let mut words = line.split_whitespace();
+            if words.next() != Some("@") {
+                continue;
+            }
+            if let Some(key) = words.next() {
+                self.0
+                    .entry(key.to_string())
+                    .or_default()
+                    .push(words.map(str::to_string).collect());
+            }
+        }
+    }
+
+    pub(super) fn rows(&self, key: &str) -> &[Vec<String>] {
+        self.0.get(key).map_or(&[], Vec::as_slice)
+    }
+
+    pub(super) fn row(&self, key: &str) -> Result<&[String], String> {
+        self.rows(key)
+            .last()
+            .map(Vec::as_slice)
+            .ok_or_else(|| format!("no result `{key}` in the benchmark output"))
+    }
+
+    pub(super) fn num(&self, key: &str, index: usize) -> Result<f64, String> {
+        number(self.row(key)?, index, key)
+    }
+}
+
+pub(super) fn number(row: &[String], index: usize, key: &str) -> Result<f64, String> {
+    row.get(index)
+        .and_then(|s| s.parse().ok())
+        .ok_or_else(|| format!("result `{key}`: no number at position {index} in {row:?}"))
+}
+
+/// One criterion bench: the estimate criterion prints and its 95% interval, in ns.
+pub(super) struct CriterionEstimate {
+    pub name: String,
+    pub low_ns: f64,
+    pub estimate_ns: f64,
+    pub high_ns: f64,
+}
+
+/// Everything one run measured, and the commands that measured it, in order.
+pub(super) struct Measurements {
+    pub results: Results,
+    pub criterion: Vec<CriterionEstimate>,
+    pub commands: Vec<String>,
+}
+
+/// The machine and the load around the run, for the report's first table.
+pub(super) struct Facts {
+    pub load_start: String,
+    pub load_end: String,
+    pub elapsed_s: f64,
+    pub date: String,
+    pub nproc: String,
+    pub cpu: String,
+    pub kernel: String,
+    pub rustc: String,
+    pub cc: String,
+    pub python: String,
+}
+
+impl Facts {
+    /// Read at the end of the run; `load_start` was read before anything was built.
+    pub(super) fn collect(load_start: String, started: Instant) -> Facts {
+        Facts {
+            load_start,
+            load_end: read_trimmed("/proc/loadavg"),
+            elapsed_s: started.elapsed().as_secs_f64(),
+            date: first_line(Command::new("date").args(["-u", "+%Y-%m-%d %H:%M"])),
+            nproc: first_line(&mut Command::new("nproc")),
+            cpu: cpu_model(),
+            kernel: first_line(Command::new("uname").args(["-sr"])),
+            rustc: first_line(Command::new("rustc").arg("--version")),
+            cc: first_line(Command::new("cc").arg("--version")),
+            python: first_line(Command::new(util::repo_root().join(".venv/bin/python")).arg("--version")),
+        }
+    }
+}
+
+pub(super) fn read_trimmed(path: &str) -> String {
+    fs::read_to_string(path)
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|_| "unknown".into())
+}
+
+fn first_line(cmd: &mut Command) -> String {
+    util::output(cmd)
+        .ok()
+        .and_then(|s| s.lines().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".into())
+}
+
+fn cpu_model() -> String {
+    read_trimmed("/proc/cpuinfo")
+        .lines()
+        .find(|l| l.starts_with("model name"))
+        .and_then(|l| l.split(':').nth(1))
+        .map_or_else(|| "unknown".into(), |s| s.trim().to_string())
+}
+
+/// A command line as text for the report, with paths inside the repository made relative.
+fn describe(cmd: &Command) -> String {
+    let root = format!("{}/", util::repo_root().display());
+    let program = cmd.get_program().to_string_lossy().into_owned();
+    // The cargo that runs xtask, shown by name.
+    let program = if program.ends_with("/cargo") {
+        "cargo".to_string()
+    } else {
+        program
+    };
+    let mut words = vec![program];
+    words.extend(cmd.get_args().map(|a| a.to_string_lossy().into_owned()));
+    let words: Vec<String> = words
+        .into_iter()
+        .map(|w| {
+            let w = w.replace(&root, "");
+            if w.contains(['{', '}', ' ']) {
+                format!("'{w}'")
+            } else {
+                w
+            }
+        })
+        .collect();
+    words.join(" ")
+}
+
+/// The compiled native host and the unpacked archive it loads; collects every tool's results.
+pub(super) struct Runner {
+    host: PathBuf,
+    library: PathBuf,
+    guid: String,
+    resources: String,
+    measured: Measurements,
+}
+
+impl Runner {
+    /// Unpacks BacklashShaft.fmu into `work` and compiles benches/native_host.c against fmpy's
+    /// FMI headers and the value references of the archive's own modelDescription.xml.
+    pub(super) fn prepare(work: &Path) -> Result<Runner, String> {
+        let unpacked = work.join(MODEL);
+        let xml = unpack(&util::fmu_dir().join(format!("{MODEL}.fmu")), &unpacked)?;
+        let guid = attribute(&xml, "guid").ok_or("modelDescription.xml has no guid")?;
+        fs::write(work.join("bench_vr.h"), vr_header(&xml)?).map_err(|e| format!("writing bench_vr.h: {e}"))?;
+        let headers = python::fmpy_header_dir().ok_or("no fmi2Functions.h in .venv (fmpy's c-code)")?;
+        let host = work.join("native_host");
+        let mut compile = Command::new("cc");
+        compile
+            .current_dir(util::repo_root())
+            .args(["-O2", "-Wall", "-Wextra", "-Werror"])
+            .arg(format!("-I{}", headers.display()))
+            .arg(format!("-I{}", work.display()))
+            .arg("-o")
+            .arg(&host)
+            .arg("benches/native_host.c")
+            .args(["-ldl", "-lm"]);
+        let compile_text = describe(&compile);
+        util::run(&mut compile)?;
+
+        Ok(Runner {
+            host,
+            library: unpacked.join("binaries").join("linux64").join(format!("{MODEL}.so")),
+            guid,
+            resources: format!("file://{}", unpacked.join("resources").display()),
+            measured: Measurements {
+                results: Results::default(),
+                criterion: Vec::new(),
+                commands: vec![compile_text],
+            },
+        })
+    }
+
+    /// Runs a benchmark tool, keeps its command for the report and collects its results.
+    fn run(&mut self, cmd: &mut Command) -> Result<(), String> {
+        let text = describe(cmd);
+        println!("$ {text}");
+        let started = Instant::now();
+        let out = util::output(cmd)?;
+        println!("  ({:.1} s)", started.elapsed().as_secs_f64());
+        self.measured.results.collect(&out);
+        self.measured.commands.push(text);
+        Ok(())
+    }
+
+    fn native(&mut self, mode: &[String]) -> Result<(), String> {
+        let mut cmd = Command::new(&self.host);
+        cmd.current_dir(util::repo_root())
+            .arg(&self.library)
+            .arg(&self.guid)
+            .arg(&self.resources)
+            .args(mode);
+        self.run(&mut cmd)
+    }
+
+    /// Section 1: the per-call costs and their floors, rows taken in turn round by round.
+    pub(super) fn native_suite(&mut self, plan: &Plan) -> Result<(), String> {
+        self.native(&strings(&[
+            "suite",
+            &plan.suite_rounds.to_string(),
+            &plan.steps_per_batch.to_string(),
+        ]))
+    }
+
+    /// Growth with the number of steps, one process each.
+    pub(super) fn native_scale(&mut self, plan: &Plan) -> Result<(), String> {
+        for n in &plan.scale_steps {
+            self.native(&strings(&["scale", &n.to_string()]))?;
+        }
+        Ok(())
+    }
+
+    /// Many instances stepped round-robin, one process each.
+    pub(super) fn native_instances(&mut self, plan: &Plan) -> Result<(), String> {
+        for k in &plan.instance_counts {
+            self.native(&strings(&[
+                "instances",
+                &k.to_string(),
+                &plan.batches.to_string(),
+                &plan.instance_steps_per_batch.to_string(),
+            ]))?;
+        }
+        Ok(())
+    }
+
+    pub(super) fn native_piloop(&mut self, plan: &Plan) -> Result<(), String> {
+        self.native(&strings(&[
+            "piloop",
+            &plan.loop_seconds.to_string(),
+            &plan.batches.to_string(),
+        ]))
+    }
+
+    /// The PI loop through fmpy and in scipy (benches/python_bench.py).
+    pub(super) fn python(&mut self, plan: &Plan) -> Result<(), String> {
+        let mut py = Command::new(util::repo_root().join(".venv").join("bin").join("python"));
+        py.current_dir(util::repo_root())
+            .env("BACKLASH_FMU_DIR", util::fmu_dir())
+            .arg("benches/python_bench.py")
+            .args(["--loop-seconds", &plan.loop_seconds.to_string()])
+            .args(["--repeats", &plan.loop_repeats.to_string()])
+            .args(["--scipy-seconds", &plan.loop_seconds.to_string()])
+            .args(["--sweep", plan.sweep]);
+        self.run(&mut py)
+    }
+
+    /// The criterion bench of the physics core; its figures are read from the estimates.json
+    /// files criterion writes during this run.
+    pub(super) fn criterion(&mut self) -> Result<(), String> {
+        let mut cmd = util::cargo();
+        cmd.args([
+            "bench",
+            "--bench",
+            "physics",
+            "--",
+            "--warm-up-time",
+            "1",
+            "--measurement-time",
+            "3",
+        ]);
+        let text = describe(&cmd);
+        println!("$ {text}");
+        // Whole seconds, so that a file system with coarse timestamps still counts this run's files.
+        let since = SystemTime::now() - std::time::Duration::from_secs(1);
+        let out = util::output(&mut cmd)?;
+        let dir = criterion_dir();
+        let found = read_criterion(&dir, since)?;
+        if found.is_empty() {
+            return Err(format!(
+                "no criterion results written under {} by `{text}`:\n{out}",
+                dir.display()
+            ));
+        }
+        self.measured.criterion = found;
+        self.measured.commands.push(text);
+        Ok(())
+    }
+
+    pub(super) fn finish(self) -> Measurements {
+        self.measured
+    }
+}
+
+fn strings(words: &[&str]) -> Vec<String> {
+    words.iter().map(|w| w.to_string()).collect()
+}
+
+/// Where criterion writes its results: $CRITERION_HOME, else `<target>/criterion` (criterion's
+/// own order of precedence, cargo's target directory being the one xtask uses).
+fn criterion_dir() -> PathBuf {
+    std::env::var_os("CRITERION_HOME")
+        .filter(|dir| !dir.is_empty())
+        .map_or_else(|| util::target_dir().join("criterion"), PathBuf::from)
+}
+
+/// The parts of criterion's `new/estimates.json` the report uses (values in ns).
+#[derive(Deserialize)]
+struct Estimates {
+    mean: Estimate,
+    /// Present when criterion sampled linearly; null for flat sampling.
+    slope: Option<Estimate>,
+}
+
+#[derive(Deserialize)]
+struct Estimate {
+    point_estimate: f64,
+    confidence_interval: Interval,
+}
+
+#[derive(Deserialize)]
+struct Interval {
+    lower_bound: f64,
+    upper_bound: f64,
+}
+
+/// criterion's `new/benchmark.json`: the id of the bench as criterion prints it.
+#[derive(Deserialize)]
+struct BenchmarkId {
+    title: String,
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, String> {
+    let text = fs::read_to_string(path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Every bench under `dir` whose `new/estimates.json` was written at or after `since`, in the
+/// order criterion ran them. The figure is the one criterion prints as `time:` (its "typical"
+/// estimate): the slope of the linear regression when sampled linearly, else the mean.
+fn read_criterion(dir: &Path, since: SystemTime) -> Result<Vec<CriterionEstimate>, String> {
+    let mut files = Vec::new();
+    estimates_files(dir, &mut files)?;
+    let mut written = Vec::new();
+    for path in files {
+        let modified = fs::metadata(&path)
+            .and_then(|m| m.modified())
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        if modified >= since {
+            written.push((modified, path));
+        }
+    }
+    written.sort();
+    written
+        .into_iter()
+        .map(|(_, path)| {
+            let estimates: Estimates = read_json(&path)?;
+            let id: BenchmarkId = read_json(&path.with_file_name("benchmark.json"))?;
+            let typical = estimates.slope.unwrap_or(estimates.mean);
+            Ok(CriterionEstimate {
+                name: id.title,
+                low_ns: typical.confidence_interval.lower_bound,
+                estimate_ns: typical.point_estimate,
+                high_ns: typical.confidence_interval.upper_bound,
+            })
+        })
+        .collect()
+}
+
+/// The `<bench>/new/estimates.json` files below `dir` (a bench id may span several levels);
+/// `base/` and `change/` hold copies and comparisons, not this run's estimates.
+fn estimates_files(dir: &Path, found: &mut Vec<PathBuf>) -> Result<(), String> {
+    let entries = match fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(format!("{}: {e}", dir.display())),
+    };
+    for entry in entries {
+        let path = entry.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        if !path.is_dir() {
+            continue;
+        }
+        if path.file_name().is_some_and(|name| name == "new") {
+            let file = path.join("estimates.json");
+            if file.is_file() {
+                found.push(file);
+            }
+        } else {
+            estimates_files(&path, found)?;
+        }
+    }
+    Ok(())
+}
+
+/// Unpacks the archive into `dir` (fresh) and returns its modelDescription.xml.
+fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
+    let _ = fs::remove_dir_all(dir);
+    let file = fs::File::open(archive).map_err(|e| format!("{}: {e}", archive.display()))?;
+    let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{}: {e}", archive.display()))?;
+    zip.extract(dir)
+        .map_err(|e| format!("unpacking {}: {e}", archive.display()))?;
+    fs::create_dir_all(dir.join("resources")).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut xml = String::new();
+    fs::File::open(dir.join("modelDescription.xml"))
+        .and_then(|mut f| f.read_to_string(&mut xml))
+        .map_err(|e| format!("reading the unpacked modelDescription.xml: {e}"))?;
+    Ok(xml)
+}
+
+/// The first `name="…"` attribute value in `xml`.
+fn attribute(xml: &str, name: &str) -> Option<String> {
+    let key = format!(" {name}=\"");
+    let start = xml.find(&key)? + key.len();
+    let end = xml[start..].find('"')? + start;
+    Some(xml[start..end].to_string())
+}
+
+/// `#define VR_<name> <vr>u` for every ScalarVariable, from the archive's description.
+fn vr_header(xml: &str) -> Result<String, String> {
+    let mut text = String::from("/* Written by cargo xtask bench from the archive's modelDescription.xml. */\n");
+    let mut count = 0;
+    for element in xml.split("<ScalarVariable").skip(1) {
+        let head = &element[..element.find('>').unwrap_or(element.len())];
+        let (Some(name), Some(vr)) = (attribute(head, "name"), attribute(head, "valueReference")) else {
+            return Err(format!("a ScalarVariable without name or valueReference: {head}"));
+        };
+        text.push_str(&format!("#define VR_{name} {vr}u\n"));
+        count += 1;
+    }
+    if count == 0 {
+        return Err("modelDescription.xml lists no ScalarVariable".into());
+    }
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn write_bench(root: &Path, dir: &str, title: &str, estimates: &str, at: SystemTime) {
+        let new = root.join(dir).join("new");
+        fs::create_dir_all(&new).unwrap();
+        fs::write(
+            new.join("benchmark.json"),
+            format!(r#"{{"title":"{title}","full_id":"{title}"}}"#),
+        )
+        .unwrap();
+        let file = new.join("estimates.json");
+        fs::write(&file, estimates).unwrap();
+        fs::File::options()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_modified(at)
+            .unwrap();
+    }
+
+    fn estimate(point: f64) -> String {
+        format!(
+            r#"{{"confidence_interval":{{"confidence_level":0.95,"lower_bound":{},"upper_bound":{}}},"point_estimate":{point},"standard_error":0.1}}"#,
+            point - 1.0,
+            point + 1.0
+        )
+    }
+
+    #[test]
+    fn criterion_estimates_are_read_in_run_order_slope_first() {
+        let root = std::env::temp_dir().join(format!("xtask-criterion-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&root);
+        let since = SystemTime::now() - Duration::from_secs(100);
+        let all = |mean: f64, slope: &str| {
+            format!(
+                r#"{{"mean":{m},"median":{m},"median_abs_dev":{m},"slope":{slope},"std_dev":{m}}}"#,
+                m = estimate(mean)
+            )
+        };
+        // Written in the order b, a: the run order, not the name order.
+        write_bench(
+            &root,
+            "b",
+            "b",
+            &all(20.0, &estimate(21.0)),
+            since + Duration::from_secs(10),
+        );
+        write_bench(&root, "a", "a", &all(30.0, "null"), since + Duration::from_secs(20));
+        // Before this run: left out.
+        write_bench(&root, "old", "old", &all(40.0, "null"), since - Duration::from_secs(10));
+        // A group with a function id, two levels deep, and criterion's copy of a baseline.
+        write_bench(&root, "g/f", "g/f", &all(50.0, "null"), since + Duration::from_secs(30));
+        fs::create_dir_all(root.join("g/f/base")).unwrap();
+        fs::write(root.join("g/f/base/estimates.json"), all(60.0, "null")).unwrap();
+
+        let found = read_criterion(&root, since).unwrap();
+        let got: Vec<(&str, f64, f64, f64)> = found
+            .iter()
+            .map(|e| (e.name.as_str(), e.low_ns, e.estimate_ns, e.high_ns))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("b", 20.0, 21.0, 22.0),
+                ("a", 29.0, 30.0, 31.0),
+                ("g/f", 49.0, 50.0, 51.0)
+            ]
+        );
+        fs::remove_dir_all(&root).unwrap();
+    }
+}
