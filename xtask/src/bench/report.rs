@@ -172,9 +172,9 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
     line(String::new());
     line(format!(
         "The first target compares an FMI call that checks its arguments and state, advances the exact \
-         solution (matrix exponential applied to the state and the held input, spec §2), proves the step \
+         solution (matrix exponential applied to the state and the held input, docs/model.md §2), proves the step \
          free of contact switches (a bound on u over the step; the search for a switch runs only where \
-         that proof fails) and advances both bounds (spec §3), with a single product of a 4x4 matrix and \
+         that proof fails) and advances both bounds (docs/model.md §3), with a single product of a 4x4 matrix and \
          a vector. The criterion bench of the physics core (below) splits the step: its \
          `step_1ms_no_switch` is the plant alone, `bound_advance_1ms` the bounds alone while the loop's \
          response h is still decaying. Once h is below the round-off of `bound` (after the first seconds \

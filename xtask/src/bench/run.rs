@@ -164,8 +164,8 @@ impl Runner {
     pub(super) fn prepare(work: &Path) -> Result<Runner, String> {
         let unpacked = work.join(MODEL);
         let xml = unpack(&util::fmu_dir().join(format!("{MODEL}.fmu")), &unpacked)?;
-        let guid = attribute(&xml, "guid").ok_or("modelDescription.xml has no guid")?;
-        fs::write(work.join("bench_vr.h"), vr_header(&xml)?).map_err(|e| format!("writing bench_vr.h: {e}"))?;
+        let (guid, vr_header) = guid_and_vr_header(&xml)?;
+        fs::write(work.join("bench_vr.h"), vr_header).map_err(|e| format!("writing bench_vr.h: {e}"))?;
         let headers = python::fmpy_header_dir().ok_or("no fmi2Functions.h in .venv (fmpy's c-code)")?;
         let host = work.join("native_host");
         let mut compile = Command::new("cc");
@@ -419,22 +419,16 @@ fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
     Ok(xml)
 }
 
-/// The first `name="…"` attribute value in `xml`.
-fn attribute(xml: &str, name: &str) -> Option<String> {
-    let key = format!(" {name}=\"");
-    let start = xml.find(&key)? + key.len();
-    let end = xml[start..].find('"')? + start;
-    Some(xml[start..end].to_string())
-}
-
-/// `#define VR_<name> <vr>u` for every ScalarVariable, from the archive's description.
-fn vr_header(xml: &str) -> Result<String, String> {
+/// The guid of the archive's description, and `#define VR_<name> <vr>u` for every
+/// ScalarVariable of it.
+fn guid_and_vr_header(xml: &str) -> Result<(String, String), String> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
+    let guid = doc.root_element().attribute("guid").ok_or("modelDescription.xml has no guid")?;
     let mut text = String::from("/* Written by cargo xtask bench from the archive's modelDescription.xml. */\n");
     let mut count = 0;
-    for element in xml.split("<ScalarVariable").skip(1) {
-        let head = &element[..element.find('>').unwrap_or(element.len())];
-        let (Some(name), Some(vr)) = (attribute(head, "name"), attribute(head, "valueReference")) else {
-            return Err(format!("a ScalarVariable without name or valueReference: {head}"));
+    for variable in doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")) {
+        let (Some(name), Some(vr)) = (variable.attribute("name"), variable.attribute("valueReference")) else {
+            return Err(format!("a ScalarVariable without name or valueReference: {variable:?}"));
         };
         text.push_str(&format!("#define VR_{name} {vr}u\n"));
         count += 1;
@@ -442,7 +436,7 @@ fn vr_header(xml: &str) -> Result<String, String> {
     if count == 0 {
         return Err("modelDescription.xml lists no ScalarVariable".into());
     }
-    Ok(text)
+    Ok((guid.to_string(), text))
 }
 
 #[cfg(test)]
