@@ -97,12 +97,13 @@ impl DriveTrain {
     }
 }
 
-/// One scalar variable. `symbol` names the variant of the generated `Symbol` enum that the
-/// library's model adapter maps to the physics.
-#[derive(Clone, Debug)]
-pub struct Var {
+/// One scalar variable. `symbol` says what the variable is: here the name of a variant of the
+/// generated `Symbol` enum, in the library's generated tables that variant itself (which the
+/// library's model adapter maps to the physics).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Variable<S = &'static str> {
     pub name: &'static str,
-    pub symbol: &'static str,
+    pub symbol: S,
     pub vr: u32,
     pub ty: Type,
     pub causality: Causality,
@@ -117,12 +118,29 @@ pub struct Var {
     pub description: &'static str,
 }
 
+/// The description's variables, with the symbol as its name.
+pub type Var = Variable<&'static str>;
+
+impl<S> Variable<S> {
+    /// Outputs with initial = exact carry the settable initial state (docs/model.md §4).
+    pub fn is_initial_state(&self) -> bool {
+        self.causality == Causality::Output && self.initial == Initial::Exact
+    }
+}
+
+/// The `<DefaultExperiment>` [s].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DefaultExperiment {
+    pub start_time: f64,
+    pub stop_time: f64,
+    pub step_size: f64,
+}
+
 pub struct Model {
     pub identifier: &'static str,
     pub drive_train: DriveTrain,
     pub description: &'static str,
-    /// startTime, stopTime, stepSize [s].
-    pub default_experiment: (f64, f64, f64),
+    pub default_experiment: DefaultExperiment,
     pub variables: Vec<Var>,
 }
 

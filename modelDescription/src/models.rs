@@ -1,7 +1,7 @@
 //! The two models' variable tables: value references, kinds, start values, units and texts
 //! (docs/model.md §4; the defaults of BacklashShaft are the paper's rig).
 
-use crate::{model_identifiers, Causality, DriveTrain, Initial, Model, Range, Type, Var, Variability};
+use crate::{model_identifiers, Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability};
 
 #[allow(clippy::too_many_arguments)]
 const fn var(
@@ -283,7 +283,11 @@ pub fn model(identifier: &str) -> Model {
                 identifier: "BacklashShaft",
                 drive_train: DriveTrain::Shaft,
                 description: "Compliant shaft and gear backlash in series (paper Fig. 5, eqs. 11-12), exact stepping with located contact switches; defaults are the paper's rig",
-                default_experiment: (0.0, 10.0, 1e-2),
+                default_experiment: DefaultExperiment {
+                    start_time: 0.0,
+                    stop_time: 10.0,
+                    step_size: 1e-2,
+                },
                 variables: v,
             }
         }
@@ -400,7 +404,11 @@ pub fn model(identifier: &str) -> Model {
                 identifier: "BacklashBelt",
                 drive_train: DriveTrain::Belt,
                 description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
-                default_experiment: (0.0, 0.2, 1e-4),
+                default_experiment: DefaultExperiment {
+                    start_time: 0.0,
+                    stop_time: 0.2,
+                    step_size: 1e-4,
+                },
                 variables: v,
             }
         }

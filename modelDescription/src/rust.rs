@@ -49,8 +49,12 @@ pub fn variable_tables() -> String {
         let _ = writeln!(out, "        identifier: {:?},", m.identifier);
         let _ = writeln!(out, "        guid: {:?},", xml::guid(m.identifier));
         let _ = writeln!(out, "        drive_train: DriveTrain::{},", m.drive_train.rust());
-        let (start, stop, step) = m.default_experiment;
-        let _ = writeln!(out, "        default_experiment: DefaultExperiment {{ start_time: {start:?}, stop_time: {stop:?}, step_size: {step:?} }},");
+        let e = m.default_experiment;
+        let _ = writeln!(
+            out,
+            "        default_experiment: DefaultExperiment {{ start_time: {:?}, stop_time: {:?}, step_size: {:?} }},",
+            e.start_time, e.stop_time, e.step_size
+        );
         let _ = writeln!(out, "        variables: &[");
         for v in &m.variables {
             let start = match v.start {
@@ -59,8 +63,8 @@ pub fn variable_tables() -> String {
             };
             let _ = writeln!(
                 out,
-                "            Variable {{ name: {:?}, symbol: Symbol::{}, vr: {}, ty: VarType::{:?}, causality: Causality::{:?}, variability: Variability::{:?}, initial: Initial::{:?}, start: {}, range: Range::{:?}, unit: {:?}, description: {:?} }},",
-                v.name, v.symbol, v.vr, v.ty, v.causality, v.variability, v.initial, start, v.range, v.unit, v.description
+                "            Variable {{ name: {:?}, symbol: Symbol::{}, vr: {}, ty: VarType::{:?}, causality: Causality::{:?}, variability: Variability::{:?}, initial: Initial::{:?}, start: {}, range: Range::{:?}, unit: {:?}, quantity: {:?}, description: {:?} }},",
+                v.name, v.symbol, v.vr, v.ty, v.causality, v.variability, v.initial, start, v.range, v.unit, v.quantity, v.description
             );
         }
         let _ = writeln!(out, "        ],");

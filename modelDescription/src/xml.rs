@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use crate::{model, Causality, DriveTrain, Initial, Model, Range, Type, Var, Variability, LOG_CATEGORIES, UNITS};
+use crate::{model, Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability, LOG_CATEGORIES, UNITS};
 
 /// The complete `modelDescription.xml` of `identifier`.
 /// Panics on an identifier not in [`crate::model_identifiers`].
@@ -52,7 +52,8 @@ fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
     Some(vrs)
 }
 
-fn escape(text: &str) -> String {
+/// `text` as XML (or HTML) attribute value or text.
+pub fn escape(text: &str) -> String {
     text.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -113,7 +114,7 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     }
     x.push_str("  </LogCategories>\n");
 
-    let (start, stop, step) = model.default_experiment;
+    let DefaultExperiment { start_time: start, stop_time: stop, step_size: step } = model.default_experiment;
     let _ = writeln!(
         x,
         "  <DefaultExperiment startTime=\"{start:?}\" stopTime=\"{stop:?}\" stepSize=\"{step:?}\"/>"

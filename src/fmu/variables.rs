@@ -3,37 +3,10 @@
 //! `modelDescription.xml` comes from), and the lookups the instance serves get/set with.
 
 // The kinds of variables are those the description is written with: one definition.
-pub use model_description::{Causality, DriveTrain, Initial, Range, Type as VarType, Variability};
+pub use model_description::{Causality, DefaultExperiment, DriveTrain, Initial, Range, Type as VarType, Variability};
 
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DefaultExperiment {
-    pub start_time: f64,
-    pub stop_time: f64,
-    pub step_size: f64,
-}
-
-/// One scalar variable of a model description.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Variable {
-    pub name: &'static str,
-    pub symbol: Symbol,
-    pub vr: u32,
-    pub ty: VarType,
-    pub causality: Causality,
-    pub variability: Variability,
-    pub initial: Initial,
-    pub start: Option<f64>,
-    pub range: Range,
-    pub unit: &'static str,
-    pub description: &'static str,
-}
-
-impl Variable {
-    /// Outputs with initial = exact carry the settable initial state (docs/model.md §4).
-    pub fn is_initial_state(&self) -> bool {
-        self.causality == Causality::Output && self.initial == Initial::Exact
-    }
-}
+/// One scalar variable of a model, with the [`Symbol`] that says what it is.
+pub type Variable = model_description::Variable<Symbol>;
 
 /// One model: identifier, guid and its variables in value-reference order.
 #[derive(Debug)]

@@ -5,6 +5,8 @@
 use std::fs;
 use std::path::PathBuf;
 
+use model_description::xml::escape;
+
 use crate::util;
 
 fn source_dir() -> PathBuf {
@@ -36,14 +38,6 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
         return Err(format!("{id}: unknown placeholder {} in template.html", &page[at..end]));
     }
     Ok(page)
-}
-
-/// `text` as HTML text or attribute value.
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 /// The variable table: one row per `<ScalarVariable>`, with the unit, start and bounds of its

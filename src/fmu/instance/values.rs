@@ -110,15 +110,7 @@ impl Instance {
         Self::same_length("values", count, vrs.len())?;
         match vrs.first() {
             None => Ok(Status::Ok),
-            Some(vr) => {
-                let v = self.variable(*vr)?;
-                Err(FmuError::WrongType {
-                    name: v.name,
-                    vr: *vr,
-                    actual: v.ty,
-                    requested,
-                })
-            }
+            Some(vr) => Err(Self::wrong_type(self.variable(*vr)?, requested)),
         }
     }
 
