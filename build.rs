@@ -7,8 +7,14 @@ use std::path::{Path, PathBuf};
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    write(&out.join("model_variables.rs"), &model_description::rust::variable_tables());
-    write(&out.join("log_categories.rs"), &model_description::rust::log_categories());
+    write(
+        &out.join("model_variables.rs"),
+        &model_description::rust::variable_tables(),
+    );
+    write(
+        &out.join("log_categories.rs"),
+        &model_description::rust::log_categories(),
+    );
 }
 
 /// Writes only when the content changed, so dependants are not rebuilt needlessly.

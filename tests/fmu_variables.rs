@@ -79,12 +79,22 @@ fn xml_and_rust_table_describe_the_same_variables() {
             assert_eq!(x.start.is_some(), needs_start, "{}", v.name);
             assert!(!v.description.is_empty());
         }
-        let categories: Vec<_> = element("Category").iter().map(|c| c.attribute("name").unwrap()).collect();
+        let categories: Vec<_> = element("Category")
+            .iter()
+            .map(|c| c.attribute("name").unwrap())
+            .collect();
         let names: Vec<_> = LogCategory::ALL.iter().map(|c| c.name()).collect();
         assert_eq!(categories, names, "{id}");
-        let mut display_units: Vec<_> = element("DisplayUnit").iter().map(|c| c.attribute("name").unwrap()).collect();
+        let mut display_units: Vec<_> = element("DisplayUnit")
+            .iter()
+            .map(|c| c.attribute("name").unwrap())
+            .collect();
         display_units.sort_unstable();
-        let expected: &[&str] = if *id == "BacklashBelt" { &["deg", "mm", "rpm"] } else { &["deg", "rpm"] };
+        let expected: &[&str] = if *id == "BacklashBelt" {
+            &["deg", "mm", "rpm"]
+        } else {
+            &["deg", "rpm"]
+        };
         assert_eq!(display_units, expected, "{id}");
     }
 }

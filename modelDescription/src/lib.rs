@@ -191,4 +191,3 @@ pub const LOG_CATEGORIES: &[LogCategory] = &[
         description: "Every call of an FMI function and the status it returned",
     },
 ];
-

@@ -1,7 +1,9 @@
 //! The two models' variable tables: value references, kinds, start values, units and texts
 //! (docs/model.md §4; the defaults of BacklashShaft are the paper's rig).
 
-use crate::{model_identifiers, Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability};
+use crate::{
+    model_identifiers, Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability,
+};
 
 #[allow(clippy::too_many_arguments)]
 const fn var(
@@ -415,4 +417,3 @@ pub fn model(identifier: &str) -> Model {
         other => panic!("unknown model identifier {other:?}; known: {:?}", model_identifiers()),
     }
 }
-

@@ -2,7 +2,10 @@
 
 use std::fmt::Write as _;
 
-use crate::{model, Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability, LOG_CATEGORIES, UNITS};
+use crate::{
+    model, Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability, LOG_CATEGORIES,
+    UNITS,
+};
 
 /// The complete `modelDescription.xml` of `identifier`.
 /// Panics on an identifier not in [`crate::model_identifiers`].
@@ -114,7 +117,11 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     }
     x.push_str("  </LogCategories>\n");
 
-    let DefaultExperiment { start_time: start, stop_time: stop, step_size: step } = model.default_experiment;
+    let DefaultExperiment {
+        start_time: start,
+        stop_time: stop,
+        step_size: step,
+    } = model.default_experiment;
     let _ = writeln!(
         x,
         "  <DefaultExperiment startTime=\"{start:?}\" stopTime=\"{stop:?}\" stepSize=\"{step:?}\"/>"

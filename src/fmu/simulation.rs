@@ -4,9 +4,7 @@
 use super::adapter::{self, Values};
 use super::error::FmuError;
 use super::variables::{Causality, ModelInfo};
-use crate::physics::{
-    finite, max_step, BoundState, Inputs, Plant, PlantState, SpeedErrorBound, Stepper, Unbounded,
-};
+use crate::physics::{finite, max_step, BoundState, Inputs, Plant, PlantState, SpeedErrorBound, Stepper, Unbounded};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {

@@ -21,9 +21,9 @@
 //! Loading checks, in order: length, magic, version, guid (a state of the other model is
 //! refused), exact length, checksum, then every field (phase, finiteness, parameter ranges).
 
+use super::adapter::Values;
 use super::error::FmuError;
 use super::instance::Experiment;
-use super::adapter::Values;
 use super::state_machine::Phase;
 use super::variables::{ModelInfo, Symbol};
 use crate::physics::{BoundState, ContactMode, PlantState};

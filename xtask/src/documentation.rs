@@ -53,7 +53,10 @@ fn variable_table(doc: &roxmltree::Document) -> Result<String, String> {
         let typed = variable.children().find(|n| n.is_element());
         let kind = typed.map_or("?", |t| t.tag_name().name());
         let get = |node: Option<roxmltree::Node>, k: &str| escape(node.and_then(|n| n.attribute(k)).unwrap_or(""));
-        let range = match (typed.and_then(|t| t.attribute("min")), typed.and_then(|t| t.attribute("max"))) {
+        let range = match (
+            typed.and_then(|t| t.attribute("min")),
+            typed.and_then(|t| t.attribute("max")),
+        ) {
             (None, None) => String::new(),
             (min, max) => format!("[{}, {}]", min.unwrap_or("−∞"), max.unwrap_or("∞")),
         };

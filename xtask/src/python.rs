@@ -99,7 +99,11 @@ fn site_package_dir(relative: &[&str], file: &str) -> Option<PathBuf> {
         .ok()?
         .filter_map(|entry| entry.ok())
         .filter(|entry| entry.file_name().to_string_lossy().starts_with("python3"))
-        .map(|entry| relative.iter().fold(entry.path().join("site-packages"), |dir, part| dir.join(part)))
+        .map(|entry| {
+            relative
+                .iter()
+                .fold(entry.path().join("site-packages"), |dir, part| dir.join(part))
+        })
         .filter(|dir| dir.join(file).is_file())
         .collect();
     found.sort();

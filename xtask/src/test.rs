@@ -86,7 +86,8 @@ pub fn run(args: &[String]) -> Result<(), String> {
 /// the wheel lacks) unless BINDGEN_EXTRA_CLANG_ARGS is set.
 fn bindgen_environment(cmd: &mut Command) -> Result<(), String> {
     if std::env::var_os("LIBCLANG_PATH").is_none() {
-        let dir = python::libclang_dir().ok_or("no libclang.so in .venv (the libclang wheel of tests/importer/requirements.txt)")?;
+        let dir = python::libclang_dir()
+            .ok_or("no libclang.so in .venv (the libclang wheel of tests/importer/requirements.txt)")?;
         cmd.env("LIBCLANG_PATH", dir);
     }
     if std::env::var_os("BINDGEN_EXTRA_CLANG_ARGS").is_none() {

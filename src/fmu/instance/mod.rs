@@ -402,5 +402,4 @@ impl Instance {
         self.preview = None;
         Ok(Status::Ok)
     }
-
 }

@@ -78,7 +78,8 @@ impl Instance {
             let x = self.real_value(v)?;
             // bound_sup is +∞ by definition when the loop is unstable (docs/model.md §4); nothing else
             // may leave the FMU as ∞ or NaN.
-            if x.is_nan() || (x.is_infinite() && adapter::source(v.symbol) != Source::Calculated(Calculated::BoundSup)) {
+            if x.is_nan() || (x.is_infinite() && adapter::source(v.symbol) != Source::Calculated(Calculated::BoundSup))
+            {
                 return Err(FmuError::Overflow(format!("{} evaluates to {x}", v.name)));
             }
             *slot = x;

@@ -423,7 +423,10 @@ fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
 /// ScalarVariable of it.
 fn guid_and_vr_header(xml: &str) -> Result<(String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
-    let guid = doc.root_element().attribute("guid").ok_or("modelDescription.xml has no guid")?;
+    let guid = doc
+        .root_element()
+        .attribute("guid")
+        .ok_or("modelDescription.xml has no guid")?;
     let mut text = String::from("/* Written by cargo xtask bench from the archive's modelDescription.xml. */\n");
     let mut count = 0;
     for variable in doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")) {
