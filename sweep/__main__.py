@@ -1,0 +1,122 @@
+"""Tolerance sweep of the shaft drive: N drives with backlash, stiffness and load inertia drawn
+from distributions, each run as a twin closed loop (with and without backlash) through fmpy.
+
+    python -m sweep --samples 1000 --seed 1 [--scheduler tcp://HOST:PORT] [--workers N]
+                    [--config FILE] [--out DIR] [--fmu PATH] [--serial] [--accuracy EPS]
+
+Writes DIR/samples.csv (one row per sample), DIR/summary.json, DIR/histogram.png and
+DIR/deviation_vs_delta.png. Exit status: 0 done, 1 a sample's max deviation exceeded its
+bound_sup (the bound would be wrong), 2 bad usage, config, archive or scheduler.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+# Tiny matrices by the thousand: BLAS threads only add synchronisation (tests/python/conftest.py).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+
+class UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    ap = _Parser(prog="python -m sweep", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--samples", type=_positive_int, required=True, help="number of drives")
+    ap.add_argument("--seed", type=int, required=True, help="seed of the draws (same seed, same table)")
+    ap.add_argument("--scheduler", help="tcp://HOST:PORT of a running Dask scheduler (default: a LocalCluster)")
+    ap.add_argument("--workers", type=_positive_int,
+                    help="LocalCluster worker processes (default: one per core); with --scheduler: wait for this many")
+    ap.add_argument("--config", type=Path, help="TOML config (format: sweep/config.py, README.md)")
+    ap.add_argument("--out", type=Path, default=Path("results/sweep"), help="output directory")
+    ap.add_argument("--fmu", type=Path, default=Path("target/fmu/BacklashShaft.fmu"), help="BacklashShaft.fmu")
+    ap.add_argument("--serial", action="store_true", help="no Dask: every sample in this process")
+    ap.add_argument("--accuracy", type=float, help="required load-speed accuracy [m/s] (overrides the config)")
+    ap.add_argument("--connect-timeout", type=float, default=10.0, help="seconds to reach the scheduler")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+    if args.serial and (args.scheduler or args.workers):
+        raise UsageError("--serial runs without Dask: it takes neither --scheduler nor --workers")
+    if args.scheduler is not None and not args.scheduler.startswith(("tcp://", "tls://")):
+        raise UsageError(f"--scheduler: expected tcp://HOST:PORT, got {args.scheduler!r}")
+    if args.accuracy is not None and not args.accuracy > 0:
+        raise UsageError(f"--accuracy: must be > 0, got {args.accuracy!r}")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    from . import config as config_mod
+    from . import engine, report
+
+    try:
+        args = parse(argv)
+        config = config_mod.load(args.config)
+        if args.accuracy is not None:
+            config.accuracy = args.accuracy
+        try:
+            fmu_bytes = args.fmu.read_bytes()
+        except OSError as e:
+            raise UsageError(f"cannot read the FMU archive {args.fmu}: {e.strerror} (build it with `cargo xtask fmu`)")
+        draws = config.draw(args.samples, args.seed)
+        settings = config.settings()
+        if args.serial:
+            outcome = engine.run_serial(fmu_bytes, draws, settings, progress=not args.no_progress)
+        else:
+            outcome = engine.run_dask(fmu_bytes, draws, settings, scheduler=args.scheduler, workers=args.workers,
+                                      timeout=args.connect_timeout, progress=not args.no_progress)
+    except (UsageError, config_mod.ConfigError, engine.SchedulerError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    report.write_table(args.out / "samples.csv", outcome.rows)
+    summary = report.summarize(outcome.rows, config, args.seed)
+    summary["execution"] = {
+        "engine": outcome.engine,
+        "scheduler": outcome.scheduler,
+        "tasks_per_worker": outcome.tasks_per_worker,
+        "seconds": outcome.elapsed,
+        "startup_seconds": outcome.startup,
+    }
+    report.write_summary(args.out / "summary.json", summary)
+    plots = report.plot(args.out, outcome.rows, config)
+
+    n = summary["samples"]
+    print(f"{n} samples (seed {args.seed}) on {outcome.engine}"
+          f"{' at ' + outcome.scheduler if outcome.scheduler else ''}: {outcome.elapsed:.1f} s, "
+          f"{n / outcome.elapsed:.2f} samples/s, {len(outcome.tasks_per_worker)} worker(s)")
+    print(f"accuracy ε = {config.accuracy:g} m/s met by {summary['meeting_accuracy']}/{n} "
+          f"({summary['fraction_meeting_accuracy'] * 100:.1f} %)")
+    print(f"largest max deviation {summary['largest_max_dev']:.6g} m/s (sample {summary['largest_max_dev_sample']}); "
+          f"worst max_dev/bound_sup = {summary['worst_ratio']:.4f} (sample {summary['worst_ratio_sample']})")
+    print(f"wrote {args.out / 'samples.csv'}, {args.out / 'summary.json'}, "
+          + ", ".join(str(p) for p in plots))
+    if not summary["bound_holds"]:
+        print(f"error: max_dev/bound_sup = {summary['worst_ratio']!r} > 1 in sample {summary['worst_ratio_sample']}: "
+              "the deviation exceeds the bound", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,162 @@
+"""Running the samples: in this process (serial), or as one Dask task per sample on a LocalCluster
+or on an existing cluster. The rows are the same whichever runs them: each task gets its drawn
+parameters and the FMU archive as bytes, and the rows are sorted by sample index at the end.
+
+A worker needs only Python, fmpy and numpy: the task code (sweep.twin) is shipped by value, and
+the archive travels as a scattered bytes object, unpacked once per worker process.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+from tqdm import tqdm
+
+from . import twin
+
+
+@dataclass
+class Outcome:
+    rows: list[dict]
+    engine: str
+    # Wall time from the first task handed out to the last row received [s].
+    elapsed: float
+    # Starting the LocalCluster, or connecting to the scheduler [s].
+    startup: float = 0.0
+    scheduler: str | None = None
+    tasks_per_worker: dict[str, int] = field(default_factory=dict)
+
+
+class SchedulerError(RuntimeError):
+    """The scheduler cannot be reached; the message is one line."""
+
+
+def _progress(total: int, show: bool) -> tqdm:
+    return tqdm(total=total, desc="sweep", unit="sample", file=sys.stderr, disable=not show, dynamic_ncols=True)
+
+
+def run_serial(fmu_bytes: bytes, draws: list[dict], settings: dict, progress: bool = True) -> Outcome:
+    """The reference: the same task function as the Dask workers run, in this process."""
+    started = time.perf_counter()
+    rows = []
+    with _progress(len(draws), progress) as bar:
+        for i, params in enumerate(draws):
+            row, _ = twin.sweep_task(fmu_bytes, i, params, settings)
+            rows.append(row)
+            bar.update(1)
+    return Outcome(rows, "serial", time.perf_counter() - started, tasks_per_worker={"local": len(rows)})
+
+
+def task_keys(fmu_bytes: bytes, draws: list[dict], settings: dict) -> list[str]:
+    """Keys that name a task's inputs (archive, parameters, settings): a key always means the
+    same result, so a task recomputed after a lost worker is interchangeable with the original."""
+    base = hashlib.sha256(fmu_bytes)
+    base.update(json.dumps(settings, sort_keys=True).encode())
+    keys = []
+    for i, params in enumerate(draws):
+        h = base.copy()
+        h.update(json.dumps([i, params], sort_keys=True).encode())
+        keys.append(f"sweep-{i}-{h.hexdigest()[:20]}")
+    return keys
+
+
+def connect(scheduler: str | None, workers: int | None, timeout: float):
+    """A Client on the given scheduler, or on a LocalCluster of `workers` single-threaded worker
+    processes (default: one per core) bound to the loopback interface."""
+    import os
+
+    from distributed import Client, LocalCluster
+
+    if scheduler is None:
+        n = workers or os.cpu_count() or 1
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        return Client(cluster), cluster
+    # A refused connection is retried until the timeout; its log lines would repeat the error.
+    quiet = logging.getLogger("distributed")
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)
+    try:
+        client = Client(scheduler, timeout=timeout)
+    except (OSError, TimeoutError, ValueError) as e:
+        reason = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {reason}") from None
+    finally:
+        quiet.setLevel(level)
+    return client, None
+
+
+class _Shipped:
+    """A task function that travels by value even through plain pickle: the scheduler unpickles
+    the graph with the standard library, so a reference to this package would fail on a cluster
+    that does not have it. Unpickled, it is a small closure that loads the real function (and
+    its imports, fmpy and numpy) only when a worker calls it."""
+
+    def __init__(self, fn: Callable):
+        import cloudpickle
+
+        # Shipped by value: workers of an existing cluster do not have this package installed.
+        cloudpickle.register_pickle_by_value(twin)
+        payload = cloudpickle.dumps(fn)
+
+        def call(*args):
+            import cloudpickle
+
+            return cloudpickle.loads(payload)(*args)
+
+        self.call = call
+
+    def __call__(self, *args):
+        return self.call(*args)
+
+    def __reduce__(self):
+        import cloudpickle
+
+        return cloudpickle.loads, (cloudpickle.dumps(self.call),)
+
+
+def run_dask(fmu_bytes: bytes, draws: list[dict], settings: dict, *, scheduler: str | None = None,
+             workers: int | None = None, timeout: float = 10.0, progress: bool = True,
+             after_first: Callable[[], None] | None = None) -> Outcome:
+    """One task per sample on a Dask cluster; `after_first` runs once the first row is in (the
+    tests kill a worker there)."""
+    from distributed import as_completed
+
+    task = _Shipped(twin.sweep_task)
+    t0 = time.perf_counter()
+    client, cluster = connect(scheduler, workers, timeout)
+    try:
+        if scheduler is not None and workers:
+            client.wait_for_workers(workers, timeout=timeout)
+        startup = time.perf_counter() - t0
+        started = time.perf_counter()
+        archive = client.scatter(fmu_bytes, broadcast=True, hash=True)
+        keys = task_keys(fmu_bytes, draws, settings)
+        # A worker lost mid-task is not an error of the task: the scheduler reruns it elsewhere
+        # (up to distributed.scheduler.allowed-failures times); retries cover transient errors.
+        futures = [client.submit(task, archive, i, params, settings, key=key, retries=2)
+                   for i, (params, key) in enumerate(zip(draws, keys))]
+        rows, per_worker = [], {}
+        with _progress(len(futures), progress) as bar:
+            for future in as_completed(futures):
+                row, where = future.result()
+                rows.append(row)
+                per_worker[where] = per_worker.get(where, 0) + 1
+                bar.update(1)
+                if after_first is not None and len(rows) == 1:
+                    after_first()
+        elapsed = time.perf_counter() - started
+        address = client.scheduler.address
+        del futures, archive
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    rows.sort(key=lambda r: r["sample"])
+    return Outcome(rows, "dask", elapsed, startup, address, dict(sorted(per_worker.items())))

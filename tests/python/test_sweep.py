@@ -1,0 +1,193 @@
+"""The tolerance sweep (sweep/, `python -m sweep`): the same table serially, on a LocalCluster, on
+a real `dask scheduler` with two `dask worker` processes, and after a worker is killed mid-run;
+bad configs and an unreachable scheduler refused in one line before any work.
+
+Every server binds to 127.0.0.1. The workers run from an empty directory without this package on
+their path: they get the task code and the FMU archive from the client.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import fmu_driver
+
+sys.path.insert(0, str(fmu_driver.REPO))
+
+from sweep import config as sweep_config  # noqa: E402
+from sweep import engine, report  # noqa: E402
+
+SAMPLES = 8
+SEED = 7
+# Short runs keep the file well under a minute and a half; the defaults otherwise.
+CONFIG = """\
+[run]
+horizon = 0.6
+"""
+
+
+@pytest.fixture(scope="module")
+def config_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("sweep_config") / "sweep.toml"
+    path.write_text(CONFIG)
+    return path
+
+
+def sweep(out: Path, config: Path, *extra: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "sweep", "--fmu", str(fmu_driver.fmu_path("BacklashShaft")), "--samples",
+         str(SAMPLES), "--seed", str(SEED), "--config", str(config), "--out", str(out), "--no-progress", *extra],
+        cwd=fmu_driver.REPO, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def serial_table(tmp_path_factory, config_file) -> bytes:
+    out = tmp_path_factory.mktemp("sweep_serial")
+    done = sweep(out, config_file, "--serial")
+    assert done.returncode == 0, done.stderr
+    table = (out / "samples.csv").read_bytes()
+    lines = table.decode().splitlines()
+    assert len(lines) == SAMPLES + 1
+    header = lines[0].split(",")
+    assert header[0] == "sample" and "max_dev" in header and "bound_sup" in header
+    return table
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Cluster:
+    """A `dask scheduler` and two `dask worker` processes (no nanny: a killed worker stays dead),
+    all on 127.0.0.1; every process is killed on teardown."""
+
+    def __init__(self, workdir: Path):
+        self.address = f"tcp://127.0.0.1:{free_port()}"
+        self.procs: list[subprocess.Popen] = []
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        common = dict(cwd=workdir, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        port = self.address.rsplit(":", 1)[1]
+        self.procs.append(subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", port,
+             "--no-dashboard"], **common))
+        self.workers = [subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--host", "127.0.0.1",
+             "--nthreads", "1", "--no-nanny", "--no-dashboard", "--name", f"w{i}"], **common) for i in range(2)]
+        self.procs += self.workers
+
+    def client(self):
+        from distributed import Client
+
+        return Client(self.address, timeout=30)
+
+    def wait_ready(self, timeout: float = 60.0) -> dict:
+        """The scheduler's view of its workers once both have joined."""
+        from distributed import Client
+
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                with Client(self.address, timeout=5) as c:
+                    c.wait_for_workers(2, timeout=max(1.0, deadline - time.monotonic()))
+                    return c.scheduler_info(n_workers=-1)["workers"]
+            except (OSError, TimeoutError):
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.5)
+
+    def close(self):
+        for p in self.procs:
+            if p.poll() is None:
+                p.kill()
+        for p in self.procs:
+            p.wait(timeout=30)
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    workdir = tmp_path / "workers"
+    workdir.mkdir()
+    c = Cluster(workdir)
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+def test_local_cluster_gives_the_serial_table(tmp_path, config_file, serial_table):
+    done = sweep(tmp_path, config_file, "--workers", "2")
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "samples.csv").read_bytes() == serial_table
+    for name in ("summary.json", "histogram.png", "deviation_vs_delta.png"):
+        assert (tmp_path / name).is_file()
+
+
+def test_external_cluster_gives_the_serial_table_and_ran_the_tasks(tmp_path, config_file, serial_table, cluster):
+    import json
+
+    workers = cluster.wait_ready()
+    done = sweep(tmp_path / "out", config_file, "--scheduler", cluster.address, "--workers", "2")
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "out" / "samples.csv").read_bytes() == serial_table
+    # Both workers of this cluster ran samples, and the scheduler counted every sample's task.
+    ran = json.loads((tmp_path / "out" / "summary.json").read_text())["execution"]["tasks_per_worker"]
+    assert set(ran) == set(workers) and all(n >= 1 for n in ran.values()) and sum(ran.values()) == SAMPLES
+    with cluster.client() as c:
+        counts = c.run_on_scheduler(lambda dask_scheduler: dict(dask_scheduler.task_prefixes["sweep"].state_counts))
+    assert sum(counts.values()) >= SAMPLES, counts
+
+
+def test_killed_worker_loses_no_sample(tmp_path, config_file, serial_table, cluster):
+    cluster.wait_ready()
+    victim = cluster.workers[1]
+    killed = []
+
+    def kill():
+        os.kill(victim.pid, signal.SIGKILL)
+        victim.wait(timeout=30)
+        killed.append(victim.pid)
+
+    cfg = sweep_config.load(config_file)
+    draws = cfg.draw(SAMPLES, SEED)
+    fmu_bytes = fmu_driver.fmu_path("BacklashShaft").read_bytes()
+    outcome = engine.run_dask(fmu_bytes, draws, cfg.settings(), scheduler=cluster.address, progress=False,
+                              after_first=kill)
+    assert killed and victim.poll() is not None
+    assert [r["sample"] for r in outcome.rows] == list(range(SAMPLES))
+    report.write_table(tmp_path / "samples.csv", outcome.rows)
+    assert (tmp_path / "samples.csv").read_bytes() == serial_table
+
+
+@pytest.mark.parametrize("text, says", [
+    ("[parameters]\nbeta = 1.0\n", "unknown parameter 'beta'"),
+    ("[parameters]\nDelta = { low = -1e-3, high = 2e-3 }\n", "negative range"),
+    ("[parameters]\nk = { low = 220.0, high = 180.0 }\n", "inverted range"),
+    ("[run]\nhorizon = 0.6\nspeed = 3\n", "unknown entry 'speed'"),
+])
+def test_bad_config_is_refused_in_one_line(tmp_path, text, says):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    done = sweep(tmp_path / "out", bad, "--serial", timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and says in lines[0], done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_unreachable_scheduler_is_refused_in_one_line(tmp_path, config_file):
+    done = sweep(tmp_path / "out", config_file, "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "2",
+                 timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: cannot reach the Dask scheduler"), done.stderr
+    assert not (tmp_path / "out").exists()
