@@ -7,6 +7,7 @@ mod design;
 mod documentation;
 mod fmu;
 mod python;
+mod sweep;
 mod test;
 mod util;
 
@@ -22,6 +23,7 @@ commands:
   pytest    the Python part alone: .venv, pytest on target/fmu/*.fmu, the README's fmpy example
   demo      the main demonstration (see `cargo xtask demo --help`)
   design    the design study (see `cargo xtask design --help`)
+  sweep     tolerance sweep on Dask: many drives drawn from tolerances (see `cargo xtask sweep --help`)
   bench     every benchmark, and BENCHMARKS.md generated from the run
   help      this text";
 
@@ -41,6 +43,7 @@ fn main() {
         "pytest" => python::run(rest),
         "demo" => demo::run(rest),
         "design" => design::run(rest),
+        "sweep" => sweep::run(rest),
         "bench" => bench::run(rest),
         "help" | "-h" | "--help" => {
             println!("{USAGE}");

@@ -1,0 +1,83 @@
+//! `cargo xtask sweep`: the tolerance sweep. Builds the FMUs, makes sure the Python environment
+//! exists, then runs `python -m sweep` (the package sweep/) from the repository root on
+//! BacklashShaft.fmu with the flags given here.
+
+use std::process::Command;
+
+use crate::util::{self, step};
+use crate::{fmu, python};
+
+const USAGE: &str = "\
+usage: cargo xtask sweep --samples N --seed S [--scheduler tcp://HOST:PORT] [--workers N]
+                         [--config FILE] [--out DIR] [--accuracy EPS] [--serial]
+
+Tolerance sweep of the shaft drive: for each of N drives, Delta, k and J_L drawn from the
+config's distributions (default: the paper's rig, Delta uniform over a wear range, k +-10 %,
+J_L +-5 %, the demo's gains and reversing reference), a twin closed-loop run through fmpy (with
+and without backlash) recording the max deviation, bound_sup and whether the accuracy is met.
+Runs on a Dask LocalCluster (one worker per core) or an existing cluster (--scheduler). Writes
+results/sweep/samples.csv, summary.json, histogram.png and deviation_vs_delta.png.
+
+  --samples N       number of drives (required)
+  --seed S          seed of the draws: the same seed gives the same table (required)
+  --scheduler ADDR  a running Dask scheduler (`dask scheduler`, `dask worker ADDR`)
+  --workers N       LocalCluster worker processes (default: one per core)
+  --config FILE     TOML distributions and settings (format: README.md, sweep/config.py)
+  --out DIR         output directory (default: results/sweep)
+  --accuracy EPS    required load-speed accuracy [m/s] (default 0.02)
+  --serial          no Dask: every sample in one process";
+
+/// Flags forwarded to `python -m sweep` with their value, and those without one.
+const WITH_VALUE: [&str; 7] = [
+    "--samples",
+    "--seed",
+    "--scheduler",
+    "--workers",
+    "--config",
+    "--out",
+    "--accuracy",
+];
+const WITHOUT_VALUE: [&str; 2] = ["--serial", "--no-progress"];
+
+pub fn run(args: &[String]) -> Result<(), String> {
+    let mut forwarded = Vec::new();
+    let mut rest = args.iter();
+    while let Some(arg) = rest.next() {
+        let flag = arg.split('=').next().unwrap_or(arg);
+        if arg == "--help" || arg == "-h" {
+            println!("{USAGE}");
+            return Ok(());
+        } else if WITHOUT_VALUE.contains(&arg.as_str()) || (WITH_VALUE.contains(&flag) && arg.contains('=')) {
+            forwarded.push(arg.clone());
+        } else if WITH_VALUE.contains(&flag) {
+            let value = rest.next().ok_or(format!("{arg} needs a value\n\n{USAGE}"))?;
+            forwarded.extend([arg.clone(), value.clone()]);
+        } else {
+            return Err(format!("unknown argument `{arg}`\n\n{USAGE}"));
+        }
+    }
+    for required in ["--samples", "--seed"] {
+        if !forwarded.iter().any(|a| a.split('=').next() == Some(required)) {
+            return Err(format!("{required} is required\n\n{USAGE}"));
+        }
+    }
+
+    step("building the FMUs");
+    fmu::package_all()?;
+    python::ensure_venv()?;
+
+    step("tolerance sweep (python -m sweep)");
+    let python = util::repo_root().join(".venv").join("bin").join("python");
+    let mut cmd = Command::new(python);
+    cmd.current_dir(util::repo_root())
+        .args(["-m", "sweep", "--fmu"])
+        .arg(util::fmu_dir().join("BacklashShaft.fmu"))
+        .args(&forwarded);
+    let status = util::status(&mut cmd)?;
+    // The sweep has already said what went wrong in one line; pass its exit code on.
+    match status.code() {
+        Some(0) => Ok(()),
+        Some(code) => std::process::exit(code),
+        None => Err(format!("python -m sweep was stopped ({status})")),
+    }
+}
