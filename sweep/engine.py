@@ -75,8 +75,12 @@ def connect(scheduler: str | None, workers: int | None, timeout: float):
 
     if scheduler is None:
         n = workers or os.cpu_count() or 1
+        # Every server on the loopback interface; the scheduler's HTTP server (health and
+        # metrics, no dashboard) on a free port rather than 8787, which may be taken.
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=None, worker_dashboard_address=None,
+                               scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)
         return Client(cluster), cluster
     # A refused connection is retried until the timeout; its log lines would repeat the error.
     quiet = logging.getLogger("distributed")

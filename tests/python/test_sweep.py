@@ -79,10 +79,11 @@ class Cluster:
         port = self.address.rsplit(":", 1)[1]
         self.procs.append(subprocess.Popen(
             [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", port,
-             "--no-dashboard"], **common))
+             "--no-dashboard", "--dashboard-address", "127.0.0.1:0"], **common))
         self.workers = [subprocess.Popen(
             [sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--host", "127.0.0.1",
-             "--nthreads", "1", "--no-nanny", "--no-dashboard", "--name", f"w{i}"], **common) for i in range(2)]
+             "--nthreads", "1", "--no-nanny", "--no-dashboard",
+             "--dashboard-address", "127.0.0.1:0", "--name", f"w{i}"], **common) for i in range(2)]
         self.procs += self.workers
 
     def client(self):
