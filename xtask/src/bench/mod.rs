@@ -22,7 +22,8 @@ const USAGE: &str = "\
 usage: cargo xtask bench [--smoke]
 
 Runs every benchmark (native C host through the FMI C ABI, the PI loop through fmpy and in scipy,
-growth with steps and instances, criterion bench of the physics core) and rewrites BENCHMARKS.md
+growth with steps and instances, the tolerance sweep serially and on Dask, criterion
+bench of the physics core) and rewrites BENCHMARKS.md
 with the numbers, the machine facts and the exact commands. Takes a few minutes.
 
   --smoke   tiny sizes, no criterion: checks that the harness runs (seconds after the build);
@@ -43,6 +44,9 @@ struct Plan {
     loop_seconds: f64,
     loop_repeats: u32,
     sweep: &'static str,
+    /// Samples of the tolerance-sweep benchmark (benches/sweep_bench.py) and its repeats.
+    tolerance_samples: u32,
+    tolerance_repeats: u32,
 }
 
 impl Plan {
@@ -59,6 +63,8 @@ impl Plan {
             loop_seconds: 10.0,
             loop_repeats: 7,
             sweep: "RK45:1e-3,RK45:1e-6,RK45:1e-9,RK45:1e-12,DOP853:1e-3,DOP853:1e-8,DOP853:1e-12",
+            tolerance_samples: 40,
+            tolerance_repeats: 2,
         }
     }
 
@@ -74,6 +80,8 @@ impl Plan {
             loop_seconds: 0.05,
             loop_repeats: 3,
             sweep: "RK45:1e-3",
+            tolerance_samples: 4,
+            tolerance_repeats: 1,
         }
     }
 }
@@ -111,6 +119,9 @@ pub fn run(args: &[String]) -> Result<(), String> {
 
     step("the PI loop through fmpy and in scipy (benches/python_bench.py)");
     runner.python(&plan)?;
+
+    step("the tolerance sweep: serial and on a Dask LocalCluster (benches/sweep_bench.py)");
+    runner.sweep(&plan)?;
 
     if !plan.smoke {
         step("criterion bench of the physics core (benches/physics.rs)");

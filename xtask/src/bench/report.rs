@@ -412,6 +412,46 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
     }
     line(String::new());
 
+    line("## 5. Tolerance sweep on Dask (benches/sweep_bench.py)".into());
+    line(String::new());
+    let (serial_rate, serial_s) = (r.num("sweep_serial", 0)?, r.num("sweep_serial", 1)?);
+    let scaling = r.num("sweep_scaling", 0)?;
+    let overhead = r.num("sweep_overhead", 0)?;
+    line(format!(
+        "The same {} samples of `python -m sweep` (default config: twin closed-loop runs of {} s each \
+         through fmpy), wall time from the first task handed out to the last row received, fastest of \
+         the interleaved repeats; the tables of the three runs are {}.",
+        r.num("sweep_config", 0)?,
+        r.num("sweep_config", 1)?,
+        if r.num("sweep_identical", 0)? == 1.0 {
+            "identical"
+        } else {
+            "**not identical**"
+        }
+    ));
+    line(String::new());
+    line("| run | samples/s | s | cluster start s |".into());
+    line("|---|---|---|---|".into());
+    line(format!("| serial, no Dask | {serial_rate:.2} | {serial_s:.2} | – |"));
+    for workers in [1, 2] {
+        let key = format!("sweep_dask{workers}");
+        line(format!(
+            "| LocalCluster, {workers} worker{} | {:.2} | {:.2} | {:.2} |",
+            if workers == 1 { "" } else { "s" },
+            r.num(&key, 0)?,
+            r.num(&key, 1)?,
+            r.num(&key, 2)?
+        ));
+    }
+    line(String::new());
+    line(format!(
+        "Scaling from 1 to 2 workers: {scaling:.2}x (target >= 1.7x: {}). Dask's overhead per sample, \
+         1 - serial time / 1-worker time: {overhead:.1}% (target <= 10%: {}).",
+        yes(scaling >= 1.7),
+        yes(overhead <= 10.0)
+    ));
+    line(String::new());
+
     line("## Physics core (criterion, benches/physics.rs)".into());
     line(String::new());
     if measured.criterion.is_empty() {

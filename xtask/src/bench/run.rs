@@ -267,6 +267,18 @@ impl Runner {
         self.run(&mut py)
     }
 
+    /// Samples per second of the tolerance sweep, serially and on LocalClusters of 1 and 2 workers
+    /// (benches/sweep_bench.py).
+    pub(super) fn sweep(&mut self, plan: &Plan) -> Result<(), String> {
+        let mut py = Command::new(util::repo_root().join(".venv").join("bin").join("python"));
+        py.current_dir(util::repo_root())
+            .env("BACKLASH_FMU_DIR", util::fmu_dir())
+            .arg("benches/sweep_bench.py")
+            .args(["--samples", &plan.tolerance_samples.to_string()])
+            .args(["--repeats", &plan.tolerance_repeats.to_string()]);
+        self.run(&mut py)
+    }
+
     /// The criterion bench of the physics core; its figures are read from the estimates.json
     /// files criterion writes during this run.
     pub(super) fn criterion(&mut self) -> Result<(), String> {

@@ -1,0 +1,74 @@
+"""Tolerance sweep side of `cargo xtask bench`: samples per second of the same N samples run
+serially (no Dask, one process), on a LocalCluster of 1 worker and of 2 workers.
+
+Prints `@ <key> <value> ...` lines, collected by xtask/src/bench/run.rs:
+    @ sweep_config <samples> <horizon s> <step s>
+    @ sweep_serial <samples/s> <s>
+    @ sweep_dask1 <samples/s> <s> <cluster start s>
+    @ sweep_dask2 <samples/s> <s> <cluster start s>
+    @ sweep_scaling <dask2 rate / dask1 rate>
+    @ sweep_overhead <1 - serial s / dask1 s, percent>
+    @ sweep_identical <1 if the three tables are the same, else 0>
+The time of a Dask run is from the first task handed out to the last row received (the archive's
+scatter and each worker's first unpacking included); the cluster start is reported apart. Each
+mode runs --repeats times, interleaved, and the fastest counts: on a shared machine the slower
+runs measure the neighbours.
+
+    python benches/sweep_bench.py [--samples 40] [--repeats 2] [--seed 1] [--fmu PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from sweep import config, engine  # noqa: E402
+
+
+def emit(key: str, *values) -> None:
+    print("@", key, *values, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--samples", type=int, default=40)
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1)
+    default_fmu = Path(os.environ.get("BACKLASH_FMU_DIR", REPO / "target" / "fmu")) / "BacklashShaft.fmu"
+    ap.add_argument("--fmu", type=Path, default=default_fmu)
+    args = ap.parse_args(argv)
+
+    cfg = config.load(None)
+    draws, settings = cfg.draw(args.samples, args.seed), cfg.settings()
+    data = args.fmu.read_bytes()
+    n = args.samples
+
+    emit("sweep_config", n, settings["horizon"], settings["h"])
+    best = {}
+    for _ in range(args.repeats):
+        runs = {0: engine.run_serial(data, draws, settings, progress=False)}
+        for workers in (1, 2):
+            runs[workers] = engine.run_dask(data, draws, settings, workers=workers, progress=False)
+        for mode, out in runs.items():
+            if mode not in best or out.elapsed < best[mode].elapsed:
+                best[mode] = out
+    serial, runs = best[0], best
+    emit("sweep_serial", n / serial.elapsed, serial.elapsed)
+    for workers in (1, 2):
+        emit(f"sweep_dask{workers}", n / runs[workers].elapsed, runs[workers].elapsed, runs[workers].startup)
+    emit("sweep_scaling", runs[1].elapsed / runs[2].elapsed)
+    emit("sweep_overhead", (1 - serial.elapsed / runs[1].elapsed) * 100)
+    emit("sweep_identical", int(serial.rows == runs[1].rows == runs[2].rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
