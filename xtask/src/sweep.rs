@@ -25,10 +25,12 @@ results/sweep/samples.csv, summary.json, histogram.png and deviation_vs_delta.pn
   --config FILE     TOML distributions and settings (format: README.md, sweep/config.py)
   --out DIR         output directory (default: results/sweep)
   --accuracy EPS    required load-speed accuracy [m/s] (default 0.02)
-  --serial          no Dask: every sample in one process";
+  --serial          no Dask: every sample in one process
+  --connect-timeout seconds to reach the scheduler (default 10)
+  --no-progress     no progress bar";
 
 /// Flags forwarded to `python -m sweep` with their value, and those without one.
-const WITH_VALUE: [&str; 7] = [
+const WITH_VALUE: [&str; 8] = [
     "--samples",
     "--seed",
     "--scheduler",
@@ -36,6 +38,7 @@ const WITH_VALUE: [&str; 7] = [
     "--config",
     "--out",
     "--accuracy",
+    "--connect-timeout",
 ];
 const WITHOUT_VALUE: [&str; 2] = ["--serial", "--no-progress"];
 
