@@ -4,13 +4,15 @@ serially (no Dask, one process), on a LocalCluster of 1 worker and of 2 workers.
 Prints `@ <key> <value> ...` lines, collected by xtask/src/bench/run.rs:
     @ sweep_config <samples> <horizon s> <step s>
     @ sweep_serial <samples/s> <s>
-    @ sweep_dask1 <samples/s> <s> <cluster start s>
-    @ sweep_dask2 <samples/s> <s> <cluster start s>
+    @ sweep_dask1 <samples/s> <s> <start s>
+    @ sweep_dask2 <samples/s> <s> <start s>
     @ sweep_scaling <dask2 rate / dask1 rate>
     @ sweep_overhead <1 - serial s / dask1 s, percent>
     @ sweep_identical <1 if the three tables are the same, else 0>
-The time of a Dask run is from the first task handed out to the last row received (the archive's
-scatter and each worker's first unpacking included); the cluster start is reported apart. Each
+The time of a run is from the first task handed out to the last row received. The one-time work
+before it is reported apart as the start: the cluster's start, the archive's scatter, and on each
+worker the imports and the unpacking of the archive (which the serial run also does before its
+clock starts). Each
 mode runs --repeats times, interleaved, and the fastest counts: on a shared machine the slower
 runs measure the neighbours.
 

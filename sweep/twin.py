@@ -224,6 +224,11 @@ def fmu_from_bytes(data: bytes) -> Fmu:
     return fmu
 
 
+def prepare(fmu_bytes: bytes) -> None:
+    """The one-time work of a process before its first sample: imports and unpacking."""
+    fmu_from_bytes(fmu_bytes)
+
+
 def sweep_task(fmu_bytes: bytes, index: int, params: dict[str, float], settings: dict[str, float]):
     """One sample as a task: (row, address of the Dask worker that ran it, or "local")."""
     row = sample_row(fmu_from_bytes(fmu_bytes), index, params, settings)

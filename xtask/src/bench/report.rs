@@ -420,7 +420,8 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
     line(format!(
         "The same {} samples of `python -m sweep` (default config: twin closed-loop runs of {} s each \
          through fmpy), wall time from the first task handed out to the last row received, fastest of \
-         the interleaved repeats; the tables of the three runs are {}.",
+         the interleaved repeats; start = the LocalCluster's start, the archive sent to the workers, \
+         their imports and unpacking. The tables of the three runs are {}.",
         r.num("sweep_config", 0)?,
         r.num("sweep_config", 1)?,
         if r.num("sweep_identical", 0)? == 1.0 {
@@ -430,7 +431,7 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
         }
     ));
     line(String::new());
-    line("| run | samples/s | s | cluster start s |".into());
+    line("| run | samples/s | s | start s |".into());
     line("|---|---|---|---|".into());
     line(format!("| serial, no Dask | {serial_rate:.2} | {serial_s:.2} | – |"));
     for workers in [1, 2] {
