@@ -225,8 +225,9 @@ def fmu_from_bytes(data: bytes) -> Fmu:
 
 
 def prepare(fmu_bytes: bytes) -> None:
-    """The one-time work of a process before its first sample: imports and unpacking."""
-    fmu_from_bytes(fmu_bytes)
+    """The one-time work of a process before its first sample: imports, unpacking, and loading
+    the model's shared library (one instance made and freed)."""
+    fmu_from_bytes(fmu_bytes).instance({"Delta": 0.0}).close()
 
 
 def sweep_task(fmu_bytes: bytes, index: int, params: dict[str, float], settings: dict[str, float]):
