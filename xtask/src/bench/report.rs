@@ -170,7 +170,7 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
         yes(t3 >= 100.0 && matched_is_equal)
     ));
     line(String::new());
-    line(format!(
+    line(
         "The first target compares an FMI call that checks its arguments and state, advances the exact \
          solution (matrix exponential applied to the state and the held input, docs/model.md §2), proves the step \
          free of contact switches (a bound on u over the step; the search for a switch runs only where \
@@ -180,7 +180,8 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
          response h is still decaying. Once h is below the round-off of `bound` (after the first seconds \
          of these runs), `bound` is final and advancing the bounds costs one multiply-add per entry of the \
          integral behind `bound_paper`, and one more for a running bound that rules out its overflow."
-    ));
+            .to_string(),
+    );
     line(String::new());
 
     line("## 1. Native cost per call (C host through the FMI C ABI)".into());
