@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 
 # The twin run lives in the package sweep/ at the repository root, shared with the tolerance sweep.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from sweep.twin import SPEED, Fmu, Run, references, twin_run  # noqa: E402
+from sweep.twin import SPEED, Fmu, Run, reference_frequency, references, twin_run  # noqa: E402
 
 GAPS_MM = (1.55, 3.56, 5.38)
 READINGS = {"half": 0.5, "full": 1.0}  # Delta = factor * gap
@@ -202,10 +202,8 @@ def main(argv: list[str] | None = None) -> int:
     p = design["plant"]
     plant = {"J_m": p["J_m"], "J_L": p["J_L"], "b_m": p["b_m"], "b_L": p["b_L"], "k": p["k"]}
     kp, ki = design["Kp"], design["Ki"]
-    # Sine at the closed-loop poles' natural frequency, where h oscillates: the reversing
-    # reference then drives the deviation close to the true bound.
-    omega_n = float(np.mean([math.hypot(re, im) for re, im in design["poles"]]))
-    f_ref = omega_n / (2 * math.pi)
+    f_ref = reference_frequency(design["poles"])
+    omega_n = 2 * math.pi * f_ref
     args.out.mkdir(parents=True, exist_ok=True)
     fmu = Fmu(args.fmu)
 

@@ -6,7 +6,8 @@ from distributions, each run as a twin closed loop (with and without backlash) t
 
 Writes DIR/samples.csv (one row per sample), DIR/summary.json, DIR/histogram.png and
 DIR/deviation_vs_delta.png. Exit status: 0 done, 1 a sample's max deviation exceeded its
-bound_sup (the bound would be wrong), 2 bad usage, config, archive or scheduler.
+bound_sup (the bound would be wrong), 2 bad usage, config, unreadable archive, output directory
+or scheduler (refused before any sample runs), 3 any other failure (its reason on one line).
 """
 
 from __future__ import annotations
@@ -30,20 +31,36 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
+def _int_at_least(low: int):
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+        return value
+
+    return convert
+
+
+_positive_int = _int_at_least(1)
+
+
+def _check_writable(out: Path) -> None:
+    """Refuses an output directory that could not be made, before the samples are computed
+    (nothing is created yet: a refused run leaves no trace)."""
+    probe = out.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(f"cannot write the output directory {out}: {probe} is not a writable directory")
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
     ap = _Parser(prog="python -m sweep", description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", type=_positive_int, required=True, help="number of drives")
-    ap.add_argument("--seed", type=int, required=True, help="seed of the draws (same seed, same table)")
+    ap.add_argument("--seed", type=_int_at_least(0), required=True, help="seed of the draws (same seed, same table)")
     ap.add_argument("--scheduler", help="tcp://HOST:PORT of a running Dask scheduler (default: a LocalCluster)")
     ap.add_argument("--workers", type=_positive_int,
                     help="LocalCluster worker processes (default: one per core); with --scheduler: wait for this many")
@@ -77,6 +94,7 @@ def main(argv: list[str] | None = None) -> int:
             fmu_bytes = args.fmu.read_bytes()
         except OSError as e:
             raise UsageError(f"cannot read the FMU archive {args.fmu}: {e.strerror} (build it with `cargo xtask fmu`)")
+        _check_writable(args.out)
         draws = config.draw(args.samples, args.seed)
         settings = config.settings()
         if args.serial:
@@ -87,6 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     except (UsageError, config_mod.ConfigError, engine.SchedulerError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except Exception as e:  # noqa: BLE001 - one line for the user, not a traceback; 1 is reserved
+        reason = str(e).splitlines()[0] if str(e) else ""
+        print(f"error: {type(e).__name__}: {reason}", file=sys.stderr)
+        return 3
 
     args.out.mkdir(parents=True, exist_ok=True)
     report.write_table(args.out / "samples.csv", outcome.rows)

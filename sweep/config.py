@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -94,7 +94,6 @@ class Config:
     h: float
     accuracy: float
     source: str = "defaults"
-    extra: dict = field(default_factory=dict)
 
     def settings(self) -> dict[str, float]:
         """What every sample's run shares, as plain numbers (sent with each task)."""

@@ -71,13 +71,11 @@ def task_keys(fmu_bytes: bytes, draws: list[dict], settings: dict) -> list[str]:
 def connect(scheduler: str | None, workers: int | None, timeout: float):
     """A Client on the given scheduler, or on a LocalCluster of `workers` single-threaded worker
     processes (default: one per core) bound to the loopback interface."""
-    import os
-
     import dask
     from distributed import Client, LocalCluster
 
     if scheduler is None:
-        n = workers or os.cpu_count() or 1
+        n = workers or dask.system.CPU_COUNT
         # Every server on the loopback interface; the scheduler's HTTP server (health and
         # metrics, no dashboard) on a free port rather than 8787, which may be taken.
         # No statistical profiler: nobody looks at it, and it samples the task's stack every 10 ms.
@@ -151,8 +149,14 @@ def run_dask(fmu_bytes: bytes, draws: list[dict], settings: dict, *, scheduler: 
     t0 = time.perf_counter()
     client, cluster = connect(scheduler, workers, timeout)
     try:
-        if scheduler is not None and workers:
-            client.wait_for_workers(workers, timeout=timeout)
+        if scheduler is not None:
+            # A cluster without workers would queue the tasks forever: wait for them, bounded.
+            try:
+                client.wait_for_workers(workers or 1, timeout=timeout)
+            except (TimeoutError, OSError) as e:
+                raise SchedulerError(f"the Dask scheduler at {scheduler} has fewer than {workers or 1} worker(s) "
+                                     f"after {timeout:g} s: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
+                                     ) from None
         # Each worker present imports fmpy and unpacks the archive before the clock starts, as
         # the serial run does; a worker that joins later does it at its first task.
         archive = client.scatter(fmu_bytes, broadcast=True, hash=True)

@@ -100,4 +100,12 @@ def plot(out: Path, rows: list[dict], config: Config) -> list[Path]:
 
 
 def write_summary(path: Path, summary: dict) -> None:
-    path.write_text(json.dumps(summary, indent=2) + "\n")
+    # JSON has no infinity (a ratio with bound_sup = 0): such numbers are written as null.
+    def finite(value):
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if isinstance(value, dict):
+            return {k: finite(v) for k, v in value.items()}
+        return value
+
+    path.write_text(json.dumps(finite(summary), indent=2, allow_nan=False) + "\n")

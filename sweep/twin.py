@@ -164,10 +164,17 @@ def twin_run(
     )
 
 
-def references(f_ref: float) -> dict[str, Callable[[float], float]]:
+def reference_frequency(poles) -> float:
+    """The reversing reference's frequency [Hz]: the closed-loop poles' mean natural frequency,
+    where h oscillates, so that the deviation comes close to the true bound. `poles` as
+    `cargo xtask design --json` lists them, [re, im] pairs."""
+    return float(np.mean([math.hypot(re, im) for re, im in poles])) / (2 * math.pi)
+
+
+def references(f_ref: float, amplitude: float = SPEED) -> dict[str, Callable[[float], float]]:
     return {
-        "step": lambda t: SPEED,
-        "sine": lambda t: SPEED * math.sin(2.0 * math.pi * f_ref * t),
+        "step": lambda t: amplitude,
+        "sine": lambda t: amplitude * math.sin(2.0 * math.pi * f_ref * t),
     }
 
 
@@ -177,7 +184,7 @@ def sample_row(fmu: Fmu, index: int, params: dict[str, float], settings: dict[st
     plant = {name: params[name] for name in ("J_m", "J_L", "b_m", "b_L", "k")}
     amplitude, frequency = settings["amplitude"], settings["frequency"]
     run = twin_run(fmu, plant, params["Delta"], params["Kp"], params["Ki"],
-                   lambda t: amplitude * math.sin(2.0 * math.pi * frequency * t), settings["horizon"], settings["h"])
+                   references(frequency, amplitude)["sine"], settings["horizon"], settings["h"])
     max_dev = float(run.deviation.max())
     bound_sup = float(run.bound_sup)
     return {

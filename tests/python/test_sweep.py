@@ -42,10 +42,18 @@ def config_file(tmp_path_factory) -> Path:
 
 
 def sweep(out: Path, config: Path, *extra: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "sweep", "--fmu", str(fmu_driver.fmu_path("BacklashShaft")), "--samples",
-         str(SAMPLES), "--seed", str(SEED), "--config", str(config), "--out", str(out), "--no-progress", *extra],
-        cwd=fmu_driver.REPO, capture_output=True, text=True, timeout=timeout)
+    """`python -m sweep` in a session of its own, so that a timeout also ends its LocalCluster."""
+    args = [sys.executable, "-m", "sweep", "--fmu", str(fmu_driver.fmu_path("BacklashShaft")), "--samples",
+            str(SAMPLES), "--seed", str(SEED), "--config", str(config), "--out", str(out), "--no-progress", *extra]
+    with subprocess.Popen(args, cwd=fmu_driver.REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          start_new_session=True) as proc:
+        try:
+            stdout, stderr = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
+    return subprocess.CompletedProcess(args, proc.returncode, stdout, stderr)
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +82,9 @@ class Cluster:
     def __init__(self, workdir: Path):
         self.address = f"tcp://127.0.0.1:{free_port()}"
         self.procs: list[subprocess.Popen] = []
+        # TMPDIR: what the workers unpack stays under the test's directory, also when they are killed.
         env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        env["TMPDIR"] = str(workdir)
         common = dict(cwd=workdir, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         port = self.address.rsplit(":", 1)[1]
         self.procs.append(subprocess.Popen(
@@ -109,9 +119,13 @@ class Cluster:
     def close(self):
         for p in self.procs:
             if p.poll() is None:
-                p.kill()
+                p.terminate()
         for p in self.procs:
-            p.wait(timeout=30)
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=30)
 
 
 @pytest.fixture
@@ -149,8 +163,9 @@ def test_external_cluster_gives_the_serial_table_and_ran_the_tasks(tmp_path, con
 
 
 def test_killed_worker_loses_no_sample(tmp_path, config_file, serial_table, cluster):
-    cluster.wait_ready()
+    workers = cluster.wait_ready()
     victim = cluster.workers[1]
+    victim_address = next(address for address, w in workers.items() if w["name"] == "w1")
     killed = []
 
     def kill():
@@ -164,6 +179,9 @@ def test_killed_worker_loses_no_sample(tmp_path, config_file, serial_table, clus
     outcome = engine.run_dask(fmu_bytes, draws, cfg.settings(), scheduler=cluster.address, progress=False,
                               after_first=kill)
     assert killed and victim.poll() is not None
+    # Only the first row had arrived when the worker died: whatever else it had computed was lost
+    # with it and computed again by the survivor.
+    assert outcome.tasks_per_worker.get(victim_address, 0) <= 1, outcome.tasks_per_worker
     assert [r["sample"] for r in outcome.rows] == list(range(SAMPLES))
     report.write_table(tmp_path / "samples.csv", outcome.rows)
     assert (tmp_path / "samples.csv").read_bytes() == serial_table
@@ -192,3 +210,43 @@ def test_unreachable_scheduler_is_refused_in_one_line(tmp_path, config_file):
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: cannot reach the Dask scheduler"), done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_cluster_without_workers_is_refused_in_one_line(tmp_path, config_file, cluster):
+    cluster.wait_ready()
+    for w in cluster.workers:
+        w.kill()
+        w.wait(timeout=30)
+    done = sweep(tmp_path / "out", config_file, "--scheduler", cluster.address, "--connect-timeout", "2", timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and "fewer than 1 worker" in lines[0], done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("extra, says", [
+    (("--seed", "-1"), "--seed: must be >= 0"),
+    (("--out", "/dev/null/sweep"), "cannot write the output directory"),
+])
+def test_bad_arguments_are_refused_in_one_line_before_any_work(tmp_path, config_file, extra, says):
+    done = sweep(tmp_path / "out", config_file, "--serial", *extra, timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and says in lines[0], done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_defaults_are_the_demos_rig_gains_and_reference():
+    """The default config repeats numbers that `cargo xtask design` computes for the demo: they
+    must not drift from it."""
+    from sweep import twin
+    from test_design import design_json
+
+    d = design_json(0.02)
+    assert sweep_config.DEFAULT_LOOP == {"Kp": d["Kp"], "Ki": d["Ki"]}
+    assert sweep_config.DEFAULT_REFERENCE == {"amplitude": twin.SPEED, "frequency": twin.reference_frequency(d["poles"])}
+    defaults = sweep_config.DEFAULT_PARAMETERS
+    plant = d["plant"]
+    assert (defaults["J_m"], defaults["b_m"], defaults["b_L"]) == (plant["J_m"], plant["b_m"], plant["b_L"])
+    assert (defaults["k"]["nominal"], defaults["J_L"]["nominal"]) == (plant["k"], plant["J_L"])
+    assert sweep_config.DEFAULT_RUN["accuracy"] == d["accuracy"]

@@ -71,7 +71,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
     );
 
     step("paper experiments through fmpy");
-    let python = util::repo_root().join(".venv").join("bin").join("python");
+    let python = python::venv_python();
     let script: PathBuf = util::repo_root().join("demo").join("paper_experiments.py");
     let mut cmd = Command::new(python);
     cmd.current_dir(util::repo_root())

@@ -1,5 +1,6 @@
-//! The Python side of `cargo xtask test`: a virtual environment at `.venv` with the pinned
-//! requirements of tests/python, and the pytest run over the packaged FMUs.
+//! The Python side of the commands: a virtual environment at `.venv` with the pinned
+//! requirements of tests/python (fmpy, the test, demo and sweep packages) and tests/importer
+//! (the libclang wheel), and the pytest run over the packaged FMUs.
 
 use std::fs;
 use std::path::PathBuf;
@@ -22,7 +23,8 @@ fn venv_dir() -> PathBuf {
     util::repo_root().join(".venv")
 }
 
-fn venv_python() -> PathBuf {
+/// The venv's interpreter (made by [`ensure_venv`]).
+pub fn venv_python() -> PathBuf {
     venv_dir().join("bin").join("python")
 }
 

@@ -21,7 +21,8 @@ results/sweep/samples.csv, summary.json, histogram.png and deviation_vs_delta.pn
   --samples N       number of drives (required)
   --seed S          seed of the draws: the same seed gives the same table (required)
   --scheduler ADDR  a running Dask scheduler (`dask scheduler`, `dask worker ADDR`)
-  --workers N       LocalCluster worker processes (default: one per core)
+  --workers N       LocalCluster worker processes (default: one per core); with
+                    --scheduler, how many workers to wait for (default 1)
   --config FILE     TOML distributions and settings (format: README.md, sweep/config.py)
   --out DIR         output directory (default: results/sweep)
   --accuracy EPS    required load-speed accuracy [m/s] (default 0.02)
@@ -50,11 +51,13 @@ pub fn run(args: &[String]) -> Result<(), String> {
         if arg == "--help" || arg == "-h" {
             println!("{USAGE}");
             return Ok(());
-        } else if WITHOUT_VALUE.contains(&arg.as_str()) || (WITH_VALUE.contains(&flag) && arg.contains('=')) {
+        } else if WITHOUT_VALUE.contains(&arg.as_str()) {
             forwarded.push(arg.clone());
+        } else if let (true, Some((_, value))) = (WITH_VALUE.contains(&flag), arg.split_once('=')) {
+            forwarded.extend([flag.to_string(), in_callers_directory(flag, value)]);
         } else if WITH_VALUE.contains(&flag) {
             let value = rest.next().ok_or(format!("{arg} needs a value\n\n{USAGE}"))?;
-            forwarded.extend([arg.clone(), value.clone()]);
+            forwarded.extend([arg.clone(), in_callers_directory(flag, value)]);
         } else {
             return Err(format!("unknown argument `{arg}`\n\n{USAGE}"));
         }
@@ -70,7 +73,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
     python::ensure_venv()?;
 
     step("tolerance sweep (python -m sweep)");
-    let python = util::repo_root().join(".venv").join("bin").join("python");
+    let python = python::venv_python();
     let mut cmd = Command::new(python);
     cmd.current_dir(util::repo_root())
         .args(["-m", "sweep", "--fmu"])
@@ -82,5 +85,14 @@ pub fn run(args: &[String]) -> Result<(), String> {
         Some(0) => Ok(()),
         Some(code) => std::process::exit(code),
         None => Err(format!("python -m sweep was stopped ({status})")),
+    }
+}
+
+/// A relative `--config` or `--out` names a path from where the command was run; the sweep runs
+/// from the repository root, so it gets the path made absolute.
+fn in_callers_directory(flag: &str, value: &str) -> String {
+    match (flag, std::env::current_dir()) {
+        ("--config" | "--out", Ok(here)) => here.join(value).to_string_lossy().into_owned(),
+        _ => value.to_string(),
     }
 }

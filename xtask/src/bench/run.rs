@@ -97,7 +97,7 @@ impl Facts {
             kernel: first_line(Command::new("uname").args(["-sr"])),
             rustc: first_line(Command::new("rustc").arg("--version")),
             cc: first_line(Command::new("cc").arg("--version")),
-            python: first_line(Command::new(util::repo_root().join(".venv/bin/python")).arg("--version")),
+            python: first_line(Command::new(python::venv_python()).arg("--version")),
         }
     }
 }
@@ -256,7 +256,7 @@ impl Runner {
 
     /// The PI loop through fmpy and in scipy (benches/python_bench.py).
     pub(super) fn python(&mut self, plan: &Plan) -> Result<(), String> {
-        let mut py = Command::new(util::repo_root().join(".venv").join("bin").join("python"));
+        let mut py = Command::new(python::venv_python());
         py.current_dir(util::repo_root())
             .env("BACKLASH_FMU_DIR", util::fmu_dir())
             .arg("benches/python_bench.py")
@@ -270,7 +270,7 @@ impl Runner {
     /// Samples per second of the tolerance sweep, serially and on LocalClusters of 1 and 2 workers
     /// (benches/sweep_bench.py).
     pub(super) fn sweep(&mut self, plan: &Plan) -> Result<(), String> {
-        let mut py = Command::new(util::repo_root().join(".venv").join("bin").join("python"));
+        let mut py = Command::new(python::venv_python());
         py.current_dir(util::repo_root())
             .env("BACKLASH_FMU_DIR", util::fmu_dir())
             .arg("benches/sweep_bench.py")
