@@ -166,8 +166,9 @@ def run_dask(fmu_bytes: bytes, draws: list[dict], settings: dict, *, scheduler: 
         keys = task_keys(fmu_bytes, draws, settings)
         # A worker lost mid-task is not an error of the task: the scheduler reruns it elsewhere
         # (up to distributed.scheduler.allowed-failures times); retries cover transient errors.
-        futures = [client.submit(task, archive, i, params, settings, key=key, retries=2)
-                   for i, (params, key) in enumerate(zip(draws, keys))]
+        # One map: the shipped task function is serialized once for the whole graph, not per sample.
+        n = len(draws)
+        futures = client.map(task, [archive] * n, range(n), draws, [settings] * n, key=keys, retries=2)
         rows, per_worker = [], {}
         with _progress(len(futures), progress) as bar:
             for future in as_completed(futures):
