@@ -50,6 +50,18 @@ def summarize(rows: list[dict], config: Config, seed: int) -> dict:
     }
 
 
+def _finish(fig, ax, path: Path, legend_size: int) -> Path:
+    """Legend, grid and layout of a figure, written to `path` and closed."""
+    import matplotlib.pyplot as plt
+
+    ax.legend(fontsize=legend_size)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot(out: Path, rows: list[dict], config: Config) -> list[Path]:
     import matplotlib
 
@@ -71,12 +83,7 @@ def plot(out: Path, rows: list[dict], config: Config) -> list[Path]:
     ax.set_xlabel("max |ω_L^b − ω_L^0| over the run [mm/s]")
     ax.set_ylabel("samples")
     ax.set_title(f"{len(rows)} drives: {meets.mean() * 100:.1f} % meet ε", fontsize=10)
-    ax.legend(fontsize=9)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    paths.append(out / "histogram.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(_finish(fig, ax, out / "histogram.png", legend_size=9))
 
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     ax.scatter(delta[meets] * 1e3, dev[meets] * 1e3, s=10, color="C0", label="max deviation (meets ε)")
@@ -90,12 +97,7 @@ def plot(out: Path, rows: list[dict], config: Config) -> list[Path]:
     ax.set_xlabel("half gap Δ [mm]")
     ax.set_ylabel("load-speed deviation [mm/s]")
     ax.set_title("max deviation against Δ, with the bound", fontsize=10)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    paths.append(out / "deviation_vs_delta.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(_finish(fig, ax, out / "deviation_vs_delta.png", legend_size=8))
     return paths
 
 

@@ -30,7 +30,7 @@ SPEED = 0.05
 class ShaftFmu:
     """One instance of BacklashShaft, parameters set before initialization."""
 
-    def __init__(self, fmu_path: Path, unzipdir: str, md, name: str, params: dict[str, float]):
+    def __init__(self, unzipdir: str, md, name: str, params: dict[str, float]):
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.slave = FMU2Slave(
             guid=md.guid,
@@ -73,14 +73,13 @@ class Fmu:
     """The archive, extracted once; instances made on demand."""
 
     def __init__(self, path: Path):
-        self.path = path
         self.md = read_model_description(str(path))
         self.unzipdir = extract(str(path))
         self.count = 0
 
     def instance(self, params: dict[str, float]) -> ShaftFmu:
         self.count += 1
-        return ShaftFmu(self.path, self.unzipdir, self.md, f"i{self.count}", params)
+        return ShaftFmu(self.unzipdir, self.md, f"i{self.count}", params)
 
 
 # ------------------------------------------------------------------------------------------
