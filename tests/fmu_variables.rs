@@ -47,9 +47,11 @@ fn xml_and_rust_table_describe_the_same_variables() {
         let model = model_by_identifier(id).unwrap();
         assert_eq!(doc.root_element().attribute("guid"), Some(model.guid), "{id}");
         let element = |tag: &str| doc.descendants().filter(|n| n.has_tag_name(tag)).collect::<Vec<_>>();
-        let co_simulation = element("CoSimulation");
-        assert_eq!(co_simulation.len(), 1);
-        assert_eq!(co_simulation[0].attribute("modelIdentifier"), Some(*id));
+        for interface in ["ModelExchange", "CoSimulation"] {
+            let found = element(interface);
+            assert_eq!(found.len(), 1, "{id} {interface}");
+            assert_eq!(found[0].attribute("modelIdentifier"), Some(*id));
+        }
         let vars = xml_variables(&doc);
         assert_eq!(vars.len(), model.variables.len(), "{id}");
         for (x, v) in vars.iter().zip(model.variables) {
@@ -59,6 +61,7 @@ fn xml_and_rust_table_describe_the_same_variables() {
                 Causality::Output => "output",
                 Causality::Parameter => "parameter",
                 Causality::CalculatedParameter => "calculatedParameter",
+                Causality::Local => "local",
             };
             assert_eq!(x.causality, causality, "{}", v.name);
             assert_eq!(
@@ -99,6 +102,55 @@ fn xml_and_rust_table_describe_the_same_variables() {
     }
 }
 
+/// Model Exchange: the four states in z order with their derivatives (FMI 2.0 §2.2.8), two
+/// event indicators, and nominal values that are those the FMU reports for the default
+/// parameters (fmi2GetNominalsOfContinuousStates computes them for any parameters).
+#[test]
+fn states_derivatives_and_nominals_agree_with_the_running_fmu() {
+    use backlash_fmu::fmu::Interface;
+    for id in model_identifiers() {
+        let text = xml::model_description(id);
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        let root = doc.root_element();
+        assert_eq!(root.attribute("numberOfEventIndicators"), Some("2"), "{id}");
+        let reals: Vec<_> = doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")).collect();
+        let name_at = |index: &str| reals[index.parse::<usize>().unwrap() - 1].attribute("name").unwrap();
+        let derivatives: Vec<_> = doc
+            .descendants()
+            .find(|n| n.has_tag_name("Derivatives"))
+            .unwrap()
+            .children()
+            .filter(|n| n.has_tag_name("Unknown"))
+            .map(|n| name_at(n.attribute("index").unwrap()))
+            .collect();
+        assert_eq!(
+            derivatives,
+            ["der(theta_m)", "der(omega_m)", "der(theta_L)", "der(omega_L)"],
+            "{id}"
+        );
+        let mut nominals = Vec::new();
+        for der in &derivatives {
+            let var = reals.iter().find(|v| v.attribute("name") == Some(der)).unwrap();
+            let real = var.children().find(|n| n.has_tag_name("Real")).unwrap();
+            let state = name_at(real.attribute("derivative").unwrap());
+            assert_eq!(format!("der({state})"), *der);
+            let state_real = reals
+                .iter()
+                .find(|v| v.attribute("name") == Some(state))
+                .and_then(|v| v.children().find(|n| n.has_tag_name("Real")))
+                .unwrap();
+            nominals.push(state_real.attribute("nominal").unwrap().parse::<f64>().unwrap());
+        }
+        let model = model_by_identifier(id).unwrap();
+        let mut inst = Instance::new_for(model, Interface::ModelExchange, None, false);
+        let mut reported = [0.0; 4];
+        inst.get_nominals_of_continuous_states(&mut reported).unwrap();
+        for (x, r) in nominals.iter().zip(reported) {
+            assert!((x / r - 1.0).abs() < 1e-12, "{id}: description {x}, FMU {r}");
+        }
+    }
+}
+
 #[test]
 fn the_guid_is_the_hash_of_the_description_and_differs_per_model() {
     let shaft = xml::model_description("BacklashShaft");
@@ -130,7 +182,7 @@ fn every_variable_is_served_by_its_typed_get_and_set() {
             let settable = v.start.is_some();
             assert_eq!(
                 settable,
-                v.causality != Causality::CalculatedParameter
+                !matches!(v.causality, Causality::CalculatedParameter | Causality::Local)
                     && (v.causality != Causality::Output || v.is_initial_state())
             );
             if settable {

@@ -33,6 +33,8 @@ pub enum Causality {
     Output,
     Parameter,
     CalculatedParameter,
+    /// Computed by the FMU, neither input nor output: the state derivatives of Model Exchange.
+    Local,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,6 +118,11 @@ pub struct Variable<S = &'static str> {
     /// The FMI `declaredType`-free `quantity` attribute.
     pub quantity: &'static str,
     pub description: &'static str,
+    /// The `nominal` attribute: the scale of a continuous state at the default parameters
+    /// (docs/model.md §6); importers derive absolute tolerances from it.
+    pub nominal: Option<f64>,
+    /// For a state derivative `der(x)`: the value reference of x (the `derivative` attribute).
+    pub derivative_of: Option<u32>,
 }
 
 /// The description's variables, with the symbol as its name.
@@ -125,6 +132,11 @@ impl<S> Variable<S> {
     /// Outputs with initial = exact carry the settable initial state (docs/model.md §4).
     pub fn is_initial_state(&self) -> bool {
         self.causality == Causality::Output && self.initial == Initial::Exact
+    }
+
+    /// A continuous state of Model Exchange: an initial state that is continuous in time.
+    pub fn is_continuous_state(&self) -> bool {
+        self.is_initial_state() && self.variability == Variability::Continuous
     }
 }
 
@@ -152,6 +164,7 @@ pub(crate) const UNITS: &[UnitRow] = &[
     ("N.m", [1, 2, -2, 0], &[]),
     ("N", [1, 1, -2, 0], &[]),
     ("rad/s", [0, 0, -1, 1], &[("rpm", 30.0 / std::f64::consts::PI)]),
+    ("rad/s2", [0, 0, -2, 1], &[]),
     ("rad", [0, 0, 0, 1], &[("deg", 180.0 / std::f64::consts::PI)]),
     ("m", [0, 1, 0, 0], &[("mm", 1000.0)]),
     ("kg.m2", [1, 2, 0, 0], &[]),

@@ -33,6 +33,8 @@ const fn var(
         unit,
         quantity,
         description,
+        nominal: None,
+        derivative_of: None,
     }
 }
 
@@ -60,10 +62,11 @@ fn state_output(
     vr: u32,
     unit: &'static str,
     quantity: &'static str,
+    nominal: f64,
     description: &'static str,
 ) -> Var {
     use Causality::*;
-    var(
+    let state = var(
         name,
         symbol,
         vr,
@@ -76,7 +79,11 @@ fn state_output(
         unit,
         quantity,
         description,
-    )
+    );
+    Var {
+        nominal: Some(nominal),
+        ..state
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -135,7 +142,77 @@ fn pi_gains() -> [Var; 2] {
     ]
 }
 
-fn common_head(drive_train: DriveTrain) -> Vec<Var> {
+/// The time derivative `der(x)` of the continuous state `x` (Model Exchange, docs/model.md §6).
+fn state_derivative(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    of: &Var,
+    unit: &'static str,
+    quantity: &'static str,
+) -> Var {
+    Var {
+        derivative_of: Some(of.vr),
+        ..var(
+            name,
+            symbol,
+            vr,
+            Type::Real,
+            Causality::Local,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            unit,
+            quantity,
+            "Time derivative of the continuous state (Model Exchange); a pure function of the state and the inputs",
+        )
+    }
+}
+
+/// `der(theta_m)` … `der(omega_L)`, value references 24–27 in both models, after the state
+/// outputs of `v`.
+fn state_derivatives(v: &[Var]) -> [Var; 4] {
+    let state = |name: &str| v.iter().find(|w| w.name == name).expect("the state outputs come first");
+    [
+        state_derivative(
+            "der(theta_m)",
+            "DerThetaM",
+            24,
+            state("theta_m"),
+            "rad/s",
+            "AngularVelocity",
+        ),
+        state_derivative(
+            "der(omega_m)",
+            "DerOmegaM",
+            25,
+            state("omega_m"),
+            "rad/s2",
+            "AngularAcceleration",
+        ),
+        state_derivative(
+            "der(theta_L)",
+            "DerThetaL",
+            26,
+            state("theta_L"),
+            "rad/s",
+            "AngularVelocity",
+        ),
+        state_derivative(
+            "der(omega_L)",
+            "DerOmegaL",
+            27,
+            state("omega_L"),
+            "rad/s2",
+            "AngularAcceleration",
+        ),
+    ]
+}
+
+/// Inputs, the state outputs (with `nominals` of θ_m, ω_m, θ_L, ω_L: see `fmu::adapter::
+/// state_nominals`, which computes them for any parameters) and the calculated outputs.
+fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
     use Causality::*;
     let (psi_unit, psi_quantity, psi_text) = match drive_train {
         DriveTrain::Shaft => ("N.m", "Torque", "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft"),
@@ -148,10 +225,10 @@ fn common_head(drive_train: DriveTrain) -> Vec<Var> {
     vec![
         input("tau_m", "TauM", 1, "Motor torque, held constant over each communication step unless input derivatives are set"),
         input("tau_L", "TauL", 2, "Load torque, held constant over each communication step unless input derivatives are set"),
-        state_output("theta_m", "ThetaM", 3, "rad", "Angle", "Motor angle; its start value is the initial state"),
-        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
-        state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
-        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
+        state_output("theta_m", "ThetaM", 3, "rad", "Angle", nominals[0], "Motor angle; its start value is the initial state"),
+        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", nominals[1], "Motor speed; its start value is the initial state"),
+        state_output("theta_L", "ThetaL", 5, "rad", "Angle", nominals[2], "Load angle; its start value is the initial state"),
+        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", nominals[3], "Load speed; its start value is the initial state"),
         var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
         var(
             "contact",
@@ -217,7 +294,11 @@ pub fn model(identifier: &str) -> Model {
     use Range::*;
     match identifier {
         "BacklashShaft" => {
-            let mut v = common_head(DriveTrain::Shaft);
+            // θ nominal g/r = Delta, ω nominal ω₀·Delta with ω₀ = sqrt(k (1/J_m + 1/J_L)).
+            let mut v = common_head(
+                DriveTrain::Shaft,
+                [0.000775, 0.009989707035044964, 0.000775, 0.009989707035044964],
+            );
             v.extend([
                 parameter(
                     "J_m",
@@ -281,6 +362,8 @@ pub fn model(identifier: &str) -> Model {
                 "RotationalSpringConstant",
                 "Shaft stiffness (> 0)",
             )]);
+            let derivatives = state_derivatives(&v);
+            v.extend(derivatives);
             Model {
                 identifier: "BacklashShaft",
                 drive_train: DriveTrain::Shaft,
@@ -294,7 +377,17 @@ pub fn model(identifier: &str) -> Model {
             }
         }
         "BacklashBelt" => {
-            let mut v = common_head(DriveTrain::Belt);
+            // θ_m nominal g/r_m, θ_L nominal g/r_L, ω nominal ω₀ times those, with g = R_2 Delta/R_g1,
+            // r_m = R_1, r_L = R_2 R_g2/R_g1, ω₀ = sqrt(K_b (r_m²/J_m + r_L²/J_L)).
+            let mut v = common_head(
+                DriveTrain::Belt,
+                [
+                    0.006666666666666668,
+                    7.8202017592614315,
+                    0.0011111111111111113,
+                    1.303366959876905,
+                ],
+            );
             // A small servo belt drive: 2:1 belt (R_2/R_1), 3:1 gear (R_g2/R_g1), 6:1 overall;
             // belt-gear natural frequency about 190 Hz, half gap 50 um on the pitch circle.
             v.extend([
@@ -402,6 +495,8 @@ pub fn model(identifier: &str) -> Model {
                     "Pitch radius of gear 2, on the load (> 0)",
                 ),
             ]);
+            let derivatives = state_derivatives(&v);
+            v.extend(derivatives);
             Model {
                 identifier: "BacklashBelt",
                 drive_train: DriveTrain::Belt,

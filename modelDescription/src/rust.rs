@@ -61,10 +61,14 @@ pub fn variable_tables() -> String {
                 Some(s) => format!("Some({s:?})"),
                 None => "None".to_string(),
             };
+            let nominal = match v.nominal {
+                Some(x) => format!("Some({x:?})"),
+                None => "None".to_string(),
+            };
             let _ = writeln!(
                 out,
-                "            Variable {{ name: {:?}, symbol: Symbol::{}, vr: {}, ty: VarType::{:?}, causality: Causality::{:?}, variability: Variability::{:?}, initial: Initial::{:?}, start: {}, range: Range::{:?}, unit: {:?}, quantity: {:?}, description: {:?} }},",
-                v.name, v.symbol, v.vr, v.ty, v.causality, v.variability, v.initial, start, v.range, v.unit, v.quantity, v.description
+                "            Variable {{ name: {:?}, symbol: Symbol::{}, vr: {}, ty: VarType::{:?}, causality: Causality::{:?}, variability: Variability::{:?}, initial: Initial::{:?}, start: {}, range: Range::{:?}, unit: {:?}, quantity: {:?}, description: {:?}, nominal: {}, derivative_of: {:?} }},",
+                v.name, v.symbol, v.vr, v.ty, v.causality, v.variability, v.initial, start, v.range, v.unit, v.quantity, v.description, nominal, v.derivative_of
             );
         }
         let _ = writeln!(out, "        ],");

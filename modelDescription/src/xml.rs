@@ -1,4 +1,4 @@
-//! `modelDescription.xml` (FMI 2.0 Co-Simulation) of each model, and its guid.
+//! `modelDescription.xml` (FMI 2.0 Model Exchange and Co-Simulation) of each model, and its guid.
 
 use std::fmt::Write as _;
 
@@ -29,6 +29,21 @@ fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
         DriveTrain::Belt => &["Delta", "K_b", "R_1", "R_2", "R_g1", "R_g2"],
     };
     let names: Vec<&str> = match v.name {
+        // A state derivative: the state and inputs it depends on (`derivative_dependencies`),
+        // and the inertia, friction and geometry of its equation.
+        "der(theta_m)" | "der(theta_L)" => derivative_dependencies(v.name).to_vec(),
+        "der(omega_m)" => derivative_dependencies(v.name)
+            .iter()
+            .chain(&["J_m", "b_m"])
+            .chain(geometry)
+            .copied()
+            .collect(),
+        "der(omega_L)" => derivative_dependencies(v.name)
+            .iter()
+            .chain(&["J_L", "b_L"])
+            .chain(geometry)
+            .copied()
+            .collect(),
         // psi = K dz(u, g): angles and geometry.
         "psi" => ["theta_m", "theta_L"].iter().chain(geometry).copied().collect(),
         // The mode exactly on +-g depends on the sign of u' as well (docs/model.md §4 `contact`).
@@ -55,6 +70,36 @@ fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
     Some(vrs)
 }
 
+/// The states and inputs a state derivative depends on in Continuous-Time Mode (docs/model.md
+/// §1): an angle's rate is its speed; an acceleration depends on its own torque, its own
+/// speed and, through ψ = K dz(u, g), both angles.
+fn derivative_dependencies(name: &str) -> &'static [&'static str] {
+    match name {
+        "der(theta_m)" => &["omega_m"],
+        "der(omega_m)" => &["tau_m", "theta_m", "omega_m", "theta_L"],
+        "der(theta_L)" => &["omega_L"],
+        "der(omega_L)" => &["tau_L", "theta_m", "theta_L", "omega_L"],
+        other => panic!("{other} is not a state derivative"),
+    }
+}
+
+/// The states an output depends on in Continuous-Time Mode (no output depends on an input:
+/// docs/model.md §1); `bound` and `bound_paper` depend on time alone.
+fn output_dependencies(name: &str) -> &'static [&'static str] {
+    match name {
+        // A state output is the state itself.
+        "theta_m" => &["theta_m"],
+        "omega_m" => &["omega_m"],
+        "theta_L" => &["theta_L"],
+        "omega_L" => &["omega_L"],
+        "psi" => &["theta_m", "theta_L"],
+        // The mode exactly on +-g depends on the sign of u' as well.
+        "contact" => &["theta_m", "omega_m", "theta_L", "omega_L"],
+        "bound" | "bound_paper" => &[],
+        other => panic!("{other} is not an output"),
+    }
+}
+
 /// `text` as XML (or HTML) attribute value or text.
 pub fn escape(text: &str) -> String {
     text.replace('&', "&amp;")
@@ -68,10 +113,17 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     x.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     let _ = writeln!(
         x,
-        "<fmiModelDescription fmiVersion=\"2.0\" modelName=\"{}\" guid=\"{}\" description=\"{}\" generationTool=\"backlash-fmu (model-description crate)\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"0\">",
+        "<fmiModelDescription fmiVersion=\"2.0\" modelName=\"{}\" guid=\"{}\" description=\"{}\" generationTool=\"backlash-fmu (model-description crate)\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"2\">",
         model.identifier,
         guid,
         escape(model.description)
+    );
+    // Event indicators u - g and u + g; no event needs an iteration, so completed integrator
+    // steps need not be reported.
+    let _ = writeln!(
+        x,
+        "  <ModelExchange modelIdentifier=\"{}\" needsExecutionTool=\"false\" completedIntegratorStepNotNeeded=\"true\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" providesDirectionalDerivative=\"true\"/>",
+        model.identifier
     );
     let _ = writeln!(
         x,
@@ -127,6 +179,15 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
         "  <DefaultExperiment startTime=\"{start:?}\" stopTime=\"{stop:?}\" stepSize=\"{step:?}\"/>"
     );
 
+    let index_of = |vr: u32| model.variables.iter().position(|w| w.vr == vr).expect("known vr") + 1;
+    let index_list = |names: &[&str]| -> String {
+        let mut indices: Vec<usize> = names
+            .iter()
+            .map(|n| index_of(model.variables.iter().find(|w| w.name == *n).expect("a variable").vr))
+            .collect();
+        indices.sort_unstable();
+        indices.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(" ")
+    };
     x.push_str("  <ModelVariables>\n");
     for (i, v) in model.variables.iter().enumerate() {
         let causality = match v.causality {
@@ -134,6 +195,7 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
             Causality::Output => "output",
             Causality::Parameter => "parameter",
             Causality::CalculatedParameter => "calculatedParameter",
+            Causality::Local => "local",
         };
         let variability = match v.variability {
             Variability::Fixed => "fixed",
@@ -171,6 +233,12 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
         if v.name == "contact" {
             x.push_str(" min=\"-1\" max=\"1\"");
         }
+        if let Some(nominal) = v.nominal {
+            let _ = write!(x, " nominal=\"{nominal:?}\"");
+        }
+        if let Some(state) = v.derivative_of {
+            let _ = write!(x, " derivative=\"{}\"", index_of(state));
+        }
         if let Some(s) = v.start {
             match v.ty {
                 Type::Real => {
@@ -185,17 +253,24 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     }
     x.push_str("  </ModelVariables>\n");
 
-    let index_of = |vr: u32| model.variables.iter().position(|w| w.vr == vr).expect("known vr") + 1;
     x.push_str("  <ModelStructure>\n    <Outputs>\n");
     for (i, v) in model.variables.iter().enumerate() {
         if v.causality == Causality::Output {
             // No direct feedthrough: every output is a function of the state (docs/model.md §1).
-            let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"\"/>", i + 1);
+            let deps = index_list(output_dependencies(v.name));
+            let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"{deps}\"/>", i + 1);
         }
     }
-    x.push_str("    </Outputs>\n    <InitialUnknowns>\n");
+    x.push_str("    </Outputs>\n    <Derivatives>\n");
     for (i, v) in model.variables.iter().enumerate() {
-        let listed = (v.causality == Causality::Output && v.initial == Initial::Calculated)
+        if v.derivative_of.is_some() {
+            let deps = index_list(derivative_dependencies(v.name));
+            let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"{deps}\"/>", i + 1);
+        }
+    }
+    x.push_str("    </Derivatives>\n    <InitialUnknowns>\n");
+    for (i, v) in model.variables.iter().enumerate() {
+        let listed = (matches!(v.causality, Causality::Output | Causality::Local) && v.initial == Initial::Calculated)
             || v.causality == Causality::CalculatedParameter;
         if !listed {
             continue;

@@ -3,7 +3,7 @@
 use super::fmu_state::free_states_of;
 use super::guard::{c_str, guard, input_array, register, to_c_string, unregister, CLogger, Component};
 use super::types::*;
-use crate::fmu::{model_by_guid, Function, Instance, LogCategory, LogSink, Status, MODELS};
+use crate::fmu::{model_by_guid, Function, Instance, Interface, LogCategory, LogSink, Status, MODELS};
 use std::ffi::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -39,7 +39,7 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
     })
 }
 
-/// Creates a Co-Simulation instance of the model whose guid is `fmuGUID`; NULL (after logging
+/// Creates a Model Exchange or Co-Simulation instance of the model whose guid is `fmuGUID`; NULL (after logging
 /// the reason, when a logger was given) for anything it cannot serve.
 /// # Safety
 /// Pointer arguments as FMI 2.0 defines them: NULL, or valid for the announced number of
@@ -97,21 +97,16 @@ fn instantiate(
         Ok(_) => return refuse(&logger, "instanceName is blank".into()),
         Err(e) => return refuse(&logger, e.to_string()),
     };
-    match fmu_type {
-        fmi2CoSimulation => {}
-        fmi2ModelExchange => {
-            return refuse(
-                &logger,
-                "fmuType is fmi2ModelExchange; this FMU implements Co-Simulation only".into(),
-            )
-        }
+    let interface = match fmu_type {
+        fmi2CoSimulation => Interface::CoSimulation,
+        fmi2ModelExchange => Interface::ModelExchange,
         other => {
             return refuse(
                 &logger,
                 format!("fmuType {other} is neither fmi2ModelExchange nor fmi2CoSimulation"),
             )
         }
-    }
+    };
     // SAFETY: as for instanceName.
     let guid = match unsafe { c_str(guid, "fmuGUID") } {
         Ok(g) => g,
@@ -131,9 +126,13 @@ fn instantiate(
         }
     };
     let sink = logger.map(|l| Box::new(l) as Box<dyn LogSink>);
-    let mut instance = Instance::new(model, sink, logging_on != fmi2False);
+    let mut instance = Instance::new_for(model, interface, sink, logging_on != fmi2False);
     instance.log(Status::Ok, LogCategory::Calls, || {
-        format!("fmi2Instantiate: instance {name:?} of {}", model.identifier)
+        format!(
+            "fmi2Instantiate: {} instance {name:?} of {}",
+            interface.name(),
+            model.identifier
+        )
     });
     match register(Box::new(Component { instance })) {
         Ok(handle) => handle,

@@ -2,7 +2,7 @@
 
 use super::guard::{guard, input_array, output_array};
 use super::types::*;
-use crate::fmu::{FmuError, Function};
+use crate::fmu::Function;
 
 /// # Safety
 /// Pointer arguments as FMI 2.0 defines them: NULL, or valid for the announced number of
@@ -148,9 +148,13 @@ pub unsafe extern "C" fn fmi2SetString(
     })
 }
 
-/// providesDirectionalDerivative = false: refused with a reason.
+/// The exact Jacobian of the mode in force (Model Exchange; providesDirectionalDerivative is
+/// false for Co-Simulation, which refuses the call with a reason).
+/// # Safety
+/// Pointer arguments as FMI 2.0 defines them: NULL, or valid for the announced number of
+/// elements for the duration of the call.
 #[no_mangle]
-pub extern "C" fn fmi2GetDirectionalDerivative(
+pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     c: fmi2Component,
     vUnknown_ref: *const fmi2ValueReference,
     nUnknown: usize,
@@ -159,10 +163,14 @@ pub extern "C" fn fmi2GetDirectionalDerivative(
     dvKnown: *const fmi2Real,
     dvUnknown: *mut fmi2Real,
 ) -> fmi2Status {
-    let _ = (vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown);
-    guard(c, Function::GetDirectionalDerivative, |_| {
-        Err(FmuError::NotProvided(
-            "fmi2GetDirectionalDerivative (providesDirectionalDerivative=\"false\")",
-        ))
+    guard(c, Function::GetDirectionalDerivative, |inst| {
+        inst.check_directional_derivative_provided()?;
+        // SAFETY: FMI 2.0 passes `nUnknown` references and room for as many values, and
+        // `nKnown` references with as many seed values.
+        let unknowns = unsafe { input_array(vUnknown_ref, nUnknown, "vUnknown_ref") }?;
+        let knowns = unsafe { input_array(vKnown_ref, nKnown, "vKnown_ref") }?;
+        let seed = unsafe { input_array(dvKnown, nKnown, "dvKnown") }?;
+        let out = unsafe { output_array(dvUnknown, nUnknown, "dvUnknown") }?;
+        inst.get_directional_derivative_body(unknowns, knowns, seed, out)
     })
 }

@@ -23,6 +23,9 @@ pub enum Source {
     State(StateEntry),
     /// Computed from the physics in force (docs/model.md §1, §3).
     Calculated(Calculated),
+    /// The time derivative of a state entry: the vector field of docs/model.md §1 (Model
+    /// Exchange's `der(...)`).
+    Derivative(StateEntry),
     /// The contact mode (Integer; docs/model.md §4).
     Contact,
 }
@@ -60,6 +63,10 @@ pub fn source(symbol: Symbol) -> Source {
         Symbol::Bound => Source::Calculated(Calculated::Bound),
         Symbol::BoundPaper => Source::Calculated(Calculated::BoundPaper),
         Symbol::BoundSup => Source::Calculated(Calculated::BoundSup),
+        Symbol::DerThetaM => Source::Derivative(StateEntry::ThetaM),
+        Symbol::DerOmegaM => Source::Derivative(StateEntry::OmegaM),
+        Symbol::DerThetaL => Source::Derivative(StateEntry::ThetaL),
+        Symbol::DerOmegaL => Source::Derivative(StateEntry::OmegaL),
         Symbol::JM
         | Symbol::JL
         | Symbol::BM
@@ -78,7 +85,7 @@ pub fn source(symbol: Symbol) -> Source {
 
 impl StateEntry {
     /// The symbol that carries this entry.
-    fn symbol(self) -> Symbol {
+    pub fn symbol(self) -> Symbol {
         match self {
             StateEntry::ThetaM => Symbol::ThetaM,
             StateEntry::OmegaM => Symbol::OmegaM,
@@ -91,6 +98,15 @@ impl StateEntry {
     pub fn index(self) -> usize {
         self as usize
     }
+
+    /// The entries in the order of z, which is also the order of Model Exchange's continuous
+    /// states.
+    pub const ALL: [StateEntry; 4] = [
+        StateEntry::ThetaM,
+        StateEntry::OmegaM,
+        StateEntry::ThetaL,
+        StateEntry::OmegaL,
+    ];
 
     /// Its value in `state`.
     #[inline]
@@ -182,6 +198,17 @@ pub fn inputs(v: &Values, slopes: [f64; 2]) -> Inputs {
         dtau_m: slopes[0],
         dtau_l: slopes[1],
     }
+}
+
+/// The state from z = [θ_m, ω_m, θ_L, ω_L] (Model Exchange's continuous states); the mode is the
+/// one u lies in.
+pub fn state_of(plant: &Plant, z: &[f64; 4]) -> PlantState {
+    PlantState::new(plant, z[0], z[1], z[2], z[3])
+}
+
+/// z = [θ_m, ω_m, θ_L, ω_L] of `state`.
+pub fn entries_of(state: &PlantState) -> [f64; 4] {
+    StateEntry::ALL.map(|e| e.of(state))
 }
 
 /// Stores the input values at the end of a step (the input lines continue from there).

@@ -21,8 +21,12 @@ pub enum Status {
 pub enum FmuError {
     #[error("{function} is not allowed in state {phase}")]
     IllegalCall { function: &'static str, phase: Phase },
-    #[error("{function} belongs to FMI for Model Exchange; this FMU implements Co-Simulation only")]
-    ModelExchangeOnly { function: &'static str },
+    #[error("{function} belongs to FMI for {belongs_to}; this instance was instantiated for {serves}")]
+    OtherInterface {
+        function: &'static str,
+        belongs_to: &'static str,
+        serves: &'static str,
+    },
     #[error("argument {argument} is NULL but {length} values were announced")]
     NullArgument { argument: &'static str, length: usize },
     #[error("argument {argument} is not aligned for its element type")]

@@ -1,5 +1,6 @@
-//! The FMU instance in safe Rust: FMI 2.0 Co-Simulation state machine, value-reference
-//! dispatch over the generated variable table, stepping, and FMU states. No FFI here; the C
+//! The FMU instance in safe Rust: the FMI 2.0 state machines of Model Exchange and
+//! Co-Simulation, value-reference dispatch over the generated variable table, stepping, the
+//! vector field for Model Exchange, and FMU states. No FFI here; the C
 //! ABI in `crate::ffi` converts pointers and calls [`Instance::run`].
 
 pub mod adapter;
@@ -12,10 +13,10 @@ pub mod state_machine;
 pub mod variables;
 
 pub use error::{FmuError, Status};
-pub use instance::{Experiment, Instance, StatusKind};
+pub use instance::{EventInfo, Experiment, Instance, StatusKind};
 pub use logging::{Collected, LogCategory, LogSink};
 pub use snapshot::Snapshot;
-pub use state_machine::{Function, Phase};
+pub use state_machine::{Function, Interface, Phase};
 pub use variables::{model_by_guid, model_by_identifier, ModelInfo, Symbol, Variable, MODELS};
 
 #[cfg(test)]

@@ -4,7 +4,9 @@
 use super::adapter::{self, Values};
 use super::error::FmuError;
 use super::variables::{Causality, ModelInfo};
-use crate::physics::{finite, max_step, BoundState, Inputs, Plant, PlantState, SpeedErrorBound, Stepper, Unbounded};
+use crate::physics::{
+    finite, max_step, BoundError, BoundState, Inputs, Plant, PlantState, SpeedErrorBound, Stepper, Unbounded,
+};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
@@ -54,6 +56,26 @@ impl Simulation {
         }
     }
 
+    /// The vector field at `state` with torques τ_m, τ_L, refused unless finite (say `what`
+    /// overflows): the accelerations of huge torques over small inertias leave f64.
+    pub fn rates(
+        &self,
+        state: &PlantState,
+        tau_m: f64,
+        tau_l: f64,
+        what: std::fmt::Arguments<'_>,
+    ) -> Result<[f64; 4], FmuError> {
+        let rates = self.plant().rates(state, tau_m, tau_l);
+        if rates.iter().all(|r| r.is_finite()) {
+            return Ok(rates);
+        }
+        Err(FmuError::Overflow(format!(
+            "{what}: der(omega_m) = {:e}, der(omega_L) = {:e} with tau_m = {tau_m:e}, tau_L = {tau_l:e}; reduce the \
+             inputs, start values or parameters",
+            rates[1], rates[3]
+        )))
+    }
+
     /// Advances plant and bound over `h` when the stepper's quiet path applies (see
     /// [`Stepper::quiet_step`]) and both stay finite; returns whether it did. When it did not,
     /// nothing changed and the general path does the step, or says why it cannot.
@@ -86,6 +108,28 @@ impl Simulation {
         sim.state = state;
         sim.bound.restore(bound)?;
         Ok(sim)
+    }
+
+    /// Brings the bound to `elapsed` seconds after the start time (Model Exchange, where time
+    /// is whatever the importer's solver sets): forward by advancing in steps of at most
+    /// `max_step`, backward by starting over, the bound being a function of elapsed time alone.
+    /// On error the bound is left at some time between its old one and `elapsed`.
+    pub fn bound_at(&mut self, elapsed: f64) -> Result<(), BoundError> {
+        if elapsed < self.bound.elapsed() {
+            self.bound.reset();
+        }
+        loop {
+            let now = self.bound.elapsed();
+            let left = elapsed - now;
+            if left <= 0.0 || left.is_nan() {
+                return Ok(());
+            }
+            self.bound.advance(left.min(self.max_step))?;
+            // A remainder below the resolution of `now` changes nothing: done.
+            if self.bound.elapsed() == now {
+                return Ok(());
+            }
+        }
     }
 
     pub fn plant(&self) -> &Plant {

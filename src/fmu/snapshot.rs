@@ -8,8 +8,8 @@
 //! | 8 | 2 | format version (1) |
 //! | 10 | 2 | length n of the guid |
 //! | 12 | n | guid of the model description (ASCII) |
-//! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error) |
-//! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present |
+//! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error, 6 EventMode, 7 ContinuousTimeMode) |
+//! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present, bit 3 Model Exchange instance |
 //! | +2 | 2 | number m of stored values (24) |
 //! | +4 | 8·4 | time, startTime, stopTime, tolerance |
 //! | | 8·m | values by symbol: inputs, parameters, start values |
@@ -24,7 +24,7 @@
 use super::adapter::Values;
 use super::error::FmuError;
 use super::instance::Experiment;
-use super::state_machine::Phase;
+use super::state_machine::{Interface, Phase};
 use super::variables::{ModelInfo, Symbol};
 use crate::physics::{BoundState, ContactMode, PlantState};
 
@@ -43,6 +43,7 @@ pub struct PhysicsSnapshot {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snapshot {
     pub guid: &'static str,
+    pub interface: Interface,
     pub phase: Phase,
     pub time: f64,
     pub experiment: Experiment,
@@ -54,6 +55,7 @@ pub struct Snapshot {
 const FLAG_STOP: u8 = 1;
 const FLAG_TOLERANCE: u8 = 2;
 const FLAG_PHYSICS: u8 = 4;
+const FLAG_MODEL_EXCHANGE: u8 = 8;
 
 /// Bytes after the guid: phase, flags, count, 4 times, values, slopes, plant, bound, checksum.
 const fn body_len() -> usize {
@@ -90,6 +92,9 @@ impl Snapshot {
         }
         if self.physics.is_some() {
             flags |= FLAG_PHYSICS;
+        }
+        if self.interface == Interface::ModelExchange {
+            flags |= FLAG_MODEL_EXCHANGE;
         }
         b.push(flags);
         b.extend_from_slice(&(Symbol::COUNT as u16).to_le_bytes());
@@ -176,8 +181,19 @@ impl Snapshot {
         let phase = Phase::from_code(phase_code)
             .ok_or_else(|| FmuError::StateRefused(format!("unknown phase code {phase_code}")))?;
         let flags = r.u8();
-        if flags & !(FLAG_STOP | FLAG_TOLERANCE | FLAG_PHYSICS) != 0 {
+        if flags & !(FLAG_STOP | FLAG_TOLERANCE | FLAG_PHYSICS | FLAG_MODEL_EXCHANGE) != 0 {
             return refuse(format!("unknown flag bits {flags:#04x}"));
+        }
+        let interface = if flags & FLAG_MODEL_EXCHANGE != 0 {
+            Interface::ModelExchange
+        } else {
+            Interface::CoSimulation
+        };
+        if !phase.belongs_to(interface) {
+            return refuse(format!(
+                "phase {phase} is not a state of a {} instance",
+                interface.name()
+            ));
         }
         let count = u16::from_le_bytes([r.u8(), r.u8()]) as usize;
         if count != Symbol::COUNT {
@@ -230,7 +246,11 @@ impl Snapshot {
         let has_physics = flags & FLAG_PHYSICS != 0;
         let consistent = match phase {
             Phase::Instantiated | Phase::InitializationMode => !has_physics,
-            Phase::StepComplete | Phase::StepFailed | Phase::Terminated => has_physics,
+            Phase::StepComplete
+            | Phase::StepFailed
+            | Phase::EventMode
+            | Phase::ContinuousTimeMode
+            | Phase::Terminated => has_physics,
             Phase::Error => true,
         };
         if !consistent {
@@ -250,6 +270,7 @@ impl Snapshot {
         });
         Ok(Snapshot {
             guid: model.guid,
+            interface,
             phase,
             time,
             experiment,

@@ -1,10 +1,29 @@
-//! The FMI 2.0 Co-Simulation state machine (FMI 2.0.4 §4.2.4): the states an instance can be
-//! in and, for every function, the states in which calling it is legal.
+//! The FMI 2.0 state machines of Model Exchange (FMI 2.0.4 §3.2.3) and Co-Simulation (§4.2.4):
+//! the states an instance can be in and, for every function and interface, the states in which
+//! calling it is legal.
 
 use std::fmt;
 
-/// The state of an instance. `StepInProgress` and `StepCanceled` are never entered (every step
-/// is computed synchronously) and `Fatal` never (instances share nothing), so they are absent.
+/// Which FMI interface an instance serves (the fmuType of fmi2Instantiate).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Interface {
+    ModelExchange,
+    CoSimulation,
+}
+
+impl Interface {
+    pub fn name(self) -> &'static str {
+        match self {
+            Interface::ModelExchange => "Model Exchange",
+            Interface::CoSimulation => "Co-Simulation",
+        }
+    }
+}
+
+/// The state of an instance, of either interface: `StepComplete` and `StepFailed` are
+/// Co-Simulation's, `EventMode` and `ContinuousTimeMode` Model Exchange's, the others shared.
+/// `StepInProgress` and `StepCanceled` are never entered (every step is computed synchronously)
+/// and `Fatal` never (instances share nothing), so they are absent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Phase {
     Instantiated,
@@ -13,17 +32,30 @@ pub enum Phase {
     StepFailed,
     Terminated,
     Error,
+    EventMode,
+    ContinuousTimeMode,
 }
 
 impl Phase {
-    pub const ALL: [Phase; 6] = [
+    pub const ALL: [Phase; 8] = [
         Phase::Instantiated,
         Phase::InitializationMode,
         Phase::StepComplete,
         Phase::StepFailed,
         Phase::Terminated,
         Phase::Error,
+        Phase::EventMode,
+        Phase::ContinuousTimeMode,
     ];
+
+    /// Whether an instance of `interface` can be in this state.
+    pub fn belongs_to(self, interface: Interface) -> bool {
+        match self {
+            Phase::StepComplete | Phase::StepFailed => interface == Interface::CoSimulation,
+            Phase::EventMode | Phase::ContinuousTimeMode => interface == Interface::ModelExchange,
+            Phase::Instantiated | Phase::InitializationMode | Phase::Terminated | Phase::Error => true,
+        }
+    }
 
     #[inline]
     fn bit(self) -> u8 {
@@ -49,6 +81,8 @@ impl fmt::Display for Phase {
             Phase::StepFailed => "StepFailed",
             Phase::Terminated => "Terminated",
             Phase::Error => "Error",
+            Phase::EventMode => "EventMode",
+            Phase::ContinuousTimeMode => "ContinuousTimeMode",
         };
         f.write_str(name)
     }
@@ -88,7 +122,6 @@ pub enum Function {
     GetIntegerStatus,
     GetBooleanStatus,
     GetStringStatus,
-    // Model Exchange only: illegal in every state of a Co-Simulation instance.
     EnterEventMode,
     NewDiscreteStates,
     EnterContinuousTimeMode,
@@ -107,9 +140,23 @@ const C: u8 = 1 << 2;
 const F: u8 = 1 << 3;
 const T: u8 = 1 << 4;
 const E: u8 = 1 << 5;
-const ANY: u8 = I | M | C | F | T | E;
-/// Not a state: marks the Model Exchange functions, legal in no state of this CS-only FMU.
-const MODEL_EXCHANGE: u8 = 1 << 7;
+const V: u8 = 1 << 6;
+const N: u8 = 1 << 7;
+
+/// The states in which a call is legal, for a Model Exchange and a Co-Simulation instance
+/// (bits of [`Phase`]; 0: the function belongs to the other interface).
+#[derive(Clone, Copy)]
+struct Masks {
+    model_exchange: u8,
+    co_simulation: u8,
+}
+
+const fn both(model_exchange: u8, co_simulation: u8) -> Masks {
+    Masks {
+        model_exchange,
+        co_simulation,
+    }
+}
 
 impl Function {
     /// The C name, for messages.
@@ -160,52 +207,66 @@ impl Function {
         }
     }
 
-    /// The states in which the call is legal (FMI 2.0.4 Table "Co-Simulation: allowed calls").
+    /// The states in which the call is legal (FMI 2.0.4 §3.2.3 and §4.2.4, "allowed calls").
     /// Get calls in StepFailed and Error are legal; their values are for debugging.
     #[inline]
-    fn mask(self) -> u8 {
+    fn masks(self) -> Masks {
         use Function::*;
+        const ANY: Masks = both(I | M | V | N | T | E, I | M | C | F | T | E);
         match self {
             SetDebugLogging | FreeInstance | Reset => ANY,
-            SetupExperiment | EnterInitializationMode => I,
-            ExitInitializationMode => M,
-            Terminate => C | F,
-            GetReal | GetInteger | GetBoolean | GetString => M | C | F | T | E,
+            SetupExperiment | EnterInitializationMode => both(I, I),
+            ExitInitializationMode => both(M, M),
+            Terminate => both(V | N, C | F),
+            GetReal | GetInteger | GetBoolean | GetString => both(M | V | N | T | E, M | C | F | T | E),
             // Which variables may be set in which state is checked per variable.
-            SetReal | SetInteger | SetBoolean | SetString => I | M | C,
+            SetReal => both(I | M | V | N, I | M | C),
+            SetInteger | SetBoolean | SetString => both(I | M | V, I | M | C),
             GetFmuState
             | SetFmuState
             | FreeFmuState
             | SerializedFmuStateSize
             | SerializeFmuState
             | DeSerializeFmuState => ANY,
-            GetDirectionalDerivative => M | C | F | T | E,
-            SetRealInputDerivatives => I | M | C,
-            GetRealOutputDerivatives => C | F | T | E,
-            DoStep => C,
+            GetDirectionalDerivative => both(M | V | N | T | E, M | C | F | T | E),
+            SetRealInputDerivatives => both(0, I | M | C),
+            GetRealOutputDerivatives => both(0, C | F | T | E),
+            DoStep => both(0, C),
             // Legal only while an asynchronous step is in progress, which never happens here.
-            CancelStep => 0,
-            GetStatus | GetRealStatus | GetIntegerStatus | GetBooleanStatus | GetStringStatus => C | F | T,
-            EnterEventMode
-            | NewDiscreteStates
-            | EnterContinuousTimeMode
-            | CompletedIntegratorStep
-            | SetTime
-            | SetContinuousStates
-            | GetDerivatives
-            | GetEventIndicators
-            | GetContinuousStates
-            | GetNominalsOfContinuousStates => MODEL_EXCHANGE,
+            CancelStep => both(0, 0),
+            GetStatus | GetRealStatus | GetIntegerStatus | GetBooleanStatus | GetStringStatus => both(0, C | F | T),
+            EnterEventMode => both(V | N, 0),
+            NewDiscreteStates | EnterContinuousTimeMode => both(V, 0),
+            CompletedIntegratorStep | SetContinuousStates => both(N, 0),
+            SetTime => both(V | N, 0),
+            GetEventIndicators | GetContinuousStates => both(M | V | N | T | E, 0),
+            GetDerivatives => both(V | N | T | E, 0),
+            GetNominalsOfContinuousStates => both(I | V | N | T | E, 0),
         }
     }
 
-    pub fn is_model_exchange_only(self) -> bool {
-        self.mask() == MODEL_EXCHANGE
+    /// The interface the function belongs to, if only one (`CancelStep`, legal in no state
+    /// entered here, counts as Co-Simulation's).
+    pub fn only_for(self) -> Option<Interface> {
+        use Function::*;
+        match self {
+            CancelStep => Some(Interface::CoSimulation),
+            _ => match self.masks() {
+                Masks { model_exchange: 0, .. } => Some(Interface::CoSimulation),
+                Masks { co_simulation: 0, .. } => Some(Interface::ModelExchange),
+                _ => None,
+            },
+        }
     }
 
     #[inline]
-    pub fn is_legal_in(self, phase: Phase) -> bool {
-        self.mask() & phase.bit() != 0
+    pub fn is_legal_in(self, interface: Interface, phase: Phase) -> bool {
+        let masks = self.masks();
+        let mask = match interface {
+            Interface::ModelExchange => masks.model_exchange,
+            Interface::CoSimulation => masks.co_simulation,
+        };
+        mask & phase.bit() != 0
     }
 }
 
@@ -213,24 +274,70 @@ impl Function {
 mod tests {
     use super::*;
 
+    fn legal(interface: Interface, f: Function) -> Vec<Phase> {
+        Phase::ALL
+            .into_iter()
+            .filter(|p| f.is_legal_in(interface, *p))
+            .collect()
+    }
+
     #[test]
     fn masks_match_the_standard_for_the_lifecycle_calls() {
         use Function::*;
         use Phase::*;
-        let legal = |f: Function| -> Vec<Phase> { Phase::ALL.into_iter().filter(|p| f.is_legal_in(*p)).collect() };
-        assert_eq!(legal(SetupExperiment), vec![Instantiated]);
-        assert_eq!(legal(EnterInitializationMode), vec![Instantiated]);
-        assert_eq!(legal(ExitInitializationMode), vec![InitializationMode]);
-        assert_eq!(legal(DoStep), vec![StepComplete]);
-        assert_eq!(legal(Terminate), vec![StepComplete, StepFailed]);
-        assert_eq!(legal(Reset), Phase::ALL.to_vec());
+        let cs = |f| legal(Interface::CoSimulation, f);
+        assert_eq!(cs(SetupExperiment), vec![Instantiated]);
+        assert_eq!(cs(EnterInitializationMode), vec![Instantiated]);
+        assert_eq!(cs(ExitInitializationMode), vec![InitializationMode]);
+        assert_eq!(cs(DoStep), vec![StepComplete]);
+        assert_eq!(cs(Terminate), vec![StepComplete, StepFailed]);
+        let every_cs_state: Vec<Phase> = Phase::ALL
+            .into_iter()
+            .filter(|p| p.belongs_to(Interface::CoSimulation))
+            .collect();
+        assert_eq!(cs(Reset), every_cs_state);
         assert_eq!(
-            legal(GetReal),
+            cs(GetReal),
             vec![InitializationMode, StepComplete, StepFailed, Terminated, Error]
         );
-        assert_eq!(legal(SetReal), vec![Instantiated, InitializationMode, StepComplete]);
-        assert!(legal(CancelStep).is_empty());
-        assert!(legal(SetTime).is_empty() && SetTime.is_model_exchange_only());
+        assert_eq!(cs(SetReal), vec![Instantiated, InitializationMode, StepComplete]);
+        assert!(cs(CancelStep).is_empty());
+        assert!(cs(SetTime).is_empty() && SetTime.only_for() == Some(Interface::ModelExchange));
+    }
+
+    #[test]
+    fn model_exchange_masks_match_the_standard() {
+        use Function::*;
+        use Phase::*;
+        let me = |f| legal(Interface::ModelExchange, f);
+        assert_eq!(me(Terminate), vec![EventMode, ContinuousTimeMode]);
+        assert_eq!(me(EnterEventMode), vec![EventMode, ContinuousTimeMode]);
+        assert_eq!(me(NewDiscreteStates), vec![EventMode]);
+        assert_eq!(me(EnterContinuousTimeMode), vec![EventMode]);
+        assert_eq!(me(CompletedIntegratorStep), vec![ContinuousTimeMode]);
+        assert_eq!(me(SetContinuousStates), vec![ContinuousTimeMode]);
+        assert_eq!(me(SetTime), vec![EventMode, ContinuousTimeMode]);
+        assert_eq!(
+            me(SetReal),
+            vec![Instantiated, InitializationMode, EventMode, ContinuousTimeMode]
+        );
+        assert_eq!(me(SetInteger), vec![Instantiated, InitializationMode, EventMode]);
+        assert_eq!(
+            me(GetDerivatives),
+            vec![Terminated, Error, EventMode, ContinuousTimeMode]
+        );
+        assert_eq!(
+            me(GetNominalsOfContinuousStates),
+            vec![Instantiated, Terminated, Error, EventMode, ContinuousTimeMode]
+        );
+        assert!(me(DoStep).is_empty() && DoStep.only_for() == Some(Interface::CoSimulation));
+        assert_eq!(GetReal.only_for(), None);
+        // A call legal in a state is legal only in states its interface can be in.
+        for f in [GetReal, SetReal, Terminate, GetFmuState, SetTime, DoStep, GetStatus] {
+            for interface in [Interface::ModelExchange, Interface::CoSimulation] {
+                assert!(legal(interface, f).iter().all(|p| p.belongs_to(interface)), "{f:?}");
+            }
+        }
     }
 
     #[test]
@@ -238,6 +345,6 @@ mod tests {
         for p in Phase::ALL {
             assert_eq!(Phase::from_code(p.code()), Some(p));
         }
-        assert_eq!(Phase::from_code(6), None);
+        assert_eq!(Phase::from_code(8), None);
     }
 }

@@ -1,7 +1,8 @@
 //! The plant of docs/model.md §1–§3 as pure, safe Rust: no FFI, no FMI words.
 //!
 //! Data flow: [`PlantParams`] → [`Plant`] (validated generic form) → [`Stepper`] (exact
-//! stepping, switches located to round-off) and [`SpeedErrorBound`] (docs/model.md §3 bounds).
+//! stepping, switches located to round-off) and [`SpeedErrorBound`] (docs/model.md §3 bounds);
+//! `vector_field` gives the same plant as z' = f(z, τ) for solvers outside (docs/model.md §6).
 
 pub mod bound;
 pub mod closed_loop;
@@ -12,6 +13,7 @@ pub mod params;
 pub mod roots;
 pub mod stepper;
 pub mod taylor;
+pub mod vector_field;
 
 pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded};
 pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};

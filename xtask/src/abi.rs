@@ -4,7 +4,7 @@
 //!    takes every FMI type from the official fmi2Functions.h;
 //! 2. `cc -fsyntax-only -Werror` compiles tests/abi/check.c, which includes both headers: a Rust
 //!    signature that differs from the standard's is a "conflicting types" error;
-//! 3. `nm -D --defined-only` on the built library must list every Co-Simulation function.
+//! 3. `nm -D --defined-only` on the built library must list every FMI 2.0 function.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -16,6 +16,7 @@ use crate::util::{self, step};
 
 /// FMI 2.0 functions an importer of a Co-Simulation FMU may call: the common API (§2.1) and the
 /// Co-Simulation API (§4.2). Unprefixed, as in a binary FMU built without FMI2_FUNCTION_PREFIX.
+/// With [`MODEL_EXCHANGE_FUNCTIONS`], every function of FMI 2.0: all must be exported.
 pub const CO_SIMULATION_FUNCTIONS: [&str; 34] = [
     "fmi2GetTypesPlatform",
     "fmi2GetVersion",
@@ -53,9 +54,8 @@ pub const CO_SIMULATION_FUNCTIONS: [&str; 34] = [
     "fmi2GetStringStatus",
 ];
 
-/// Model Exchange functions (§3.2): standard names, so not typos, but this library need not
-/// export them.
-const MODEL_EXCHANGE_FUNCTIONS: [&str; 10] = [
+/// The Model Exchange functions (§3.2), exported beside them: the archives offer both interfaces.
+pub const MODEL_EXCHANGE_FUNCTIONS: [&str; 10] = [
     "fmi2EnterEventMode",
     "fmi2NewDiscreteStates",
     "fmi2EnterContinuousTimeMode",
@@ -140,25 +140,26 @@ fn generate_header() -> Result<PathBuf, String> {
         .map_err(|e| format!("cbindgen: {e}"))?
         .write_to_file(&header);
     let text = fs::read_to_string(&header).map_err(|e| format!("reading {}: {e}", header.display()))?;
-    let missing: Vec<&str> = CO_SIMULATION_FUNCTIONS
-        .iter()
-        .copied()
-        .filter(|name| !declares(&text, name))
-        .collect();
+    let missing: Vec<&str> = all_functions().filter(|name| !declares(&text, name)).collect();
     if !missing.is_empty() {
         return Err(format!(
-            "{} does not declare {} of the FMI 2.0 Co-Simulation functions: {}",
+            "{} does not declare {} of the FMI 2.0 functions: {}",
             util::shown(&header),
             missing.len(),
             missing.join(", ")
         ));
     }
     println!(
-        "{}: declares all {} Co-Simulation functions",
+        "{}: declares all {} FMI 2.0 functions",
         util::shown(&header),
-        CO_SIMULATION_FUNCTIONS.len()
+        all_functions().count()
     );
     Ok(header)
+}
+
+/// Every FMI 2.0 function: the common, Co-Simulation and Model Exchange ones.
+fn all_functions() -> impl Iterator<Item = &'static str> {
+    CO_SIMULATION_FUNCTIONS.into_iter().chain(MODEL_EXCHANGE_FUNCTIONS)
 }
 
 /// True if `text` has a declaration `... name(`; a bare mention in a comment does not count.
@@ -239,15 +240,13 @@ fn check_exports(library: &Path) -> Result<(), String> {
     for name in &exported {
         println!("  {name}");
     }
-    let missing: Vec<&str> = CO_SIMULATION_FUNCTIONS
-        .iter()
-        .copied()
+    let missing: Vec<&str> = all_functions()
         .filter(|name| !exported.iter().any(|e| e == name))
         .collect();
     let unknown: Vec<&str> = exported
         .iter()
         .map(String::as_str)
-        .filter(|e| !CO_SIMULATION_FUNCTIONS.contains(e) && !MODEL_EXCHANGE_FUNCTIONS.contains(e))
+        .filter(|e| !all_functions().any(|name| name == *e))
         .collect();
     if !missing.is_empty() {
         return Err(format!("the library does not export: {}", missing.join(", ")));
@@ -259,8 +258,8 @@ fn check_exports(library: &Path) -> Result<(), String> {
         ));
     }
     println!(
-        "ok: all {} FMI 2.0 Co-Simulation functions are exported",
-        CO_SIMULATION_FUNCTIONS.len()
+        "ok: all {} FMI 2.0 functions (Model Exchange and Co-Simulation) are exported",
+        all_functions().count()
     );
     Ok(())
 }

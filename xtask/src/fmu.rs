@@ -1,4 +1,5 @@
-//! `cargo xtask fmu`: builds the cdylib once and packages one FMI 2.0 archive per model.
+//! `cargo xtask fmu`: builds the cdylib once and packages one FMI 2.0 archive per model
+//! (Model Exchange and Co-Simulation in one description, one binary).
 //!
 //! Layout of each archive (FMI 2.0 §2.3): `modelDescription.xml`, `binaries/linux64/<id>.so`
 //! (the same library under each model's identifier), `documentation/index.html`.
@@ -76,20 +77,22 @@ fn build_library() -> Result<(), String> {
     Ok(())
 }
 
-/// The description must be an FMI 2.0 description naming this model in its CoSimulation
-/// element, or an importer would look for a library that is not in the archive.
+/// The description must be an FMI 2.0 description naming this model in its ModelExchange and
+/// CoSimulation elements, or an importer would look for a library that is not in the archive.
 fn check_description(id: &str, xml: &str) -> Result<(), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
     let root = doc.root_element();
     if !root.has_tag_name("fmiModelDescription") || root.attribute("fmiVersion") != Some("2.0") {
         return Err(format!("{id}: generated text is not an FMI 2.0 model description"));
     }
-    let co_simulation = root
-        .children()
-        .find(|n| n.has_tag_name("CoSimulation"))
-        .ok_or_else(|| format!("{id}: model description has no <CoSimulation> element"))?;
-    if co_simulation.attribute("modelIdentifier") != Some(id) {
-        return Err(format!("{id}: <CoSimulation> does not carry modelIdentifier=\"{id}\""));
+    for interface in ["ModelExchange", "CoSimulation"] {
+        let element = root
+            .children()
+            .find(|n| n.has_tag_name(interface))
+            .ok_or_else(|| format!("{id}: model description has no <{interface}> element"))?;
+        if element.attribute("modelIdentifier") != Some(id) {
+            return Err(format!("{id}: <{interface}> does not carry modelIdentifier=\"{id}\""));
+        }
     }
     Ok(())
 }

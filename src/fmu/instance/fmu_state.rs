@@ -10,6 +10,7 @@ impl Instance {
     pub(crate) fn snapshot(&self) -> Snapshot {
         Snapshot {
             guid: self.model.guid,
+            interface: self.interface,
             phase: self.phase,
             time: self.time,
             experiment: self.experiment,
@@ -27,6 +28,13 @@ impl Instance {
             return Err(FmuError::StateRefused(format!(
                 "it belongs to the model with guid {}, this instance is {} ({})",
                 snapshot.guid, self.model.identifier, self.model.guid
+            )));
+        }
+        if snapshot.interface != self.interface {
+            return Err(FmuError::StateRefused(format!(
+                "it was taken from a {} instance; this instance serves {}",
+                snapshot.interface.name(),
+                self.interface.name()
             )));
         }
         let sim = match &snapshot.physics {

@@ -1,11 +1,13 @@
-//! One FMU instance: the state machine of FMI 2.0 Co-Simulation and its lifecycle calls. The
-//! other calls are in the files beside this one: get/set by value reference and derivatives
-//! (`values`), stepping (`stepping`), status queries (`status`), FMU states (`fmu_state`).
+//! One FMU instance, of Model Exchange or Co-Simulation: its state machine and lifecycle calls.
+//! The other calls are in the files beside this one: get/set by value reference and derivatives
+//! (`values`), Co-Simulation stepping (`stepping`) and status queries (`status`), the Model
+//! Exchange calls (`model_exchange`), FMU states (`fmu_state`).
 //!
 //! Every public call goes through [`Instance::run`]: legal-state check, the work, and on
 //! failure one place that logs the reason and (for fmi2Error) enters state Error.
 
 mod fmu_state;
+mod model_exchange;
 mod status;
 mod stepping;
 mod values;
@@ -15,7 +17,7 @@ use super::error::{FmuError, Status};
 use super::logging::{LogCategory, LogSink, Logging};
 use super::simulation::Simulation;
 use super::snapshot::Snapshot;
-use super::state_machine::{Function, Phase};
+use super::state_machine::{Function, Interface, Phase};
 use super::variables::{model_by_guid, ModelInfo, MODELS};
 
 /// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
@@ -50,16 +52,21 @@ pub enum StatusKind {
     Terminated,
 }
 
+pub use model_exchange::EventInfo;
+
 pub struct Instance {
     model: &'static ModelInfo,
+    interface: Interface,
     phase: Phase,
     /// Inputs, parameters and start values (θ, ω before initialization), by [`Symbol`].
     values: Values,
     /// dτ_m/dt, dτ_L/dt set by fmi2SetRealInputDerivatives (order 1).
     input_slopes: [f64; 2],
     experiment: Experiment,
+    /// Co-Simulation: the communication point; Model Exchange: the time set by fmi2SetTime.
     time: f64,
-    /// Present from fmi2ExitInitializationMode on.
+    /// Present from fmi2ExitInitializationMode on. In Model Exchange its plant state is the
+    /// one set by fmi2SetContinuousStates, and its bound is brought to `time` when read.
     sim: Option<Simulation>,
     /// Built on demand for fmi2GetXXX in Initialization Mode, dropped on every set.
     preview: Option<Simulation>,
@@ -67,10 +74,21 @@ pub struct Instance {
 }
 
 impl Instance {
-    /// A fresh instance of `model` (state Instantiated, all start values).
+    /// A fresh Co-Simulation instance of `model` (state Instantiated, all start values).
     pub fn new(model: &'static ModelInfo, sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Instance {
+        Instance::new_for(model, Interface::CoSimulation, sink, logging_on)
+    }
+
+    /// A fresh instance of `model` serving `interface`.
+    pub fn new_for(
+        model: &'static ModelInfo,
+        interface: Interface,
+        sink: Option<Box<dyn LogSink>>,
+        logging_on: bool,
+    ) -> Instance {
         Instance {
             model,
+            interface,
             phase: Phase::Instantiated,
             values: adapter::start_values(model),
             input_slopes: [0.0; 2],
@@ -103,6 +121,10 @@ impl Instance {
         self.phase
     }
 
+    pub fn interface(&self) -> Interface {
+        self.interface
+    }
+
     /// Current communication point [s].
     pub fn time(&self) -> f64 {
         self.time
@@ -132,8 +154,7 @@ impl Instance {
     /// Inlined, so that the mask of a known `function` is a constant.
     #[inline]
     pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
-        // No phase bit is set in the mask of a Model Exchange function.
-        if function.is_legal_in(self.phase) {
+        if function.is_legal_in(self.interface, self.phase) {
             return Ok(());
         }
         self.illegal(function)
@@ -142,17 +163,17 @@ impl Instance {
     #[cold]
     #[inline(never)]
     fn illegal(&self, function: Function) -> Result<(), FmuError> {
-        if function.is_model_exchange_only() {
-            Err(FmuError::ModelExchangeOnly {
+        match function.only_for() {
+            Some(other) if other != self.interface => Err(FmuError::OtherInterface {
                 function: function.c_name(),
-            })
-        } else if function.is_legal_in(self.phase) {
-            Ok(())
-        } else {
-            Err(FmuError::IllegalCall {
+                belongs_to: other.name(),
+                serves: self.interface.name(),
+            }),
+            _ if function.is_legal_in(self.interface, self.phase) => Ok(()),
+            _ => Err(FmuError::IllegalCall {
                 function: function.c_name(),
                 phase: self.phase,
-            })
+            }),
         }
     }
 
@@ -359,11 +380,22 @@ impl Instance {
             Some(sim) => sim,
             None => Simulation::build(self.model, &self.values)?,
         };
+        // Every output, the state derivatives included, must be finite from here on.
+        let inputs = adapter::inputs(&self.values, self.input_slopes);
+        sim.rates(
+            &sim.state,
+            inputs.tau_m,
+            inputs.tau_l,
+            format_args!("the initial accelerations overflow"),
+        )?;
         let unbounded = sim.bound_sup.err();
         let slack = sim.bound.sup_slack().unwrap_or(0.0);
         self.sim = Some(sim);
         self.time = self.experiment.start_time;
-        self.phase = Phase::StepComplete;
+        self.phase = match self.interface {
+            Interface::CoSimulation => Phase::StepComplete,
+            Interface::ModelExchange => Phase::EventMode,
+        };
         match unbounded {
             None if slack > SUP_SLACK_WARNING => {
                 self.log.emit(Status::Warning, LogCategory::Warnings, || {

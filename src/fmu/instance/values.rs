@@ -17,7 +17,7 @@ impl Instance {
         })
     }
 
-    fn typed_variable(&self, vr: u32, ty: VarType) -> Result<&'static Variable, FmuError> {
+    pub(super) fn typed_variable(&self, vr: u32, ty: VarType) -> Result<&'static Variable, FmuError> {
         let v = self.variable(vr)?;
         if v.ty != ty {
             let requested = match ty {
@@ -29,7 +29,7 @@ impl Instance {
         Ok(v)
     }
 
-    fn same_length(what: &'static str, length: usize, expected: usize) -> Result<(), FmuError> {
+    pub(super) fn same_length(what: &'static str, length: usize, expected: usize) -> Result<(), FmuError> {
         if length == expected {
             Ok(())
         } else {
@@ -39,7 +39,7 @@ impl Instance {
 
     /// The physics in force: the simulation after initialization, before it the plant the
     /// current parameters and start values describe (built once per change).
-    fn physics(&mut self) -> Result<&Simulation, FmuError> {
+    pub(super) fn physics(&mut self) -> Result<&Simulation, FmuError> {
         if let Some(sim) = &self.sim {
             return Ok(sim);
         }
@@ -56,9 +56,27 @@ impl Instance {
                 Some(sim) => entry.of(&sim.state),
                 None => self.values[v.symbol.index()],
             },
+            Source::Calculated(quantity @ (Calculated::Bound | Calculated::BoundPaper)) => {
+                self.bound_to_time()?;
+                quantity.of(self.physics()?)
+            }
             Source::Calculated(quantity) => quantity.of(self.physics()?),
+            Source::Derivative(entry) => self.rates()?[entry.index()],
             Source::Contact => return Err(Self::wrong_type(v, "Real")),
         })
+    }
+
+    /// d/dt [θ_m, ω_m, θ_L, ω_L] of the vector field at the state in force and the current
+    /// inputs (docs/model.md §1).
+    pub(super) fn rates(&mut self) -> Result<[f64; 4], FmuError> {
+        let inputs = adapter::inputs(&self.values, self.input_slopes);
+        let sim = self.physics()?;
+        sim.rates(
+            &sim.state,
+            inputs.tau_m,
+            inputs.tau_l,
+            format_args!("the state derivatives overflow"),
+        )
     }
 
     /// The refusal of a `requested` access to `v` of another type.
@@ -134,9 +152,9 @@ impl Instance {
         self.get_untyped_body(vrs, count, requested)
     }
 
-    /// FMI 2.0.4 Co-Simulation table of allowed calls, per variable: before and during
-    /// initialization inputs, parameters and initial = exact outputs (the initial state); in
-    /// StepComplete inputs only (all parameters are fixed).
+    /// FMI 2.0.4 tables of allowed calls, per variable: before and during initialization
+    /// inputs, parameters and initial = exact outputs (the initial state); in StepComplete,
+    /// Event Mode and Continuous-Time Mode inputs only (all parameters are fixed).
     fn check_settable(&self, v: &Variable) -> Result<(), FmuError> {
         let refuse = |reason| {
             Err(FmuError::NotSettable {
@@ -147,16 +165,18 @@ impl Instance {
         };
         match v.causality {
             Causality::CalculatedParameter => refuse("it is a calculatedParameter, computed by the FMU"),
+            Causality::Local => refuse("it is a state derivative, computed by the FMU"),
             Causality::Output if !v.is_initial_state() => refuse("it is an output computed by the FMU"),
             _ => match self.phase {
                 Phase::Instantiated | Phase::InitializationMode => Ok(()),
-                Phase::StepComplete => match v.causality {
+                Phase::StepComplete | Phase::EventMode | Phase::ContinuousTimeMode => match v.causality {
                     Causality::Input => Ok(()),
                     Causality::Parameter => {
                         refuse("it is a fixed parameter; it can change only before fmi2ExitInitializationMode")
                     }
                     _ => refuse(
-                        "its start value is the initial state; it can change only before fmi2ExitInitializationMode",
+                        "its start value is the initial state; it can change only before fmi2ExitInitializationMode \
+                         (in Model Exchange, fmi2SetContinuousStates sets the state)",
                     ),
                 },
                 _ => refuse("no variable can be set in this state"),
@@ -261,7 +281,7 @@ impl Instance {
             let rate = match adapter::source(v.symbol) {
                 Source::State(entry) => Some(z_dot[entry.index()]),
                 Source::Calculated(quantity) => quantity.rate(sim, &z_dot),
-                Source::Input(_) | Source::Parameter | Source::Contact => None,
+                Source::Input(_) | Source::Parameter | Source::Contact | Source::Derivative(_) => None,
             };
             *slot = rate.ok_or_else(|| FmuError::InvalidArgument(format!("{} has no output derivative", v.name)))?;
             if !slot.is_finite() {

@@ -1,0 +1,292 @@
+//! The Model Exchange calls (FMI 2.0.4 §3.2): the importer's solver sets time and the
+//! continuous states z = [θ_m, ω_m, θ_L, ω_L] and reads the vector field, the event indicators
+//! [u − g, u + g], the states' nominal values and the exact Jacobian of the mode in force
+//! (docs/model.md §6). There are no discrete states and no time events: modes follow u.
+
+use super::Instance;
+use crate::fmu::adapter::{self, Calculated, Source, StateEntry};
+use crate::fmu::error::{FmuError, Status};
+use crate::fmu::state_machine::{Function, Interface, Phase};
+use crate::fmu::variables::VarType;
+use crate::physics::finite;
+
+/// The answer of fmi2NewDiscreteStates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EventInfo {
+    pub new_discrete_states_needed: bool,
+    pub terminate_simulation: bool,
+    pub nominals_changed: bool,
+    pub values_changed: bool,
+    pub next_event_time: Option<f64>,
+}
+
+/// Number of continuous states.
+const STATES: usize = StateEntry::ALL.len();
+
+impl Instance {
+    /// The bound of a Model Exchange instance at its time (docs/model.md §4: measured from the
+    /// start time); a Co-Simulation instance advances it with each step.
+    pub(super) fn bound_to_time(&mut self) -> Result<(), FmuError> {
+        if self.interface != Interface::ModelExchange {
+            return Ok(());
+        }
+        let elapsed = self.time - self.experiment.start_time;
+        match self.sim.as_mut() {
+            Some(sim) => sim.bound_at(elapsed).map_err(|e| match e {
+                crate::physics::BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
+                    "the bounds at t = {} overflow: bound = {bound:e}, bound_paper = {bound_paper:e}",
+                    self.time
+                )),
+                e => e.into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    pub(crate) fn enter_event_mode_body(&mut self) -> Result<Status, FmuError> {
+        self.phase = Phase::EventMode;
+        Ok(Status::Ok)
+    }
+
+    /// Nothing is discrete: no iteration, no time event, states unchanged.
+    pub(crate) fn new_discrete_states_body(&mut self) -> Result<EventInfo, FmuError> {
+        Ok(EventInfo {
+            new_discrete_states_needed: false,
+            terminate_simulation: false,
+            nominals_changed: false,
+            values_changed: false,
+            next_event_time: None,
+        })
+    }
+
+    pub(crate) fn enter_continuous_time_mode_body(&mut self) -> Result<Status, FmuError> {
+        self.phase = Phase::ContinuousTimeMode;
+        Ok(Status::Ok)
+    }
+
+    /// Returns (enterEventMode, terminateSimulation): neither is ever needed, modes being a
+    /// function of the state.
+    pub(crate) fn completed_integrator_step_body(&mut self) -> Result<(bool, bool), FmuError> {
+        Ok((false, false))
+    }
+
+    /// Any finite time from the start time on, forwards or backwards.
+    pub(crate) fn set_time_body(&mut self, time: f64) -> Result<Status, FmuError> {
+        let start = self.experiment.start_time;
+        if !(finite(time) && time >= start) {
+            return Err(FmuError::InvalidArgument(format!(
+                "time {time} must be finite and >= the startTime {start} set in fmi2SetupExperiment"
+            )));
+        }
+        self.time = time;
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn set_continuous_states_body(&mut self, x: &[f64]) -> Result<Status, FmuError> {
+        let z = self.state_vector(x)?;
+        let sim = self.sim.as_mut().expect("Continuous-Time Mode implies a simulation");
+        let state = adapter::state_of(sim.plant(), &z);
+        sim.check_state(&state, format_args!("the continuous states overflow"))?;
+        sim.state = state;
+        Ok(Status::Ok)
+    }
+
+    /// x as z = [θ_m, ω_m, θ_L, ω_L], refused unless of length 4 and finite.
+    fn state_vector(&self, x: &[f64]) -> Result<[f64; STATES], FmuError> {
+        let z: [f64; STATES] = x.try_into().map_err(|_| FmuError::LengthMismatch {
+            what: "continuous states",
+            length: x.len(),
+            expected: STATES,
+        })?;
+        if let Some((i, value)) = z.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+            return Err(FmuError::InvalidArgument(format!(
+                "continuous state {} ({}) is {value}; states must be finite",
+                i + 1,
+                self.model
+                    .by_symbol(StateEntry::ALL[i].symbol())
+                    .map_or("?", |v| v.name)
+            )));
+        }
+        Ok(z)
+    }
+
+    fn fill(out: &mut [f64], what: &'static str, values: &[f64]) -> Result<Status, FmuError> {
+        Self::same_length(what, out.len(), values.len())?;
+        if let Some(x) = values.iter().find(|x| !x.is_finite()) {
+            return Err(FmuError::Overflow(format!("{what} evaluate to {x}")));
+        }
+        out.copy_from_slice(values);
+        Ok(Status::Ok)
+    }
+
+    pub(crate) fn get_continuous_states_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let z = adapter::entries_of(&self.physics()?.state);
+        Self::fill(out, "continuous states", &z)
+    }
+
+    pub(crate) fn get_derivatives_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let rates = self.rates()?;
+        Self::fill(out, "derivatives", &rates)
+    }
+
+    pub(crate) fn get_event_indicators_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let sim = self.physics()?;
+        let indicators = sim.plant().event_indicators(&sim.state);
+        Self::fill(out, "event indicators", &indicators)
+    }
+
+    pub(crate) fn get_nominals_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let nominals = self.physics()?.plant().state_nominals();
+        Self::fill(out, "nominals of the continuous states", &nominals)
+    }
+
+    /// Model Exchange only (providesDirectionalDerivative is false for Co-Simulation).
+    pub(crate) fn check_directional_derivative_provided(&self) -> Result<(), FmuError> {
+        match self.interface {
+            Interface::ModelExchange => Ok(()),
+            Interface::CoSimulation => Err(FmuError::NotProvided(
+                "fmi2GetDirectionalDerivative in Co-Simulation (providesDirectionalDerivative=\"false\" there)",
+            )),
+        }
+    }
+
+    /// dv_unknown = J dv_known with J the exact Jacobian, in the mode in force, of the unknowns
+    /// (state derivatives, states, ψ, and the bounds, which depend on time alone) with respect
+    /// to the knowns (states and inputs).
+    pub(crate) fn get_directional_derivative_body(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        dv_known: &[f64],
+        dv_unknown: &mut [f64],
+    ) -> Result<Status, FmuError> {
+        self.check_directional_derivative_provided()?;
+        Self::same_length("fmi2GetDirectionalDerivative dvKnown", dv_known.len(), knowns.len())?;
+        Self::same_length(
+            "fmi2GetDirectionalDerivative dvUnknown",
+            dv_unknown.len(),
+            unknowns.len(),
+        )?;
+        // The seed as a change of z and of the inputs.
+        let mut dz = [0.0; STATES];
+        let mut dtau = [0.0; 2];
+        for (vr, dv) in knowns.iter().zip(dv_known) {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            if !dv.is_finite() {
+                return Err(FmuError::ValueRefused {
+                    name: v.name,
+                    value: *dv,
+                    range: "a finite seed",
+                });
+            }
+            match adapter::source(v.symbol) {
+                Source::State(entry) => dz[entry.index()] += dv,
+                Source::Input(slot) => dtau[slot] += dv,
+                _ => {
+                    return Err(FmuError::InvalidArgument(format!(
+                        "{} is not a known of the Jacobian: the knowns are the continuous states and the inputs",
+                        v.name
+                    )))
+                }
+            }
+        }
+        let mut rows = Vec::with_capacity(unknowns.len());
+        for vr in unknowns {
+            let v = self.typed_variable(*vr, VarType::Real)?;
+            match adapter::source(v.symbol) {
+                Source::Derivative(_)
+                | Source::State(_)
+                | Source::Calculated(Calculated::Psi | Calculated::Bound | Calculated::BoundPaper) => {
+                    rows.push(adapter::source(v.symbol))
+                }
+                _ => {
+                    return Err(FmuError::InvalidArgument(format!(
+                        "{} is not an unknown of the Jacobian: the unknowns are the state derivatives and the outputs",
+                        v.name
+                    )))
+                }
+            }
+        }
+        let sim = self.physics()?;
+        let plant = sim.plant();
+        let (jz, jtau) = plant.jacobian(&sim.state);
+        let psi_rate = |dz: &[f64; STATES]| plant.force_rate(sim.state.mode, dz[0], dz[2]);
+        for (slot, row) in dv_unknown.iter_mut().zip(rows) {
+            *slot = match row {
+                Source::Derivative(entry) => {
+                    let i = entry.index();
+                    (0..STATES).map(|j| jz[i][j] * dz[j]).sum::<f64>() + jtau[i][0] * dtau[0] + jtau[i][1] * dtau[1]
+                }
+                Source::State(entry) => dz[entry.index()],
+                Source::Calculated(Calculated::Psi) => psi_rate(&dz),
+                // bound and bound_paper: functions of time alone.
+                _ => 0.0,
+            };
+            if !slot.is_finite() {
+                return Err(FmuError::Overflow(format!(
+                    "a directional derivative evaluates to {slot}"
+                )));
+            }
+        }
+        Ok(Status::Ok)
+    }
+}
+
+/// The checked Model Exchange calls (the Rust API; the C layer calls `run` with the bodies).
+impl Instance {
+    pub fn enter_event_mode(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::EnterEventMode, |s| s.enter_event_mode_body())
+    }
+
+    pub fn new_discrete_states(&mut self) -> Result<EventInfo, FmuError> {
+        self.run(Function::NewDiscreteStates, |s| s.new_discrete_states_body())
+    }
+
+    pub fn enter_continuous_time_mode(&mut self) -> Result<Status, FmuError> {
+        self.run(Function::EnterContinuousTimeMode, |s| {
+            s.enter_continuous_time_mode_body()
+        })
+    }
+
+    pub fn completed_integrator_step(&mut self) -> Result<(bool, bool), FmuError> {
+        self.run(Function::CompletedIntegratorStep, |s| {
+            s.completed_integrator_step_body()
+        })
+    }
+
+    pub fn set_time(&mut self, time: f64) -> Result<Status, FmuError> {
+        self.run(Function::SetTime, |s| s.set_time_body(time))
+    }
+
+    pub fn set_continuous_states(&mut self, x: &[f64]) -> Result<Status, FmuError> {
+        self.run(Function::SetContinuousStates, |s| s.set_continuous_states_body(x))
+    }
+
+    pub fn get_continuous_states(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        self.run(Function::GetContinuousStates, |s| s.get_continuous_states_body(out))
+    }
+
+    pub fn get_derivatives(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        self.run(Function::GetDerivatives, |s| s.get_derivatives_body(out))
+    }
+
+    pub fn get_event_indicators(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        self.run(Function::GetEventIndicators, |s| s.get_event_indicators_body(out))
+    }
+
+    pub fn get_nominals_of_continuous_states(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        self.run(Function::GetNominalsOfContinuousStates, |s| s.get_nominals_body(out))
+    }
+
+    pub fn get_directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        dv_known: &[f64],
+        dv_unknown: &mut [f64],
+    ) -> Result<Status, FmuError> {
+        self.run(Function::GetDirectionalDerivative, |s| {
+            s.get_directional_derivative_body(unknowns, knowns, dv_known, dv_unknown)
+        })
+    }
+}

@@ -1,0 +1,154 @@
+//! The plant of docs/model.md §1 as a vector field: the right-hand side z' = f(z, τ), its
+//! Jacobian, the event indicators and the scales of the states. This is what an importer's own
+//! solver integrates (FMI Model Exchange, docs/model.md §6); the exact stepper does not use it.
+//!
+//! f is a pure function of the state: ψ = K·dz(u, g) with u = r_m θ_m − r_L θ_L recomputed from
+//! the angles, so a solver that oversteps a contact switch is inaccurate there, never
+//! inconsistent.
+
+use super::mode::{ContactMode, PlantState};
+use super::params::Plant;
+
+/// Scale of an angle state when there is no gap to measure it by [rad] (the default of the
+/// Modelica Standard Library's ElastoBacklash).
+const ANGLE_SCALE_WITHOUT_GAP: f64 = 1e-4;
+
+impl Plant {
+    /// z' = d/dt [θ_m, ω_m, θ_L, ω_L] at `state` with torques τ_m, τ_L (docs/model.md §1):
+    /// θ_m' = ω_m, J_m ω_m' = τ_m − b_m ω_m − r_m ψ, θ_L' = ω_L, J_L ω_L' = τ_L − b_L ω_L + r_L ψ.
+    #[inline]
+    pub fn rates(&self, state: &PlantState, tau_m: f64, tau_l: f64) -> [f64; 4] {
+        let p = self.params();
+        let psi = self.force(state.u);
+        [
+            state.omega_m,
+            (tau_m - p.b_m * state.omega_m - self.r_m() * psi) / p.j_m,
+            state.omega_l,
+            (tau_l - p.b_l * state.omega_l + self.r_l() * psi) / p.j_l,
+        ]
+    }
+
+    /// The Jacobian of [`Plant::rates`] in the mode in force at `state`: ∂z'/∂z (rows z', columns
+    /// θ_m, ω_m, θ_L, ω_L) and ∂z'/∂τ (columns τ_m, τ_L). Exact inside a mode; on ±g, where ψ has a
+    /// kink, it is the one-sided Jacobian of the mode being entered.
+    pub fn jacobian(&self, state: &PlantState) -> ([[f64; 4]; 4], [[f64; 2]; 4]) {
+        let p = self.params();
+        let (r_m, r_l) = (self.r_m(), self.r_l());
+        // ∂ψ/∂u: K on a flank, 0 in the gap.
+        let k = match state.mode {
+            ContactMode::Free => 0.0,
+            ContactMode::Positive | ContactMode::Negative => self.stiffness(),
+        };
+        let dz = [
+            [0.0, 1.0, 0.0, 0.0],
+            [-r_m * k * r_m / p.j_m, -p.b_m / p.j_m, r_m * k * r_l / p.j_m, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [r_l * k * r_m / p.j_l, 0.0, -r_l * k * r_l / p.j_l, -p.b_l / p.j_l],
+        ];
+        let dtau = [[0.0, 0.0], [1.0 / p.j_m, 0.0], [0.0, 0.0], [0.0, 1.0 / p.j_l]];
+        (dz, dtau)
+    }
+
+    /// The event indicators [u − g, u + g]: a contact switch is a sign change of one of them.
+    #[inline]
+    pub fn event_indicators(&self, state: &PlantState) -> [f64; 2] {
+        let g = self.half_gap();
+        [state.u - g, state.u + g]
+    }
+
+    /// The scale each state moves on (docs/model.md §6): each angle at the gap it must resolve,
+    /// g/r (1e-4 rad without a gap), each speed at that angle per contact period, ω₀ g/r.
+    /// Importers derive absolute tolerances from these.
+    pub fn state_nominals(&self) -> [f64; 4] {
+        let angle = |r: f64| {
+            let g = self.half_gap();
+            if g > 0.0 {
+                g / r
+            } else {
+                ANGLE_SCALE_WITHOUT_GAP
+            }
+        };
+        let (theta_m, theta_l) = (angle(self.r_m()), angle(self.r_l()));
+        let omega0 = self.contact_frequency();
+        [theta_m, omega0 * theta_m, theta_l, omega0 * theta_l]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::{Geometry, PlantParams};
+
+    fn belt() -> Plant {
+        Plant::new(PlantParams {
+            j_m: 1e-4,
+            j_l: 5e-3,
+            b_m: 1e-4,
+            b_l: 1e-3,
+            geometry: Geometry::Belt {
+                k_b: 2e5,
+                r_1: 0.02,
+                r_2: 0.04,
+                r_g1: 0.015,
+                r_g2: 0.045,
+                delta: 5e-5,
+            },
+        })
+        .unwrap()
+    }
+
+    /// Central differences of `rates` against `jacobian`, away from the kinks.
+    #[test]
+    fn jacobian_matches_central_differences_in_every_mode() {
+        let plant = belt();
+        let g = plant.half_gap();
+        for u_over_g in [-3.0, 0.3, 2.5] {
+            let theta_m = u_over_g * g / plant.r_m();
+            let state = PlantState::new(&plant, theta_m, 1.5, 0.0, -0.7);
+            let (dz, dtau) = plant.jacobian(&state);
+            let z = [state.theta_m, state.omega_m, state.theta_l, state.omega_l];
+            let (tau_m, tau_l) = (0.02, -0.3);
+            for j in 0..4 {
+                let h = 1e-6 * z[j].abs().max(g);
+                let at = |d: f64| {
+                    let mut w = z;
+                    w[j] += d;
+                    plant.rates(&PlantState::new(&plant, w[0], w[1], w[2], w[3]), tau_m, tau_l)
+                };
+                let (plus, minus) = (at(h), at(-h));
+                for i in 0..4 {
+                    let fd = (plus[i] - minus[i]) / (2.0 * h);
+                    let scale = dz[i].iter().fold(1.0, |m: f64, x| m.max(x.abs()));
+                    assert!(
+                        (fd - dz[i][j]).abs() <= 1e-6 * scale,
+                        "u/g {u_over_g}: d{i}/d{j}: {fd} vs {}",
+                        dz[i][j]
+                    );
+                }
+            }
+            for (j, h) in [(0, 1e-3), (1, 1e-3)] {
+                let rates = |t: [f64; 2]| plant.rates(&state, t[0], t[1]);
+                let mut up = [tau_m, tau_l];
+                up[j] += h;
+                let (a, b) = (rates(up), rates([tau_m, tau_l]));
+                for i in 0..4 {
+                    assert!(((a[i] - b[i]) / h - dtau[i][j]).abs() <= 1e-9 * dtau[i][j].abs().max(1.0));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn indicators_change_sign_at_the_flanks_and_nominals_scale_with_the_gap() {
+        let plant = belt();
+        let g = plant.half_gap();
+        let on = |u: f64| plant.event_indicators(&PlantState::new(&plant, u / plant.r_m(), 0.0, 0.0, 0.0));
+        assert!(on(1.5 * g)[0] > 0.0 && on(0.5 * g)[0] < 0.0 && on(0.5 * g)[1] > 0.0 && on(-1.5 * g)[1] < 0.0);
+        let n = plant.state_nominals();
+        assert!((n[0] * plant.r_m() / g - 1.0).abs() < 1e-15);
+        assert!((n[2] * plant.r_l() / g - 1.0).abs() < 1e-15);
+        assert!((n[1] / n[0] - plant.contact_frequency()).abs() < 1e-12 * plant.contact_frequency());
+        let gapless = Plant::new(PlantParams::paper_rig(0.0)).unwrap();
+        assert_eq!(gapless.state_nominals()[0], ANGLE_SCALE_WITHOUT_GAP);
+    }
+}
