@@ -42,6 +42,13 @@ typedef struct {
     fmi2GetRealTYPE *get_real;
     fmi2GetIntegerTYPE *get_integer;
     fmi2DoStepTYPE *do_step;
+    /* Model Exchange */
+    fmi2NewDiscreteStatesTYPE *new_discrete_states;
+    fmi2EnterContinuousTimeModeTYPE *enter_continuous_time_mode;
+    fmi2SetTimeTYPE *set_time;
+    fmi2SetContinuousStatesTYPE *set_continuous_states;
+    fmi2GetDerivativesTYPE *get_derivatives;
+    fmi2GetEventIndicatorsTYPE *get_event_indicators;
 } Api;
 
 static Api api;
@@ -77,6 +84,12 @@ static void load(const char *path) {
     api.get_real = (fmi2GetRealTYPE *)symbol(lib, "fmi2GetReal");
     api.get_integer = (fmi2GetIntegerTYPE *)symbol(lib, "fmi2GetInteger");
     api.do_step = (fmi2DoStepTYPE *)symbol(lib, "fmi2DoStep");
+    api.new_discrete_states = (fmi2NewDiscreteStatesTYPE *)symbol(lib, "fmi2NewDiscreteStates");
+    api.enter_continuous_time_mode = (fmi2EnterContinuousTimeModeTYPE *)symbol(lib, "fmi2EnterContinuousTimeMode");
+    api.set_time = (fmi2SetTimeTYPE *)symbol(lib, "fmi2SetTime");
+    api.set_continuous_states = (fmi2SetContinuousStatesTYPE *)symbol(lib, "fmi2SetContinuousStates");
+    api.get_derivatives = (fmi2GetDerivativesTYPE *)symbol(lib, "fmi2GetDerivatives");
+    api.get_event_indicators = (fmi2GetEventIndicatorsTYPE *)symbol(lib, "fmi2GetEventIndicators");
 }
 
 /* Contact-switch messages seen by the logger (category logContactEvents); other messages are
@@ -198,6 +211,23 @@ static void release(fmi2Component c) {
 /* Event-free schedule: pressed into the positive flank near the equilibrium of a constant
  * motor torque (psi ~ tau J_L / (J_m + J_L)), so u stays well past the gap for good. */
 #define TAU_PRESS 2.0
+
+/* A Model Exchange instance of the paper's rig in Continuous-Time Mode, in the pressed state of
+ * the event-free schedule. */
+static fmi2Component make_model_exchange(const char *name) {
+    fmi2Component c = api.instantiate(name, fmi2ModelExchange, guid, resources, &callbacks, fmi2False, fmi2False);
+    if (!c) die("fmi2Instantiate(fmi2ModelExchange) failed");
+    const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_theta_m, VR_tau_m};
+    const fmi2Real value[] = {KP, KI, DELTA_DEFAULT + 0.0055, TAU_PRESS};
+    check(api.set_real(c, vr, 4, value), "fmi2SetReal(parameters)");
+    check(api.setup_experiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment");
+    check(api.enter_init(c), "fmi2EnterInitializationMode");
+    check(api.exit_init(c), "fmi2ExitInitializationMode");
+    fmi2EventInfo info;
+    check(api.new_discrete_states(c, &info), "fmi2NewDiscreteStates");
+    check(api.enter_continuous_time_mode(c), "fmi2EnterContinuousTimeMode");
+    return c;
+}
 static fmi2Component make_pressed(const char *name, int log_contacts) {
     const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_theta_m};
     const fmi2Real value[] = {KP, KI, DELTA_DEFAULT + 0.0055};
@@ -267,11 +297,15 @@ enum {
     PATTERN,
     ALL_OUTPUTS,
     SWITCHING,
+    DERIVATIVES,
+    INDICATORS,
+    STATES_DERIVATIVES,
     BLOCKS
 };
 static const char *const block_key[BLOCKS] = {
     "matvec_4x4",     "copy_set2_step_get1", "ours_set2_get1",         "ours_step_event_free",
     "ours_set2_step", "ours_set2_step_get1", "ours_set2_step_get_all", "ours_set2_step_switching",
+    "me_get_derivatives", "me_get_event_indicators", "me_set_states_get_derivatives",
 };
 
 /* One batch of the floor y = M x, fed back (see `suite`); a function of its own so that its
@@ -364,6 +398,9 @@ static void suite(int batches, long steps) {
                   all = make_pressed("all-outputs", 0), swinging = make_swinging("swinging", 0);
     double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
     long k_step = 0, k_set_step = 0, k_pattern = 0, k_all = 0, k_swinging = 0;
+    fmi2Component me = make_model_exchange("model-exchange");
+    double dx[4] = {0}, z[2] = {0}, x_me[4] = {DELTA_DEFAULT + 0.0055, 0.0, 0.0, 0.0};
+    double me_sink = 0.0;
 
     for (int b = 0; b < batches; b++) {
         Tic t0 = tic();
@@ -416,7 +453,35 @@ static void suite(int batches, long steps) {
             check(api.do_step(swinging, k_swinging * H, H, fmi2True), "fmi2DoStep");
         }
         toc(t0, steps, t[SWITCHING], tw[SWITCHING], b);
+
+        /* Model Exchange: the calls a solver makes per right-hand side evaluation. The results
+         * feed a sum, so that no call can be dropped; the state moves a little each time. */
+        t0 = tic();
+        for (long i = 0; i < floor_items; i++) {
+            check(api.get_derivatives(me, dx, 4), "fmi2GetDerivatives");
+            me_sink += dx[1];
+        }
+        toc(t0, floor_items, t[DERIVATIVES], tw[DERIVATIVES], b);
+
+        t0 = tic();
+        for (long i = 0; i < floor_items; i++) {
+            check(api.get_event_indicators(me, z, 2), "fmi2GetEventIndicators");
+            me_sink += z[0];
+        }
+        toc(t0, floor_items, t[INDICATORS], tw[INDICATORS], b);
+
+        t0 = tic();
+        for (long i = 0; i < floor_items; i++) {
+            x_me[1] = 1e-9 * (double)(i & 1023);
+            check(api.set_continuous_states(me, x_me, 4), "fmi2SetContinuousStates");
+            check(api.get_derivatives(me, dx, 4), "fmi2GetDerivatives");
+            me_sink += dx[1];
+        }
+        toc(t0, floor_items, t[STATES_DERIVATIVES], tw[STATES_DERIVATIVES], b);
     }
+    /* In contact at the pressed state: der(omega_m) = (tau - r psi)/J_m, independent of the host. */
+    printf("@ me_pressed_derivatives %.17g %.17g %.17g %.17g %.6g\n", dx[0], dx[1], dx[2], dx[3], me_sink);
+    api.free_instance(me);
     sink = x[0] + x[1] + x[2] + x[3] + v + w + out[5] + out[6] + contact;
     printf("@ all_outputs_final_bound %.17g %.17g\n", out[5], out[6]);
     for (int i = 0; i < BLOCKS; i++) {

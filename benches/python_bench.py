@@ -1,4 +1,5 @@
-"""Python side of `cargo xtask bench`: the PI loop through fmpy, and the same loop in scipy.
+"""Python side of `cargo xtask bench`: the PI loop through fmpy, the same loop in scipy, and
+fmpy's simulate_fmu as Model Exchange (CVode) beside Co-Simulation.
 
 Prints one line per result, `@ <key> <value> [<value> ...]`, which xtask/src/bench.rs collects
 into BENCHMARKS.md. Reuses the test suite's independent solver and drivers (tests/python):
@@ -139,11 +140,50 @@ def bench_scipy(fmu, seconds: float, settings: list[tuple[str, float]]) -> None:
         emit("scipy", method, rtol, rtol * 1e-4, state_error(z, z_ref), seconds / cpu, switches, seconds / wall)
 
 
+def bench_simulate(seconds: float, repeats: int) -> None:
+    """fmpy's own simulate_fmu over the rig, as Model Exchange (CVode, fmpy's default solver,
+    locating the contact switches with the FMU's event indicators) and as Co-Simulation (h = 1 ms):
+    wall time of each run and the largest difference of omega_L between the two at the output
+    points. Open loop, motor torque 1.5 sin(2 pi 0.5 t) N.m (fmpy interpolates it linearly between
+    its 1 ms samples in Model Exchange and holds it over each step in Co-Simulation)."""
+    import fmpy
+
+    path = str(fmu_driver.fmu_path(MODEL))
+    t = np.arange(0.0, seconds + H / 2, H)
+    signal = np.array(list(zip(t, 1.5 * np.sin(np.pi * t), np.zeros_like(t))),
+                      dtype=[("time", np.float64), ("tau_m", np.float64), ("tau_L", np.float64)])
+    common = dict(start_time=0.0, stop_time=seconds, output_interval=H, input=signal,
+                  start_values={**SHAFT, **SHAFT_GAINS}, output=["omega_L", "contact"])
+    runs = {}
+    for name, kw in [("me", dict(fmi_type="ModelExchange", solver="CVode", relative_tolerance=1e-8)),
+                     ("cs", dict(fmi_type="CoSimulation", step_size=H))]:
+        walls = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            result = fmpy.simulate_fmu(path, **common, **kw)
+            walls.append(time.perf_counter() - start)
+        runs[name] = result
+        switches = int(np.count_nonzero(np.diff(result["contact"])))
+        emit(f"simulate_{name}_s", *quartiles(walls), seconds, repeats, switches)
+    # Model Exchange records the event instants too: compare at the output grid only, where a time
+    # recorded twice (an event on the grid) counts with its later value.
+    me, cs = runs["me"], runs["cs"]
+    k = np.round(me["time"] / H)
+    on_grid = np.abs(me["time"] / H - k) < 1e-6
+    last = {int(i): w for i, w in zip(k[on_grid], me["omega_L"][on_grid])}
+    grid = np.round(cs["time"] / H).astype(int)
+    if not all(i in last for i in grid):
+        raise SystemExit("simulate_fmu: the Model Exchange run misses output points of the Co-Simulation run")
+    diff = np.max(np.abs(np.array([last[i] for i in grid]) - cs["omega_L"]))
+    emit("simulate_me_cs_diff", diff, np.max(np.abs(cs["omega_L"])))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--loop-seconds", type=float, default=20.0, help="simulated time of the fmpy loop")
     parser.add_argument("--repeats", type=int, default=7, help="repetitions of the fmpy loop")
     parser.add_argument("--scipy-seconds", type=float, default=3.0, help="simulated time of the accuracy runs")
+    parser.add_argument("--simulate-seconds", type=float, default=20.0, help="simulated time of the simulate_fmu runs")
     parser.add_argument(
         "--sweep",
         default="RK45:1e-3,RK45:1e-6,RK45:1e-9,RK45:1e-12,DOP853:1e-3,DOP853:1e-8,DOP853:1e-12",
@@ -155,6 +195,7 @@ def main() -> None:
     try:
         bench_fmpy(fmu, args.loop_seconds, args.repeats)
         bench_scipy(fmu, args.scipy_seconds, [(m, float(r)) for m, r in (x.split(":") for x in args.sweep.split(","))])
+        bench_simulate(args.simulate_seconds, min(args.repeats, 3))
     finally:
         fmu.remove()
 

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::fmu::logging::Collected;
+use crate::fmu::state_machine::Interface;
 
 fn shaft() -> (Instance, Collected) {
     let log = Collected::default();
@@ -251,4 +252,107 @@ fn a_state_of_the_other_model_is_refused() {
     assert!(err.to_string().contains("BacklashShaft"), "{err}");
     let (mut shaft, _) = self::shaft();
     assert!(shaft.set_fmu_state(&snap).is_err());
+}
+
+fn model_exchange(model: usize) -> Instance {
+    let mut inst = Instance::new_for(&MODELS[model], Interface::ModelExchange, None, false);
+    inst.setup_experiment(None, 0.5, None).unwrap();
+    inst.enter_initialization_mode().unwrap();
+    inst.exit_initialization_mode().unwrap();
+    inst
+}
+
+fn read(inst: &mut Instance, name: &str) -> f64 {
+    let mut out = [0.0];
+    inst.get_real(&[vr(inst, name)], &mut out).unwrap();
+    out[0]
+}
+
+#[test]
+fn model_exchange_lifecycle_and_refusals() {
+    let mut inst = model_exchange(0);
+    assert_eq!(inst.phase(), Phase::EventMode);
+    let info = inst.new_discrete_states().unwrap();
+    assert!(!info.new_discrete_states_needed && info.next_event_time.is_none());
+    inst.enter_continuous_time_mode().unwrap();
+    assert_eq!(inst.phase(), Phase::ContinuousTimeMode);
+    inst.set_time(0.7).unwrap();
+    inst.set_continuous_states(&[0.01, 0.2, 0.0, -0.1]).unwrap();
+    let mut z = [0.0; 4];
+    inst.get_continuous_states(&mut z).unwrap();
+    assert_eq!(z, [0.01, 0.2, 0.0, -0.1]);
+    assert_eq!(inst.completed_integrator_step().unwrap(), (false, false));
+    // Co-Simulation calls are refused with the reason.
+    let err = inst.do_step(0.7, 0.1).unwrap_err();
+    assert!(err.to_string().contains("belongs to FMI for Co-Simulation"), "{err}");
+    // Wrong lengths, non-finite states and times before the start are refused.
+    for bad in [&[0.0; 3][..], &[0.0, f64::NAN, 0.0, 0.0], &[f64::INFINITY; 4]] {
+        let mut inst = model_exchange(0);
+        inst.enter_continuous_time_mode().unwrap();
+        assert!(inst.set_continuous_states(bad).is_err());
+        assert_eq!(inst.phase(), Phase::Error);
+    }
+    for bad in [f64::NAN, 0.4, f64::INFINITY] {
+        let mut inst = model_exchange(0);
+        assert!(inst.set_time(bad).is_err(), "time {bad}");
+    }
+    // And a Co-Simulation instance refuses the Model Exchange calls.
+    let (mut cs, _) = initialized();
+    let err = cs.set_time(0.1).unwrap_err();
+    assert!(err.to_string().contains("belongs to FMI for Model Exchange"), "{err}");
+}
+
+/// The bounds are functions of time − startTime alone: any path of fmi2SetTime calls, forwards
+/// or backwards, gives the Co-Simulation value at that time (stepped there in steps of 0.01 s).
+#[test]
+fn model_exchange_bounds_follow_time_both_ways_and_match_co_simulation() {
+    for model in [0, 1] {
+        let mut me = model_exchange(model);
+        me.enter_continuous_time_mode().unwrap();
+        let mut cs = Instance::new(&MODELS[model], None, false);
+        cs.setup_experiment(None, 0.5, None).unwrap();
+        cs.enter_initialization_mode().unwrap();
+        cs.exit_initialization_mode().unwrap();
+        let h = MODELS[model].default_experiment.step_size;
+        let mut cs_at = Vec::new();
+        let mut t = 0.5;
+        for k in 1..=40 {
+            cs.do_step(t, h).unwrap();
+            t = 0.5 + k as f64 * h;
+            cs_at.push((t, read(&mut cs, "bound"), read(&mut cs, "bound_paper")));
+        }
+        for &index in &[39usize, 5, 20, 0, 39, 38, 10] {
+            let (t, bound, paper) = cs_at[index];
+            me.set_time(t).unwrap();
+            let (b, p) = (read(&mut me, "bound"), read(&mut me, "bound_paper"));
+            assert!((b - bound).abs() <= 1e-12 * bound, "{model} t {t}: {b} vs {bound}");
+            assert!((p - paper).abs() <= 1e-12 * paper, "{model} t {t}: {p} vs {paper}");
+        }
+    }
+}
+
+#[test]
+fn model_exchange_states_do_not_cross_interfaces() {
+    let mut me = model_exchange(0);
+    me.enter_continuous_time_mode().unwrap();
+    me.set_continuous_states(&[0.01, 0.2, 0.0, -0.1]).unwrap();
+    let snap = me.get_fmu_state().unwrap();
+    let bytes = me.serialize_fmu_state(&snap).unwrap();
+    // Into another Model Exchange instance: restored exactly, state machine included.
+    let mut other = Instance::new_for(&MODELS[0], Interface::ModelExchange, None, false);
+    let restored = other.deserialize_fmu_state(&bytes).unwrap();
+    other.set_fmu_state(&restored).unwrap();
+    assert_eq!(other.phase(), Phase::ContinuousTimeMode);
+    let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
+    me.get_derivatives(&mut a).unwrap();
+    other.get_derivatives(&mut b).unwrap();
+    assert_eq!(a, b);
+    // Into a Co-Simulation instance: refused with the reason.
+    let (mut cs, _) = shaft();
+    let snap = cs.deserialize_fmu_state(&bytes).unwrap();
+    let err = cs.set_fmu_state(&snap).unwrap_err();
+    assert!(
+        err.to_string().contains("taken from a Model Exchange instance"),
+        "{err}"
+    );
 }

@@ -263,6 +263,7 @@ impl Runner {
             .args(["--loop-seconds", &plan.loop_seconds.to_string()])
             .args(["--repeats", &plan.loop_repeats.to_string()])
             .args(["--scipy-seconds", &plan.loop_seconds.to_string()])
+            .args(["--simulate-seconds", &plan.loop_seconds.to_string()])
             .args(["--sweep", plan.sweep]);
         self.run(&mut py)
     }
@@ -445,7 +446,13 @@ fn guid_and_vr_header(xml: &str) -> Result<(String, String), String> {
         let (Some(name), Some(vr)) = (variable.attribute("name"), variable.attribute("valueReference")) else {
             return Err(format!("a ScalarVariable without name or valueReference: {variable:?}"));
         };
-        text.push_str(&format!("#define VR_{name} {vr}u\n"));
+        // der(theta_m) → VR_der_theta_m: a C identifier.
+        let ident: String = name
+            .trim_end_matches(')')
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        text.push_str(&format!("#define VR_{ident} {vr}u\n"));
         count += 1;
     }
     if count == 0 {
