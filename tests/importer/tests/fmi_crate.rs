@@ -144,3 +144,67 @@ fn both_descriptions_carry_the_documented_interface() {
             .unwrap_or_else(|e| panic!("{identifier}: {e}"));
     }
 }
+
+/// The same free run as Model Exchange: the importer integrates the FMU's right-hand side itself
+/// (classical Runge–Kutta, h = 1 ms, written here) and must land on the closed form; the event
+/// indicators are u − g and u + g of the state it sets.
+#[test]
+#[ignore = "needs target/fmu/*.fmu: run by `cargo xtask test`"]
+fn shaft_model_exchange_integrates_to_the_closed_form_motor_response() {
+    use fmi::fmi2::instance::ModelExchange;
+    let import = load("BacklashShaft");
+    assert_eq!(import.model_description().num_event_indicators(), 2);
+    let mut fmu = import
+        .instantiate_me("model_exchange", false, false)
+        .expect("fmi2Instantiate(fmi2ModelExchange)");
+    let (j_m, b_m, tau, delta) = (0.5, 1.0, 1.0, 10.0);
+    let parameters = [("J_m", j_m), ("b_m", b_m), ("Delta", delta), ("tau_m", tau)];
+    let vrs: Vec<u32> = parameters.iter().map(|(n, _)| vr(&import, n)).collect();
+    let values: Vec<f64> = parameters.iter().map(|(_, v)| *v).collect();
+    fmu.set_real(&vrs, &values).expect("setting parameters and the input");
+    fmu.setup_experiment(None, 0.0, None).expect("fmi2SetupExperiment");
+    fmu.enter_initialization_mode().expect("fmi2EnterInitializationMode");
+    fmu.exit_initialization_mode().expect("fmi2ExitInitializationMode");
+    let mut flags = fmi::EventFlags::default();
+    fmu.new_discrete_states(&mut flags).expect("fmi2NewDiscreteStates");
+    fmu.enter_continuous_time_mode().expect("fmi2EnterContinuousTimeMode");
+
+    let mut f = |t: f64, x: &[f64; 4]| -> [f64; 4] {
+        fmu.set_time(t).expect("fmi2SetTime");
+        fmu.set_continuous_states(x).expect("fmi2SetContinuousStates");
+        let mut dx = [0.0; 4];
+        fmu.get_derivatives(&mut dx).expect("fmi2GetDerivatives");
+        dx
+    };
+    let h = 1e-3;
+    let mut x = [0.0; 4];
+    for i in 0..1000 {
+        let t = i as f64 * h;
+        let add = |x: &[f64; 4], k: &[f64; 4], s: f64| std::array::from_fn::<f64, 4, _>(|j| x[j] + s * k[j]);
+        let k1 = f(t, &x);
+        let k2 = f(t + h / 2.0, &add(&x, &k1, h / 2.0));
+        let k3 = f(t + h / 2.0, &add(&x, &k2, h / 2.0));
+        let k4 = f(t + h, &add(&x, &k3, h));
+        x = std::array::from_fn(|j| x[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]));
+    }
+    let decay = 1.0 - (-b_m / j_m).exp();
+    let (omega_m, theta_m) = (tau / b_m * decay, tau / b_m * (1.0 - j_m / b_m * decay));
+    let error = ((x[1] - omega_m) / omega_m)
+        .abs()
+        .max(((x[0] - theta_m) / theta_m).abs());
+    println!("Runge-Kutta on the FMU's derivatives, 1 s: largest relative deviation {error:.3e}");
+    // RK4's global error for this decay rate (b/J = 2 /s) at h = 1 ms is ~1e-13.
+    assert!(
+        error < 1e-10,
+        "theta_m = {}, omega_m = {}; closed form {theta_m}, {omega_m}",
+        x[0],
+        x[1]
+    );
+    assert_eq!([x[2], x[3]], [0.0, 0.0], "the load must rest inside the gap");
+    let mut indicators = [0.0; 2];
+    fmu.set_continuous_states(&x).expect("fmi2SetContinuousStates");
+    fmu.get_event_indicators(&mut indicators)
+        .expect("fmi2GetEventIndicators");
+    assert_eq!(indicators, [x[0] - delta, x[0] + delta]);
+    fmu.terminate().expect("fmi2Terminate");
+}
