@@ -170,6 +170,45 @@ fn state_derivative(
     }
 }
 
+/// The event indicators u − g and u + g as variables, value references 28 and 29 in both models
+/// (FMI 3.0 lists event indicators by value reference; FMI 2.0 importers see two locals).
+fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
+    let unit = match drive_train {
+        DriveTrain::Shaft => "rad",
+        DriveTrain::Belt => "m",
+    };
+    let indicator = |name, symbol, vr, description| {
+        var(
+            name,
+            symbol,
+            vr,
+            Type::Real,
+            Causality::Local,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            unit,
+            "",
+            description,
+        )
+    };
+    [
+        indicator(
+            "u_minus_g",
+            "UMinusG",
+            28,
+            "Event indicator u - g (u = r_m*theta_m - r_L*theta_L): positive in contact on the positive flank",
+        ),
+        indicator(
+            "u_plus_g",
+            "UPlusG",
+            29,
+            "Event indicator u + g: negative in contact on the negative flank",
+        ),
+    ]
+}
+
 /// `der(theta_m)` … `der(omega_L)`, value references 24–27 in both models, after the state
 /// outputs of `v`.
 fn state_derivatives(v: &[Var]) -> [Var; 4] {
@@ -364,6 +403,7 @@ pub fn model(identifier: &str) -> Model {
             )]);
             let derivatives = state_derivatives(&v);
             v.extend(derivatives);
+            v.extend(event_indicators(DriveTrain::Shaft));
             Model {
                 identifier: "BacklashShaft",
                 drive_train: DriveTrain::Shaft,
@@ -497,6 +537,7 @@ pub fn model(identifier: &str) -> Model {
             ]);
             let derivatives = state_derivatives(&v);
             v.extend(derivatives);
+            v.extend(event_indicators(DriveTrain::Belt));
             Model {
                 identifier: "BacklashBelt",
                 drive_train: DriveTrain::Belt,

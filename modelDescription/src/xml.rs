@@ -44,6 +44,8 @@ fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
             .chain(geometry)
             .copied()
             .collect(),
+        // u -+ g: angles and geometry.
+        "u_minus_g" | "u_plus_g" => ["theta_m", "theta_L"].iter().chain(geometry).copied().collect(),
         // psi = K dz(u, g): angles and geometry.
         "psi" => ["theta_m", "theta_L"].iter().chain(geometry).copied().collect(),
         // The mode exactly on +-g depends on the sign of u' as well (docs/model.md §4 `contact`).

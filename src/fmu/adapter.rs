@@ -43,6 +43,9 @@ pub enum StateEntry {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Calculated {
     Psi,
+    /// The event indicators u − g and u + g (docs/model.md §6).
+    UMinusG,
+    UPlusG,
     Bound,
     BoundPaper,
     BoundSup,
@@ -63,6 +66,8 @@ pub fn source(symbol: Symbol) -> Source {
         Symbol::Bound => Source::Calculated(Calculated::Bound),
         Symbol::BoundPaper => Source::Calculated(Calculated::BoundPaper),
         Symbol::BoundSup => Source::Calculated(Calculated::BoundSup),
+        Symbol::UMinusG => Source::Calculated(Calculated::UMinusG),
+        Symbol::UPlusG => Source::Calculated(Calculated::UPlusG),
         Symbol::DerThetaM => Source::Derivative(StateEntry::ThetaM),
         Symbol::DerOmegaM => Source::Derivative(StateEntry::OmegaM),
         Symbol::DerThetaL => Source::Derivative(StateEntry::ThetaL),
@@ -126,6 +131,8 @@ impl Calculated {
     pub fn of(self, sim: &Simulation) -> f64 {
         match self {
             Calculated::Psi => sim.plant().force(sim.state.u),
+            Calculated::UMinusG => sim.plant().event_indicators(&sim.state)[0],
+            Calculated::UPlusG => sim.plant().event_indicators(&sim.state)[1],
             Calculated::Bound => sim.bound.bound(),
             Calculated::BoundPaper => sim.bound.bound_paper(),
             Calculated::BoundSup => sim.bound_sup_value(),
@@ -137,6 +144,7 @@ impl Calculated {
     pub fn rate(self, sim: &Simulation, z_dot: &[f64; 4]) -> Option<f64> {
         match self {
             Calculated::Psi => Some(sim.plant().force_rate(sim.state.mode, z_dot[0], z_dot[2])),
+            Calculated::UMinusG | Calculated::UPlusG => Some(sim.plant().transmission(z_dot[0], z_dot[2])),
             Calculated::Bound => Some(sim.bound.bound_rate()),
             Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
             Calculated::BoundSup => None,

@@ -155,7 +155,8 @@ impl Instance {
     }
 
     /// dv_unknown = J dv_known with J the exact Jacobian, in the mode in force, of the unknowns
-    /// (state derivatives, states, ψ, and the bounds, which depend on time alone) with respect
+    /// (state derivatives, states, ψ, the event indicators, and the bounds, which depend on time
+    /// alone) with respect
     /// to the knowns (states and inputs).
     pub(crate) fn get_directional_derivative_body(
         &mut self,
@@ -200,9 +201,13 @@ impl Instance {
             match adapter::source(v.symbol) {
                 Source::Derivative(_)
                 | Source::State(_)
-                | Source::Calculated(Calculated::Psi | Calculated::Bound | Calculated::BoundPaper) => {
-                    rows.push(adapter::source(v.symbol))
-                }
+                | Source::Calculated(
+                    Calculated::Psi
+                    | Calculated::UMinusG
+                    | Calculated::UPlusG
+                    | Calculated::Bound
+                    | Calculated::BoundPaper,
+                ) => rows.push(adapter::source(v.symbol)),
                 _ => {
                     return Err(FmuError::InvalidArgument(format!(
                         "{} is not an unknown of the Jacobian: the unknowns are the state derivatives and the outputs",
@@ -223,6 +228,7 @@ impl Instance {
                 }
                 Source::State(entry) => dz[entry.index()],
                 Source::Calculated(Calculated::Psi) => psi_rate(&dz),
+                Source::Calculated(Calculated::UMinusG | Calculated::UPlusG) => plant.transmission(dz[0], dz[2]),
                 // bound and bound_paper: functions of time alone.
                 _ => 0.0,
             };
