@@ -1,0 +1,305 @@
+"""Driving the packaged FMUs as FMI 2.0 Model Exchange through fmpy's FMU2Model, and the
+continuous-time PI loop closed around any right-hand side with scipy's solve_ivp.
+
+The loop integrator `run_loop` only needs an object with `derivatives`, `indicators` and the
+importer's event hooks, so that the same code integrates the FMU (`ModelInstance`) and, in the
+reference's own tests, the equations of docs/model.md §1 written in Python (`PythonPlant`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (
+    FMU2Model,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    fmi2Error,
+)
+from scipy.integrate import solve_ivp
+
+import fmu_driver
+from reference import FREE, MINUS, PLUS, Plant
+from reference_continuous import Hold
+
+STATES = fmu_driver.STATE_OUTPUTS  # theta_m, omega_m, theta_L, omega_L: the continuous states, in order
+DERIVATIVES = tuple(f"der({name})" for name in STATES)
+NX, NZ = 4, 2
+
+# The FMU logs through format "%s" with the message as the one variadic argument; on x86-64 and
+# AArch64 Linux it arrives like a sixth fixed argument (as in test_robustness.py).
+LOGGER_WITH_ARGUMENT = ctypes.CFUNCTYPE(
+    None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p
+)
+
+
+class ModelInstance:
+    """An FMU2Model instance, initialised and in Continuous-Time Mode, whose logger records
+    (status, category, message)."""
+
+    def __init__(self, fmu: fmu_driver.Extracted, name: str = "me", params: dict | None = None, start_time: float = 0.0):
+        self.fmu, self.vr = fmu, fmu.vr
+        self.messages: list[tuple[int, str, str]] = []
+
+        def log(env, instance, status, category, format, text):
+            self.messages.append((status, category.decode(), text.decode()))
+
+        self._logger = LOGGER_WITH_ARGUMENT(log)  # kept alive as long as the instance
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = ctypes.cast(self._logger, fmi2CallbackLoggerTYPE)
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(0)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(0)
+        self.model = FMU2Model(
+            guid=fmu.md.guid,
+            unzipDirectory=fmu.unzipdir,
+            modelIdentifier=fmu.md.modelExchange.modelIdentifier,
+            instanceName=name,
+        )
+        self.model.instantiate(callbacks=self.callbacks)
+        self.c = self.model.component
+        self._x = (ctypes.c_double * NX)()
+        self._dx = (ctypes.c_double * NX)()
+        self._z = (ctypes.c_double * NZ)()
+        self._u = (ctypes.c_double * 2)()
+        self._input_vr = (ctypes.c_uint * 2)(self.vr["tau_m"], self.vr["tau_L"])
+        self.x_view = np.ctypeslib.as_array(self._x)
+        self.set(params or {})
+        self.start_time = start_time
+        self.model.setupExperiment(startTime=start_time)
+        self.model.enterInitializationMode()
+        self.model.exitInitializationMode()
+        self.initial_event = self.model.newDiscreteStates()
+        self.model.enterContinuousTimeMode()
+
+    # --- values -------------------------------------------------------------------------------
+
+    def set(self, values: dict):
+        if values:
+            self.model.setReal([self.vr[k] for k in values], [float(v) for v in values.values()])
+
+    def get(self, *names: str) -> list[float]:
+        return self.model.getReal([self.vr[n] for n in names])
+
+    def contact(self) -> int:
+        return self.model.getInteger([self.vr["contact"]])[0]
+
+    def set_inputs(self, tau_m: float, tau_L: float):
+        self._u[0], self._u[1] = tau_m, tau_L
+        self.model.fmi2SetReal(self.c, self._input_vr, 2, self._u)
+
+    def set_state(self, t: float, x):
+        self.model.fmi2SetTime(self.c, t)
+        self.x_view[:] = x[:NX]
+        self.model.fmi2SetContinuousStates(self.c, self._x, NX)
+
+    def derivatives(self, t: float, x, tau_m: float, tau_L: float) -> np.ndarray:
+        self.set_state(t, x)
+        self.set_inputs(tau_m, tau_L)
+        self.model.fmi2GetDerivatives(self.c, self._dx, NX)
+        return np.array(self._dx)
+
+    def indicators(self, t: float, x) -> np.ndarray:
+        self.set_state(t, x)
+        self.model.fmi2GetEventIndicators(self.c, self._z, NZ)
+        return np.array(self._z)
+
+    def nominals(self) -> np.ndarray:
+        out = (ctypes.c_double * NX)()
+        self.model.getNominalsOfContinuousStates(out, NX)
+        return np.array(out)
+
+    def continuous_states(self) -> np.ndarray:
+        out = (ctypes.c_double * NX)()
+        self.model.getContinuousStates(out, NX)
+        return np.array(out)
+
+    # --- the importer's event handling (FMI 2.0 §3.2.2) ----------------------------------------
+
+    def completed_step(self) -> tuple[bool, bool]:
+        """fmi2CompletedIntegratorStep: (enterEventMode, terminateSimulation)."""
+        return self.model.completedIntegratorStep()
+
+    def event_iteration(self):
+        """Event Mode, one fmi2NewDiscreteStates, back to Continuous-Time Mode: the event info."""
+        self.model.enterEventMode()
+        info = self.model.newDiscreteStates()
+        self.model.enterContinuousTimeMode()
+        return info
+
+    # --- refusals -------------------------------------------------------------------------------
+
+    def refused(self, call, *mentions: str) -> list[str]:
+        """call() must fail with fmi2Error and log, under logErrors, a reason that names each of
+        `mentions` (the culprit: a variable, a length); returns the new reasons."""
+        before = len(self.messages)
+        with pytest.raises(FMICallException) as e:
+            call()
+        assert e.value.status == fmi2Error
+        reasons = [m[2] for m in self.messages[before:] if m[1] == "logErrors"]
+        assert any(all(w in r for w in mentions) for r in reasons), (mentions, self.messages[before:])
+        return reasons
+
+    def free(self):
+        self.model.freeInstance()
+
+
+class PythonPlant:
+    """The right-hand side and event indicators of docs/model.md §1 written directly in
+    Python, with the same interface as ModelInstance: the double that tests run_loop itself."""
+
+    def __init__(self, plant: Plant):
+        self.p = plant
+
+    def derivatives(self, t, x, tau_m, tau_L):
+        p = self.p
+        psi = p.K * p.dead_zone(p.r_m * x[0] - p.r_L * x[2])
+        return np.array(
+            [x[1], (tau_m - p.b_m * x[1] - p.r_m * psi) / p.J_m, x[3], (tau_L - p.b_L * x[3] + p.r_L * psi) / p.J_L]
+        )
+
+    def indicators(self, t, x):
+        u = self.p.r_m * x[0] - self.p.r_L * x[2]
+        return np.array([u - self.p.g, u + self.p.g])
+
+    def set_state(self, t, x):
+        pass
+
+    def completed_step(self):
+        return False, False
+
+    def event_iteration(self):
+        return (False, False, False, False, False, 0.0)
+
+
+@dataclass
+class LoopRun:
+    """States at the output times (z: the model's four, xi: the PI integral), the motor torque
+    there, and every located crossing of an event indicator as (time, mode before, mode after)."""
+
+    t: np.ndarray
+    z: np.ndarray
+    xi: np.ndarray
+    tau_m: np.ndarray
+    switches: list = field(default_factory=list)
+    event_infos: list = field(default_factory=list)
+    step_answers: list = field(default_factory=list)
+
+
+def _mode(sides) -> int:
+    """Contact mode from the signs of the indicators [u - g, u + g]."""
+    if sides[0] > 0:
+        return PLUS
+    if sides[1] < 0:
+        return MINUS
+    return FREE
+
+
+def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, atol=1e-15, events=True) -> LoopRun:
+    """The continuous-time PI of docs/model.md §3 closed around `model`:
+
+        y = [theta_m, omega_m, theta_L, omega_L, xi],   xi' = w_ref - omega_m,
+        tau_m = tau_ff + Kp (w_ref - omega_m) + Ki xi,
+
+    integrated by solve_ivp (DOP853) from hold to hold (the signals jump there, so every hold
+    starts a new integration), with the model's two event indicators as terminal events: each
+    crossing stops the integration at the located root, the importer's event iteration runs
+    there, and the integration restarts from the event state. After a crossing an indicator
+    is watched only for the crossing back (its event direction is the opposite), so that the
+    restart, which lies on the root to round-off, cannot fire the same event again.
+    events=False integrates without events (for Delta = 0, where the right-hand side is linear
+    and both indicators are u: there is nothing to locate). solve_ivp looks for sign changes at
+    its step ends only, so a contact entered and left within one step would go unseen; the
+    tests compare the whole switch sequence with the exact one, which would show it."""
+    t_out = np.asarray(t_out, dtype=float)
+    t_end = float(t_out[-1])
+    y = np.array([*z0, xi0], dtype=float)
+    t = holds[0].t
+    Y_out = np.full((len(t_out), 5), np.nan)
+    run = LoopRun(t_out, None, None, None)
+    sides = np.sign(model.indicators(t, y)) if events else np.zeros(NZ)
+    if events and np.any(sides == 0.0):
+        raise ValueError("the run must not start on a switching surface")
+
+    for k, hold in enumerate(holds):
+        seg_end = min(holds[k + 1].t if k + 1 < len(holds) else math.inf, t_end)
+
+        def rhs(s, yy, hold=hold):
+            e = hold.w_ref - yy[1]
+            tau = hold.tau_m + Kp * e + Ki * yy[4]
+            return np.append(model.derivatives(s, yy, tau, hold.tau_L), e)
+
+        while t < seg_end:
+            functions = []
+            if events:
+                cache: dict = {}
+
+                def indicator(s, yy, i, cache=cache):
+                    key = (s, yy.tobytes())
+                    if key not in cache:
+                        cache.clear()
+                        cache[key] = model.indicators(s, yy)
+                    return cache[key][i]
+
+                for i in range(NZ):
+                    fn = lambda s, yy, i=i: indicator(s, yy, i)  # noqa: E731
+                    fn.terminal, fn.direction = True, -sides[i]
+                    functions.append(fn)
+            sol = solve_ivp(
+                rhs, (t, seg_end), y, method="DOP853", rtol=rtol, atol=atol, events=functions or None, dense_output=True
+            )
+            if sol.status == -1:
+                raise RuntimeError(f"solve_ivp failed at t = {t}: {sol.message}")
+            stop = float(sol.t[-1])
+            mask = (t_out >= t) & (t_out <= stop)
+            if np.any(mask):
+                Y_out[mask] = sol.sol(t_out[mask]).T
+            if sol.status == 1:
+                fired = [i for i in range(NZ) if len(sol.t_events[i])]
+                stop = min(float(sol.t_events[i][0]) for i in fired)
+                fired = [i for i in fired if float(sol.t_events[i][0]) == stop]
+                y = sol.y_events[fired[0]][0].copy()
+                before = _mode(sides)
+                for i in fired:
+                    sides[i] = -sides[i]
+                run.switches.append((stop, before, _mode(sides)))
+                model.set_state(stop, y)
+                run.event_infos.append(model.event_iteration())
+            else:
+                y = sol.y[:, -1].copy()
+            if stop <= t:
+                raise RuntimeError(f"events do not advance at t = {t}")
+            t = stop
+            model.set_state(t, y)
+            run.step_answers.append(model.completed_step())
+        if t >= t_end:
+            break
+    if np.any(np.isnan(Y_out)):
+        raise ValueError("output times beyond the last hold's reach")
+    starts = np.array([h.t for h in holds])
+    idx = np.searchsorted(starts, t_out, side="right") - 1
+    run.tau_m = np.array(
+        [holds[i].tau_m + Kp * (holds[i].w_ref - w) + Ki * x for i, w, x in zip(idx, Y_out[:, 1], Y_out[:, 4])]
+    )
+    run.z, run.xi = Y_out[:, :4], Y_out[:, 4]
+    return run
+
+
+def outputs_along(inst: ModelInstance, run: LoopRun, names=("psi", "bound", "bound_paper")) -> dict[str, np.ndarray]:
+    """The FMU's outputs at the run's output times, each read after fmi2SetTime and
+    fmi2SetContinuousStates (in Continuous-Time Mode): Real outputs and `contact`."""
+    rows, contact = [], []
+    for t, z in zip(run.t, run.z):
+        inst.set_state(t, z)
+        rows.append(inst.get(*names))
+        contact.append(inst.contact())
+    a = np.array(rows)
+    out = {n: a[:, j] for j, n in enumerate(names)}
+    out["contact"] = np.array(contact)
+    return out
