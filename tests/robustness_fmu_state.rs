@@ -125,8 +125,8 @@ fn invalid_fields_behind_a_valid_checksum_are_refused() {
     };
     edit(phase, &[8], "unknown phase code 8");
     // EventMode (6) is a Model Exchange state; the flags say Co-Simulation, and vice versa.
-    edit(phase, &[6], "not a state of a Co-Simulation instance");
-    edit(phase + 1, &[4 | 8], "not a state of a Model Exchange instance");
+    edit(phase, &[6], "not a state of an FMI 2.0 Co-Simulation instance");
+    edit(phase + 1, &[4 | 8], "not a state of an FMI 2.0 Model Exchange instance");
     edit(phase, &[255], "unknown phase code 255");
     edit(phase + 1, &[0x80 | 4], "unknown flag bits");
     edit(phase + 2, &23u16.to_le_bytes(), "23 stored values");

@@ -12,31 +12,31 @@ use std::sync::{Mutex, MutexGuard};
 /// instance allocated (FMI 2.0.4: it frees "all the allocated memory").
 static STATES: Mutex<BTreeMap<usize, (usize, Box<Snapshot>)>> = Mutex::new(BTreeMap::new());
 
-fn states() -> MutexGuard<'static, BTreeMap<usize, (usize, Box<Snapshot>)>> {
+pub(super) fn states() -> MutexGuard<'static, BTreeMap<usize, (usize, Box<Snapshot>)>> {
     // Every update is a single insert/remove/replace: a poisoned map is still consistent.
     STATES.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-fn store(owner: fmi2Component, snapshot: Snapshot) -> fmi2FMUstate {
+pub(super) fn store(owner: fmi2Component, snapshot: Snapshot) -> fmi2FMUstate {
     let handle = next_handle();
     states().insert(handle, (owner as usize, Box::new(snapshot)));
     handle as fmi2FMUstate
 }
 
-fn unknown(handle: fmi2FMUstate) -> FmuError {
+pub(super) fn unknown(handle: fmi2FMUstate) -> FmuError {
     FmuError::StateRefused(format!(
         "{handle:p} is not a live FMU state of this FMU (never allocated by it, or already freed)"
     ))
 }
 
-fn lookup(handle: fmi2FMUstate) -> Result<Snapshot, FmuError> {
+pub(super) fn lookup(handle: fmi2FMUstate) -> Result<Snapshot, FmuError> {
     states()
         .get(&(handle as usize))
         .map(|(_, s)| (**s).clone())
         .ok_or_else(|| unknown(handle))
 }
 
-fn replace(handle: fmi2FMUstate, snapshot: Snapshot) -> Result<(), FmuError> {
+pub(super) fn replace(handle: fmi2FMUstate, snapshot: Snapshot) -> Result<(), FmuError> {
     match states().get_mut(&(handle as usize)) {
         Some((_, s)) => {
             **s = snapshot;

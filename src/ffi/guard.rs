@@ -4,7 +4,7 @@
 
 use super::registry;
 use super::types::*;
-use crate::fmu::{FmuError, Function, Instance, LogCategory, LogSink, Status};
+use crate::fmu::{FmuError, Function, Instance, LogCategory, LogSink, Standard, Status};
 use std::ffi::{CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -66,27 +66,56 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 /// Runs `body` on the instance behind `c`. `body` converts the C arguments (it runs after the
 /// legal-state check) and does the work; errors are logged and mapped in `Instance::run`. A
 /// panic is caught here and leaves the instance in state Error.
+#[inline]
 pub fn guard(
     c: fmi2Component,
     function: Function,
     body: impl FnOnce(&mut Instance) -> Result<Status, FmuError>,
 ) -> fmi2Status {
+    guard_in(Standard::Fmi2, c, function, body).into()
+}
+
+/// [`guard`] for the functions of `standard`: an instance created through the other standard's
+/// functions is refused (with the reason logged), as is a pointer that is no live instance.
+#[inline]
+pub fn guard_in(
+    standard: Standard,
+    c: fmi2Component,
+    function: Function,
+    body: impl FnOnce(&mut Instance) -> Result<Status, FmuError>,
+) -> Status {
     let Some(component) = component(c) else {
         // No instance, hence no logger to tell: the status is the only channel.
-        return fmi2Status::fmi2Error;
+        return Status::Error;
     };
+    if component.instance.flavour().standard != standard {
+        return wrong_standard(component, standard, function);
+    }
     match catch_unwind(AssertUnwindSafe(|| component.instance.run(function, body))) {
-        Ok(Ok(status)) => status.into(),
-        Ok(Err(e)) => e.status().into(),
+        Ok(Ok(status)) => status,
+        Ok(Err(e)) => e.status(),
         Err(payload) => {
             let message = panic_message(payload.as_ref());
             // Logging calls back into the importer; it must not unwind into C either.
             let _ = catch_unwind(AssertUnwindSafe(|| {
                 component.instance.fail_after_panic(function, message)
             }));
-            fmi2Status::fmi2Error
+            Status::Error
         }
     }
+}
+
+#[cold]
+#[inline(never)]
+fn wrong_standard(component: &mut Component, standard: Standard, function: Function) -> Status {
+    let name = function.name(standard);
+    let created = component.instance.flavour().name();
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        component.instance.log(Status::Error, LogCategory::Errors, || {
+            format!("{name}: the instance is an {created} instance; call the functions of its own standard")
+        })
+    }));
+    Status::Error
 }
 
 /// A C array the FMU reads: empty for n = 0 (the pointer may then be NULL), else checked for

@@ -76,6 +76,9 @@ pub enum FmuError {
     StatusUnavailable(String),
     #[error("{0} is not provided by this FMU")]
     NotProvided(&'static str),
+    /// A function of a feature the FMU does not declare; the text says which and why.
+    #[error("{0}")]
+    Unsupported(&'static str),
     #[error("FMU state refused: {0}")]
     StateRefused(String),
     #[error("unknown log category {0:?}; the categories are listed in modelDescription.xml")]

@@ -13,10 +13,10 @@ pub mod state_machine;
 pub mod variables;
 
 pub use error::{FmuError, Status};
-pub use instance::{EventInfo, Experiment, Instance, StatusKind};
+pub use instance::{CoSimulationOptions, EventInfo, Experiment, Instance, StatusKind, StepOutcome};
 pub use logging::{Collected, LogCategory, LogSink};
 pub use snapshot::Snapshot;
-pub use state_machine::{Function, Interface, Phase};
+pub use state_machine::{Flavour, Function, Interface, Phase, Standard};
 pub use variables::{model_by_guid, model_by_identifier, ModelInfo, Symbol, Variable, MODELS};
 
 #[cfg(test)]

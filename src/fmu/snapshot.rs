@@ -9,7 +9,7 @@
 //! | 10 | 2 | length n of the guid |
 //! | 12 | n | guid of the model description (ASCII) |
 //! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error, 6 EventMode, 7 ContinuousTimeMode) |
-//! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present, bit 3 Model Exchange instance |
+//! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present, bit 3 Model Exchange instance, bit 4 FMI 3.0 instance |
 //! | +2 | 2 | number m of stored values (24) |
 //! | +4 | 8·4 | time, startTime, stopTime, tolerance |
 //! | | 8·m | values by symbol: inputs, parameters, start values |
@@ -24,7 +24,7 @@
 use super::adapter::Values;
 use super::error::FmuError;
 use super::instance::Experiment;
-use super::state_machine::{Interface, Phase};
+use super::state_machine::{Flavour, Interface, Phase, Standard};
 use super::variables::{ModelInfo, Symbol};
 use crate::physics::{BoundState, ContactMode, PlantState};
 
@@ -43,7 +43,7 @@ pub struct PhysicsSnapshot {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snapshot {
     pub guid: &'static str,
-    pub interface: Interface,
+    pub flavour: Flavour,
     pub phase: Phase,
     pub time: f64,
     pub experiment: Experiment,
@@ -56,6 +56,7 @@ const FLAG_STOP: u8 = 1;
 const FLAG_TOLERANCE: u8 = 2;
 const FLAG_PHYSICS: u8 = 4;
 const FLAG_MODEL_EXCHANGE: u8 = 8;
+const FLAG_FMI3: u8 = 16;
 
 /// Bytes after the guid: phase, flags, count, 4 times, values, slopes, plant, bound, checksum.
 const fn body_len() -> usize {
@@ -93,8 +94,11 @@ impl Snapshot {
         if self.physics.is_some() {
             flags |= FLAG_PHYSICS;
         }
-        if self.interface == Interface::ModelExchange {
+        if self.flavour.interface == Interface::ModelExchange {
             flags |= FLAG_MODEL_EXCHANGE;
+        }
+        if self.flavour.standard == Standard::Fmi3 {
+            flags |= FLAG_FMI3;
         }
         b.push(flags);
         b.extend_from_slice(&(Symbol::COUNT as u16).to_le_bytes());
@@ -181,19 +185,23 @@ impl Snapshot {
         let phase = Phase::from_code(phase_code)
             .ok_or_else(|| FmuError::StateRefused(format!("unknown phase code {phase_code}")))?;
         let flags = r.u8();
-        if flags & !(FLAG_STOP | FLAG_TOLERANCE | FLAG_PHYSICS | FLAG_MODEL_EXCHANGE) != 0 {
+        if flags & !(FLAG_STOP | FLAG_TOLERANCE | FLAG_PHYSICS | FLAG_MODEL_EXCHANGE | FLAG_FMI3) != 0 {
             return refuse(format!("unknown flag bits {flags:#04x}"));
         }
-        let interface = if flags & FLAG_MODEL_EXCHANGE != 0 {
-            Interface::ModelExchange
-        } else {
-            Interface::CoSimulation
+        let flavour = Flavour {
+            standard: if flags & FLAG_FMI3 != 0 {
+                Standard::Fmi3
+            } else {
+                Standard::Fmi2
+            },
+            interface: if flags & FLAG_MODEL_EXCHANGE != 0 {
+                Interface::ModelExchange
+            } else {
+                Interface::CoSimulation
+            },
         };
-        if !phase.belongs_to(interface) {
-            return refuse(format!(
-                "phase {phase} is not a state of a {} instance",
-                interface.name()
-            ));
+        if !phase.belongs_to(flavour) {
+            return refuse(format!("phase {phase} is not a state of an {} instance", flavour.name()));
         }
         let count = u16::from_le_bytes([r.u8(), r.u8()]) as usize;
         if count != Symbol::COUNT {
@@ -270,7 +278,7 @@ impl Snapshot {
         });
         Ok(Snapshot {
             guid: model.guid,
-            interface,
+            flavour,
             phase,
             time,
             experiment,

@@ -1,6 +1,6 @@
-//! The FMI 2.0 state machines of Model Exchange (FMI 2.0.4 §3.2.3) and Co-Simulation (§4.2.4):
-//! the states an instance can be in and, for every function and interface, the states in which
-//! calling it is legal.
+//! The state machines of Model Exchange and Co-Simulation in FMI 2.0 (FMI 2.0.4 §3.2.3, §4.2.4)
+//! and FMI 3.0 (FMI 3.0.2 §3.2, §4.2): the states an instance can be in and, for every function,
+//! the states in which calling it is legal for an instance of each standard and interface.
 
 use std::fmt;
 
@@ -16,6 +16,49 @@ impl Interface {
         match self {
             Interface::ModelExchange => "Model Exchange",
             Interface::CoSimulation => "Co-Simulation",
+        }
+    }
+}
+
+/// The version of the standard an instance was created through (fmi2Instantiate or
+/// fmi3Instantiate…).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Standard {
+    Fmi2,
+    Fmi3,
+}
+
+/// What an instance serves: a standard and an interface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Flavour {
+    pub standard: Standard,
+    pub interface: Interface,
+}
+
+impl Flavour {
+    pub const FMI2_CS: Flavour = Flavour {
+        standard: Standard::Fmi2,
+        interface: Interface::CoSimulation,
+    };
+    pub const FMI2_ME: Flavour = Flavour {
+        standard: Standard::Fmi2,
+        interface: Interface::ModelExchange,
+    };
+    pub const FMI3_CS: Flavour = Flavour {
+        standard: Standard::Fmi3,
+        interface: Interface::CoSimulation,
+    };
+    pub const FMI3_ME: Flavour = Flavour {
+        standard: Standard::Fmi3,
+        interface: Interface::ModelExchange,
+    };
+
+    pub fn name(self) -> &'static str {
+        match (self.standard, self.interface) {
+            (Standard::Fmi2, Interface::ModelExchange) => "FMI 2.0 Model Exchange",
+            (Standard::Fmi2, Interface::CoSimulation) => "FMI 2.0 Co-Simulation",
+            (Standard::Fmi3, Interface::ModelExchange) => "FMI 3.0 Model Exchange",
+            (Standard::Fmi3, Interface::CoSimulation) => "FMI 3.0 Co-Simulation",
         }
     }
 }
@@ -48,11 +91,14 @@ impl Phase {
         Phase::ContinuousTimeMode,
     ];
 
-    /// Whether an instance of `interface` can be in this state.
-    pub fn belongs_to(self, interface: Interface) -> bool {
+    /// Whether an instance of `flavour` can be in this state.
+    pub fn belongs_to(self, flavour: Flavour) -> bool {
+        let co_simulation = flavour.interface == Interface::CoSimulation;
         match self {
-            Phase::StepComplete | Phase::StepFailed => interface == Interface::CoSimulation,
-            Phase::EventMode | Phase::ContinuousTimeMode => interface == Interface::ModelExchange,
+            Phase::StepComplete => co_simulation,
+            Phase::StepFailed => co_simulation && flavour.standard == Standard::Fmi2,
+            Phase::EventMode => !co_simulation || flavour.standard == Standard::Fmi3,
+            Phase::ContinuousTimeMode => !co_simulation,
             Phase::Instantiated | Phase::InitializationMode | Phase::Terminated | Phase::Error => true,
         }
     }
@@ -132,6 +178,17 @@ pub enum Function {
     GetEventIndicators,
     GetContinuousStates,
     GetNominalsOfContinuousStates,
+    // FMI 3.0 only.
+    EnterStepMode,
+    GetNumberOfEventIndicators,
+    GetNumberOfContinuousStates,
+    /// fmi3Get<type> of a type the models have no variable of (the C name).
+    GetOtherType(&'static str),
+    /// fmi3Set<type> likewise.
+    SetOtherType(&'static str),
+    /// A function of a feature this FMU does not provide (clocks, configuration mode, adjoint
+    /// derivatives, …): legal in every state, refused with the reason (the C name).
+    NotProvided(&'static str),
 }
 
 const I: u8 = 1 << 0;
@@ -159,7 +216,62 @@ const fn both(model_exchange: u8, co_simulation: u8) -> Masks {
 }
 
 impl Function {
-    /// The C name, for messages.
+    /// The C name in `standard`, for messages.
+    pub fn name(self, standard: Standard) -> &'static str {
+        match standard {
+            Standard::Fmi2 => self.c_name(),
+            Standard::Fmi3 => self.fmi3_name(),
+        }
+    }
+
+    /// The FMI 3.0 C name.
+    fn fmi3_name(self) -> &'static str {
+        use Function::*;
+        match self {
+            SetDebugLogging => "fmi3SetDebugLogging",
+            FreeInstance => "fmi3FreeInstance",
+            SetupExperiment | EnterInitializationMode => "fmi3EnterInitializationMode",
+            ExitInitializationMode => "fmi3ExitInitializationMode",
+            Terminate => "fmi3Terminate",
+            Reset => "fmi3Reset",
+            GetReal => "fmi3GetFloat64",
+            GetInteger => "fmi3GetInt32",
+            GetBoolean => "fmi3GetBoolean",
+            GetString => "fmi3GetString",
+            SetReal => "fmi3SetFloat64",
+            SetInteger => "fmi3SetInt32",
+            SetBoolean => "fmi3SetBoolean",
+            SetString => "fmi3SetString",
+            GetFmuState => "fmi3GetFMUState",
+            SetFmuState => "fmi3SetFMUState",
+            FreeFmuState => "fmi3FreeFMUState",
+            SerializedFmuStateSize => "fmi3SerializedFMUStateSize",
+            SerializeFmuState => "fmi3SerializeFMUState",
+            DeSerializeFmuState => "fmi3DeserializeFMUState",
+            GetDirectionalDerivative => "fmi3GetDirectionalDerivative",
+            GetRealOutputDerivatives => "fmi3GetOutputDerivatives",
+            DoStep => "fmi3DoStep",
+            EnterEventMode => "fmi3EnterEventMode",
+            NewDiscreteStates => "fmi3UpdateDiscreteStates",
+            EnterContinuousTimeMode => "fmi3EnterContinuousTimeMode",
+            CompletedIntegratorStep => "fmi3CompletedIntegratorStep",
+            SetTime => "fmi3SetTime",
+            SetContinuousStates => "fmi3SetContinuousStates",
+            GetDerivatives => "fmi3GetContinuousStateDerivatives",
+            GetEventIndicators => "fmi3GetEventIndicators",
+            GetContinuousStates => "fmi3GetContinuousStates",
+            GetNominalsOfContinuousStates => "fmi3GetNominalsOfContinuousStates",
+            EnterStepMode => "fmi3EnterStepMode",
+            GetNumberOfEventIndicators => "fmi3GetNumberOfEventIndicators",
+            GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates",
+            GetOtherType(name) | SetOtherType(name) | NotProvided(name) => name,
+            // FMI 2.0 only; never called through the FMI 3.0 functions.
+            SetRealInputDerivatives | CancelStep | GetStatus | GetRealStatus | GetIntegerStatus
+            | GetBooleanStatus | GetStringStatus => self.c_name(),
+        }
+    }
+
+    /// The FMI 2.0 C name, for messages.
     pub fn c_name(self) -> &'static str {
         use Function::*;
         match self {
@@ -204,13 +316,26 @@ impl Function {
             GetEventIndicators => "fmi2GetEventIndicators",
             GetContinuousStates => "fmi2GetContinuousStates",
             GetNominalsOfContinuousStates => "fmi2GetNominalsOfContinuousStates",
+            EnterStepMode => "fmi3EnterStepMode",
+            GetNumberOfEventIndicators => "fmi3GetNumberOfEventIndicators",
+            GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates",
+            GetOtherType(name) | SetOtherType(name) | NotProvided(name) => name,
         }
     }
 
-    /// The states in which the call is legal (FMI 2.0.4 §3.2.3 and §4.2.4, "allowed calls").
-    /// Get calls in StepFailed and Error are legal; their values are for debugging.
+    /// The states in which the call is legal for an instance of `standard`.
     #[inline]
-    fn masks(self) -> Masks {
+    fn masks(self, standard: Standard) -> Masks {
+        match standard {
+            Standard::Fmi2 => self.masks2(),
+            Standard::Fmi3 => self.masks3(),
+        }
+    }
+
+    /// FMI 2.0.4 §3.2.3 and §4.2.4, "allowed calls". Get calls in StepFailed and Error are legal;
+    /// their values are for debugging.
+    #[inline]
+    fn masks2(self) -> Masks {
         use Function::*;
         const ANY: Masks = both(I | M | V | N | T | E, I | M | C | F | T | E);
         match self {
@@ -242,16 +367,60 @@ impl Function {
             GetEventIndicators | GetContinuousStates => both(M | V | N | T | E, 0),
             GetDerivatives => both(V | N | T | E, 0),
             GetNominalsOfContinuousStates => both(I | V | N | T | E, 0),
+            EnterStepMode | GetNumberOfEventIndicators | GetNumberOfContinuousStates | GetOtherType(_)
+            | SetOtherType(_) | NotProvided(_) => both(0, 0),
         }
     }
 
-    /// The interface the function belongs to, if only one (`CancelStep`, legal in no state
-    /// entered here, counts as Co-Simulation's).
-    pub fn only_for(self) -> Option<Interface> {
+    /// FMI 3.0.2 §3.2 and §4.2 (Co-Simulation's Step Mode is `StepComplete`; the FMU never
+    /// enters Configuration, Reconfiguration or Clock Activation Mode).
+    #[inline]
+    fn masks3(self) -> Masks {
+        use Function::*;
+        const ANY: Masks = both(I | M | V | N | T | E, I | M | V | C | T | E);
+        const READ: Masks = both(M | V | N | T | E, M | V | C | T | E);
+        match self {
+            SetDebugLogging | FreeInstance | Reset | NotProvided(_) => ANY,
+            GetFmuState
+            | SetFmuState
+            | FreeFmuState
+            | SerializedFmuStateSize
+            | SerializeFmuState
+            | DeSerializeFmuState => ANY,
+            SetupExperiment | EnterInitializationMode => both(I, I),
+            ExitInitializationMode => both(M, M),
+            Terminate => both(V | N, V | C),
+            GetReal | GetInteger | GetBoolean | GetString | GetOtherType(_) | GetDirectionalDerivative => READ,
+            // Which variables may be set in which state is checked per variable.
+            SetReal => both(I | M | V | N, I | M | V | C),
+            SetInteger | SetBoolean | SetString | SetOtherType(_) => both(I | M | V, I | M | V | C),
+            GetRealOutputDerivatives => both(0, V | C | T | E),
+            DoStep => both(0, C),
+            EnterStepMode => both(0, V),
+            EnterEventMode => both(N, C),
+            NewDiscreteStates => both(V, V),
+            EnterContinuousTimeMode => both(V, 0),
+            CompletedIntegratorStep | SetContinuousStates => both(N, 0),
+            SetTime => both(V | N, 0),
+            GetEventIndicators | GetContinuousStates | GetDerivatives => both(M | V | N | T | E, 0),
+            GetNominalsOfContinuousStates => both(I | M | V | N | T | E, 0),
+            GetNumberOfEventIndicators | GetNumberOfContinuousStates => both(I | M | V | N | T | E, 0),
+            SetRealInputDerivatives | CancelStep | GetStatus | GetRealStatus | GetIntegerStatus
+            | GetBooleanStatus | GetStringStatus => both(0, 0),
+        }
+    }
+
+    /// The interface the function belongs to in `standard`, if only one (`CancelStep`, legal
+    /// in no state entered here, counts as Co-Simulation's).
+    pub fn only_for(self, standard: Standard) -> Option<Interface> {
         use Function::*;
         match self {
             CancelStep => Some(Interface::CoSimulation),
-            _ => match self.masks() {
+            _ => match self.masks(standard) {
+                Masks {
+                    model_exchange: 0,
+                    co_simulation: 0,
+                } => None,
                 Masks { model_exchange: 0, .. } => Some(Interface::CoSimulation),
                 Masks { co_simulation: 0, .. } => Some(Interface::ModelExchange),
                 _ => None,
@@ -260,9 +429,9 @@ impl Function {
     }
 
     #[inline]
-    pub fn is_legal_in(self, interface: Interface, phase: Phase) -> bool {
-        let masks = self.masks();
-        let mask = match interface {
+    pub fn is_legal_in(self, flavour: Flavour, phase: Phase) -> bool {
+        let masks = self.masks(flavour.standard);
+        let mask = match flavour.interface {
             Interface::ModelExchange => masks.model_exchange,
             Interface::CoSimulation => masks.co_simulation,
         };
@@ -275,10 +444,17 @@ mod tests {
     use super::*;
 
     fn legal(interface: Interface, f: Function) -> Vec<Phase> {
-        Phase::ALL
-            .into_iter()
-            .filter(|p| f.is_legal_in(interface, *p))
-            .collect()
+        legal_in(
+            Flavour {
+                standard: Standard::Fmi2,
+                interface,
+            },
+            f,
+        )
+    }
+
+    fn legal_in(flavour: Flavour, f: Function) -> Vec<Phase> {
+        Phase::ALL.into_iter().filter(|p| f.is_legal_in(flavour, *p)).collect()
     }
 
     #[test]
@@ -293,7 +469,7 @@ mod tests {
         assert_eq!(cs(Terminate), vec![StepComplete, StepFailed]);
         let every_cs_state: Vec<Phase> = Phase::ALL
             .into_iter()
-            .filter(|p| p.belongs_to(Interface::CoSimulation))
+            .filter(|p| p.belongs_to(Flavour::FMI2_CS))
             .collect();
         assert_eq!(cs(Reset), every_cs_state);
         assert_eq!(
@@ -302,7 +478,7 @@ mod tests {
         );
         assert_eq!(cs(SetReal), vec![Instantiated, InitializationMode, StepComplete]);
         assert!(cs(CancelStep).is_empty());
-        assert!(cs(SetTime).is_empty() && SetTime.only_for() == Some(Interface::ModelExchange));
+        assert!(cs(SetTime).is_empty() && SetTime.only_for(Standard::Fmi2) == Some(Interface::ModelExchange));
     }
 
     #[test]
@@ -330,14 +506,34 @@ mod tests {
             me(GetNominalsOfContinuousStates),
             vec![Instantiated, Terminated, Error, EventMode, ContinuousTimeMode]
         );
-        assert!(me(DoStep).is_empty() && DoStep.only_for() == Some(Interface::CoSimulation));
-        assert_eq!(GetReal.only_for(), None);
+        assert!(me(DoStep).is_empty() && DoStep.only_for(Standard::Fmi2) == Some(Interface::CoSimulation));
+        assert_eq!(GetReal.only_for(Standard::Fmi2), None);
         // A call legal in a state is legal only in states its interface can be in.
         for f in [GetReal, SetReal, Terminate, GetFmuState, SetTime, DoStep, GetStatus] {
-            for interface in [Interface::ModelExchange, Interface::CoSimulation] {
-                assert!(legal(interface, f).iter().all(|p| p.belongs_to(interface)), "{f:?}");
+            for flavour in [Flavour::FMI2_ME, Flavour::FMI2_CS, Flavour::FMI3_ME, Flavour::FMI3_CS] {
+                assert!(legal_in(flavour, f).iter().all(|p| p.belongs_to(flavour)), "{f:?} {flavour:?}");
             }
         }
+    }
+
+    #[test]
+    fn fmi3_masks_follow_the_standard() {
+        use Function::*;
+        use Phase::*;
+        let cs = |f| legal_in(Flavour::FMI3_CS, f);
+        let me = |f| legal_in(Flavour::FMI3_ME, f);
+        assert_eq!(cs(DoStep), vec![StepComplete]);
+        assert_eq!(cs(EnterStepMode), vec![EventMode]);
+        assert_eq!(cs(EnterEventMode), vec![StepComplete]);
+        assert_eq!(cs(NewDiscreteStates), vec![EventMode]);
+        assert_eq!(cs(Terminate), vec![StepComplete, EventMode]);
+        assert_eq!(me(Terminate), vec![EventMode, ContinuousTimeMode]);
+        assert_eq!(me(EnterEventMode), vec![ContinuousTimeMode]);
+        assert!(cs(SetRealInputDerivatives).is_empty() && cs(GetStatus).is_empty());
+        assert_eq!(EnterStepMode.only_for(Standard::Fmi3), Some(Interface::CoSimulation));
+        assert_eq!(SetTime.only_for(Standard::Fmi3), Some(Interface::ModelExchange));
+        assert_eq!(GetReal.name(Standard::Fmi3), "fmi3GetFloat64");
+        assert_eq!(GetDerivatives.name(Standard::Fmi3), "fmi3GetContinuousStateDerivatives");
     }
 
     #[test]

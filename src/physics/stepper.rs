@@ -191,6 +191,12 @@ pub struct Stepper {
     cache: Option<StepCache>,
 }
 
+/// How a step ended: the switches located, and where it stopped if it stopped at one.
+struct StepEnd {
+    switches: usize,
+    stopped_at: Option<f64>,
+}
+
 /// The exit from the mode in force: when it happens and what follows.
 #[derive(Clone, Copy, Debug)]
 struct Exit {
@@ -269,6 +275,32 @@ impl Stepper {
         h: f64,
         on_switch: &mut dyn FnMut(SwitchEvent),
     ) -> Result<usize, StepError> {
+        self.step_until(state, inputs, h, on_switch, false).map(|end| end.switches)
+    }
+
+    /// As [`Stepper::step`], but stops at the first contact switch inside the step: `state` is
+    /// then the state at the switch (u exactly on ±g, the mode entered) and the returned offset
+    /// is the switch instant from the step start, located to round-off. None: no switch, the
+    /// whole step was taken.
+    pub fn step_to_first_switch(
+        &mut self,
+        state: &mut PlantState,
+        inputs: &Inputs,
+        h: f64,
+        on_switch: &mut dyn FnMut(SwitchEvent),
+    ) -> Result<Option<f64>, StepError> {
+        self.step_until(state, inputs, h, on_switch, true).map(|end| end.stopped_at)
+    }
+
+    #[inline(always)]
+    fn step_until(
+        &mut self,
+        state: &mut PlantState,
+        inputs: &Inputs,
+        h: f64,
+        on_switch: &mut dyn FnMut(SwitchEvent),
+        stop_at_switch: bool,
+    ) -> Result<StepEnd, StepError> {
         // One branch for the common case (non-short-circuit `&`); the reason is sorted out
         // only when it fails.
         let finite = h.is_finite()
@@ -290,7 +322,7 @@ impl Stepper {
             let y = augmented(&next, inputs, piece as f64 * cache.len);
             let (whole, d2, c3) = kernel.apply(&y);
             if !self.clear(next.mode, y[linear::U], y[linear::V], d2, c3, cache.len) {
-                return self.step_from(piece, next, state, inputs, h, on_switch);
+                return self.step_from(piece, next, state, inputs, h, on_switch, stop_at_switch);
             }
             self.finish_piece(&mut next, &whole);
         }
@@ -298,7 +330,10 @@ impl Stepper {
             return Err(StepError::Overflow);
         }
         *state = next;
-        Ok(0)
+        Ok(StepEnd {
+            switches: 0,
+            stopped_at: None,
+        })
     }
 
     /// The step of a co-simulation in the common case, with nothing to locate: `h` is the
@@ -349,6 +384,7 @@ impl Stepper {
     /// in which some piece may hold a switch.
     #[cold]
     #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
     fn step_from(
         &self,
         first: usize,
@@ -357,7 +393,8 @@ impl Stepper {
         inputs: &Inputs,
         h: f64,
         on_switch: &mut dyn FnMut(SwitchEvent),
-    ) -> Result<usize, StepError> {
+        stop_at_switch: bool,
+    ) -> Result<StepEnd, StepError> {
         let cache = self.cache.as_ref().expect("`step` filled the cache");
         let (pieces, len) = (cache.pieces, cache.len);
         let switch_limit = 64 + 16 * pieces;
@@ -411,6 +448,17 @@ impl Stepper {
                         });
                         next.mode = exit.to;
                         switches += 1;
+                        if stop_at_switch {
+                            self.finish_piece(&mut next, &y.as_slice()[..5]);
+                            if !next.is_finite() {
+                                return Err(StepError::Overflow);
+                            }
+                            *state = next;
+                            return Ok(StepEnd {
+                                switches,
+                                stopped_at: Some(t),
+                            });
+                        }
                         if switches > switch_limit {
                             return Err(StepError::TooManySwitches { limit: switch_limit, h });
                         }
@@ -426,7 +474,10 @@ impl Stepper {
             return Err(StepError::Overflow);
         }
         *state = next;
-        Ok(switches)
+        Ok(StepEnd {
+            switches,
+            stopped_at: None,
+        })
     }
 
     /// True when u cannot leave `mode`'s region within `span`, given u, u′, u″ and the bound c3

@@ -10,7 +10,7 @@ impl Instance {
     pub(crate) fn snapshot(&self) -> Snapshot {
         Snapshot {
             guid: self.model.guid,
-            interface: self.interface,
+            flavour: self.flavour,
             phase: self.phase,
             time: self.time,
             experiment: self.experiment,
@@ -30,11 +30,18 @@ impl Instance {
                 snapshot.guid, self.model.identifier, self.model.guid
             )));
         }
-        if snapshot.interface != self.interface {
+        if snapshot.flavour.standard != self.flavour.standard {
+            return Err(FmuError::StateRefused(format!(
+                "it was taken from an {} instance; this instance is {}",
+                snapshot.flavour.name(),
+                self.flavour.name()
+            )));
+        }
+        if snapshot.flavour.interface != self.flavour.interface {
             return Err(FmuError::StateRefused(format!(
                 "it was taken from a {} instance; this instance serves {}",
-                snapshot.interface.name(),
-                self.interface.name()
+                snapshot.flavour.interface.name(),
+                self.flavour.interface.name()
             )));
         }
         let sim = match &snapshot.physics {

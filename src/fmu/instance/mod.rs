@@ -17,7 +17,7 @@ use super::error::{FmuError, Status};
 use super::logging::{LogCategory, LogSink, Logging};
 use super::simulation::Simulation;
 use super::snapshot::Snapshot;
-use super::state_machine::{Function, Interface, Phase};
+use super::state_machine::{Flavour, Function, Interface, Phase, Standard};
 use super::variables::{model_by_guid, ModelInfo, MODELS};
 
 /// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
@@ -53,10 +53,22 @@ pub enum StatusKind {
 }
 
 pub use model_exchange::EventInfo;
+pub use stepping::StepOutcome;
+
+/// The choices of fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CoSimulationOptions {
+    /// The importer handles events in Event Mode: initialization ends there, and a step that
+    /// stops at a contact switch asks for it.
+    pub event_mode_used: bool,
+    /// fmi3DoStep may stop at the first contact switch inside the step.
+    pub early_return_allowed: bool,
+}
 
 pub struct Instance {
     model: &'static ModelInfo,
-    interface: Interface,
+    flavour: Flavour,
+    options: CoSimulationOptions,
     phase: Phase,
     /// Inputs, parameters and start values (θ, ω before initialization), by [`Symbol`].
     values: Values,
@@ -79,16 +91,32 @@ impl Instance {
         Instance::new_for(model, Interface::CoSimulation, sink, logging_on)
     }
 
-    /// A fresh instance of `model` serving `interface`.
+    /// A fresh FMI 2.0 instance of `model` serving `interface`.
     pub fn new_for(
         model: &'static ModelInfo,
         interface: Interface,
         sink: Option<Box<dyn LogSink>>,
         logging_on: bool,
     ) -> Instance {
+        let flavour = Flavour {
+            standard: Standard::Fmi2,
+            interface,
+        };
+        Instance::with(model, flavour, CoSimulationOptions::default(), sink, logging_on)
+    }
+
+    /// A fresh instance of `model` of any flavour; `options` apply to FMI 3.0 Co-Simulation.
+    pub fn with(
+        model: &'static ModelInfo,
+        flavour: Flavour,
+        options: CoSimulationOptions,
+        sink: Option<Box<dyn LogSink>>,
+        logging_on: bool,
+    ) -> Instance {
         Instance {
             model,
-            interface,
+            flavour,
+            options,
             phase: Phase::Instantiated,
             values: adapter::start_values(model),
             input_slopes: [0.0; 2],
@@ -122,7 +150,16 @@ impl Instance {
     }
 
     pub fn interface(&self) -> Interface {
-        self.interface
+        self.flavour.interface
+    }
+
+    pub fn flavour(&self) -> Flavour {
+        self.flavour
+    }
+
+    /// The C name of `function` in this instance's standard, for messages.
+    pub fn name_of(&self, function: Function) -> &'static str {
+        function.name(self.flavour.standard)
     }
 
     /// Current communication point [s].
@@ -144,7 +181,7 @@ impl Instance {
         let result = self.check_legal(function).and_then(|()| body(self));
         match &result {
             Ok(_) => self.log.emit(Status::Ok, LogCategory::Calls, || {
-                format!("{} -> OK", function.c_name())
+                format!("{} -> OK", function.name(self.flavour.standard))
             }),
             Err(e) => self.fail(function, e),
         }
@@ -154,7 +191,7 @@ impl Instance {
     /// Inlined, so that the mask of a known `function` is a constant.
     #[inline]
     pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
-        if function.is_legal_in(self.interface, self.phase) {
+        if function.is_legal_in(self.flavour, self.phase) {
             return Ok(());
         }
         self.illegal(function)
@@ -163,15 +200,15 @@ impl Instance {
     #[cold]
     #[inline(never)]
     fn illegal(&self, function: Function) -> Result<(), FmuError> {
-        match function.only_for() {
-            Some(other) if other != self.interface => Err(FmuError::OtherInterface {
-                function: function.c_name(),
+        match function.only_for(self.flavour.standard) {
+            Some(other) if other != self.flavour.interface => Err(FmuError::OtherInterface {
+                function: self.name_of(function),
                 belongs_to: other.name(),
-                serves: self.interface.name(),
+                serves: self.flavour.interface.name(),
             }),
-            _ if function.is_legal_in(self.interface, self.phase) => Ok(()),
+            _ if function.is_legal_in(self.flavour, self.phase) => Ok(()),
             _ => Err(FmuError::IllegalCall {
-                function: function.c_name(),
+                function: self.name_of(function),
                 phase: self.phase,
             }),
         }
@@ -180,9 +217,9 @@ impl Instance {
     fn fail(&mut self, function: Function, e: &FmuError) {
         let status = e.status();
         self.log
-            .emit(status, LogCategory::Errors, || format!("{}: {e}", function.c_name()));
+            .emit(status, LogCategory::Errors, || format!("{}: {e}", function.name(self.flavour.standard)));
         self.log.emit(status, LogCategory::Calls, || {
-            format!("{} -> {status:?}", function.c_name())
+            format!("{} -> {status:?}", function.name(self.flavour.standard))
         });
         if status == Status::Error {
             self.phase = Phase::Error;
@@ -192,7 +229,7 @@ impl Instance {
     /// After a panic inside a call: whatever was half done is discarded by entering Error.
     pub fn fail_after_panic(&mut self, function: Function, message: String) {
         let e = FmuError::Panic {
-            function: function.c_name(),
+            function: self.name_of(function),
             message,
         };
         self.fail(function, &e);
@@ -392,9 +429,9 @@ impl Instance {
         let slack = sim.bound.sup_slack().unwrap_or(0.0);
         self.sim = Some(sim);
         self.time = self.experiment.start_time;
-        self.phase = match self.interface {
-            Interface::CoSimulation => Phase::StepComplete,
-            Interface::ModelExchange => Phase::EventMode,
+        self.phase = match self.flavour.interface {
+            Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,
+            Interface::CoSimulation | Interface::ModelExchange => Phase::EventMode,
         };
         match unbounded {
             None if slack > SUP_SLACK_WARNING => {

@@ -20,14 +20,15 @@ pub struct EventInfo {
     pub next_event_time: Option<f64>,
 }
 
-/// Number of continuous states.
+/// Number of continuous states and of event indicators.
 const STATES: usize = StateEntry::ALL.len();
+const EVENT_INDICATORS: usize = 2;
 
 impl Instance {
     /// The bound of a Model Exchange instance at its time (docs/model.md §4: measured from the
     /// start time); a Co-Simulation instance advances it with each step.
     pub(super) fn bound_to_time(&mut self) -> Result<(), FmuError> {
-        if self.interface != Interface::ModelExchange {
+        if self.flavour.interface != Interface::ModelExchange {
             return Ok(());
         }
         let elapsed = self.time - self.experiment.start_time;
@@ -43,9 +44,32 @@ impl Instance {
         }
     }
 
+    /// Model Exchange, and FMI 3.0 Co-Simulation with Event Mode (after a step that stopped at
+    /// a contact switch, or whenever the importer wants to act).
     pub(crate) fn enter_event_mode_body(&mut self) -> Result<Status, FmuError> {
+        if self.flavour.interface == Interface::CoSimulation && !self.options.event_mode_used {
+            return Err(FmuError::InvalidArgument(
+                "the instance was created with eventModeUsed = false: it has no Event Mode".into(),
+            ));
+        }
         self.phase = Phase::EventMode;
         Ok(Status::Ok)
+    }
+
+    /// FMI 3.0 Co-Simulation: from Event Mode back to stepping.
+    pub(crate) fn enter_step_mode_body(&mut self) -> Result<Status, FmuError> {
+        self.phase = Phase::StepComplete;
+        Ok(Status::Ok)
+    }
+
+    /// The number of continuous states (FMI 3.0 asks; FMI 2.0 descriptions say).
+    pub(crate) fn continuous_state_count(&self) -> usize {
+        self.model.variables.iter().filter(|v| v.derivative_of.is_some()).count()
+    }
+
+    /// The number of event indicators: u − g and u + g.
+    pub(crate) fn event_indicator_count(&self) -> usize {
+        EVENT_INDICATORS
     }
 
     /// Nothing is discrete: no iteration, no time event, states unchanged.
@@ -146,7 +170,7 @@ impl Instance {
 
     /// Model Exchange only (providesDirectionalDerivative is false for Co-Simulation).
     pub(crate) fn check_directional_derivative_provided(&self) -> Result<(), FmuError> {
-        match self.interface {
+        match self.flavour.interface {
             Interface::ModelExchange => Ok(()),
             Interface::CoSimulation => Err(FmuError::NotProvided(
                 "fmi2GetDirectionalDerivative in Co-Simulation (providesDirectionalDerivative=\"false\" there)",

@@ -1,5 +1,5 @@
-//! fmi2DoStep: argument checks, the quiet path for an event-free step, and the general step
-//! with located contact switches.
+//! fmi2DoStep and fmi3DoStep: argument checks, the quiet path for an event-free step, and the
+//! general step with located contact switches, which in FMI 3.0 may stop at the first one.
 
 use super::Instance;
 use crate::fmu::adapter;
@@ -11,8 +11,37 @@ use crate::physics::{finite, BoundError, Inputs, MAX_PERIODS_PER_STEP};
 /// accumulated by the importer in floating point, so they drift by a few ulps per step.
 const TIME_TOLERANCE: f64 = 1e-9;
 
+/// What fmi3DoStep reports besides its status.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepOutcome {
+    /// The step stopped at a contact switch: `time` is the switch instant.
+    pub early_return: bool,
+    /// The importer should enter Event Mode (it uses Event Mode and the step stopped at a switch).
+    pub event_handling_needed: bool,
+    /// Where the step ended: the end of the step, or the switch instant.
+    pub time: f64,
+}
+
 impl Instance {
     pub(crate) fn do_step_body(&mut self, communication_point: f64, h: f64) -> Result<Status, FmuError> {
+        self.step_body(communication_point, h, false).map(|_| Status::Ok)
+    }
+
+    /// fmi3DoStep: with early return allowed, the step stops at the first contact switch
+    /// inside it, located to round-off.
+    pub(crate) fn do_step3_body(&mut self, communication_point: f64, h: f64) -> Result<StepOutcome, FmuError> {
+        let early = self.options.early_return_allowed;
+        let stopped = self.step_body(communication_point, h, early)?;
+        Ok(StepOutcome {
+            early_return: stopped,
+            event_handling_needed: stopped && self.options.event_mode_used,
+            time: self.time,
+        })
+    }
+
+    /// The step; returns whether it stopped early at a contact switch (only when `early_return`).
+    #[inline]
+    fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
         let inputs = adapter::inputs(&self.values, self.input_slopes);
         // The input lines at the end of the step (see below); refused before stepping if they
         // leave f64, so that a refused step changes nothing.
@@ -41,14 +70,22 @@ impl Instance {
             return Err(self.step_refusal(communication_point, h, tau_end));
         }
         if !sim.quiet_step(&inputs, h) {
-            self.general_step(communication_point, &inputs, h)?;
+            if let Some(offset) = self.general_step(communication_point, &inputs, h, early_return)? {
+                // Stopped at a switch: the input lines and the time move to it.
+                adapter::store_inputs(
+                    &mut self.values,
+                    [inputs.tau_m + offset * inputs.dtau_m, inputs.tau_l + offset * inputs.dtau_l],
+                );
+                self.time = communication_point + offset;
+                return Ok(true);
+            }
         }
         // The input lines continue over the next step unless set again (see
         // `set_real_input_derivatives_body`).
         adapter::store_inputs(&mut self.values, tau_end);
         // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
         self.time = end;
-        Ok(Status::Ok)
+        Ok(false)
     }
 
     /// Why `do_step_body` refuses its arguments (called only when it does).
@@ -100,28 +137,60 @@ impl Instance {
         ))
     }
 
-    /// The step of `do_step_body` past its argument checks, when the quiet path did not take
-    /// it: contact switches located and logged, overflow of plant or bounds refused.
+    /// The step of `step_body` past its argument checks, when the quiet path did not take
+    /// it: contact switches located and logged, overflow of plant or bounds refused. With
+    /// `early_return`, stops at the first switch that lies inside the step and after its
+    /// start, and returns its offset.
     #[cold]
     #[inline(never)]
-    fn general_step(&mut self, communication_point: f64, inputs: &Inputs, h: f64) -> Result<(), FmuError> {
-        let end = communication_point + h;
+    fn general_step(
+        &mut self,
+        communication_point: f64,
+        inputs: &Inputs,
+        h: f64,
+        early_return: bool,
+    ) -> Result<Option<f64>, FmuError> {
         let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
         // The plant steps a copy of its state, and the bound fails (on a bad h, excluded above)
         // before changing anything: a failed step leaves the instance as it was.
         let mut state = sim.state;
         let mut switches = Vec::new();
         let want_switches = self.log.is_enabled(LogCategory::ContactEvents);
-        sim.stepper.step(&mut state, inputs, h, &mut |event| {
-            if want_switches {
-                switches.push(event)
+        let mut stopped = None;
+        {
+            let mut record = |event| {
+                if want_switches {
+                    switches.push(event)
+                }
+            };
+            if early_return {
+                stopped = sim.stepper.step_to_first_switch(&mut state, inputs, h, &mut record)?;
+            } else {
+                sim.stepper.step(&mut state, inputs, h, &mut record)?;
             }
-        })?;
+        }
+        // A switch that does not move time (on the step's start, or at its end to round-off) is
+        // no reason to return early: the whole step is taken instead.
+        if stopped.is_some_and(|offset| {
+            let t = communication_point + offset;
+            t <= communication_point || t >= communication_point + h
+        }) {
+            stopped = None;
+            state = sim.state;
+            switches.clear();
+            sim.stepper.step(&mut state, inputs, h, &mut |event| {
+                if want_switches {
+                    switches.push(event)
+                }
+            })?;
+        }
+        let advanced = stopped.unwrap_or(h);
+        let end = communication_point + advanced;
         if !sim.state_ok(&state) {
             return Err(sim.overflow(&state, format_args!("the step to t = {end} overflows")));
         }
         // Fails before changing anything (a bad h is excluded above).
-        sim.bound.advance(h).map_err(|e| match e {
+        sim.bound.advance(advanced).map_err(|e| match e {
             BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
                 "the step to t = {end} overflows the bounds: bound = {bound:e}, bound_paper = {bound_paper:e}"
             )),
@@ -138,6 +207,6 @@ impl Instance {
                 )
             });
         }
-        Ok(())
+        Ok(stopped)
     }
 }
