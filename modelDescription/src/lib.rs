@@ -4,14 +4,18 @@
 //!
 //! Std only. Used by `build.rs` (the Rust tables of the library: [`rust::variable_tables`],
 //! [`rust::log_categories`]), by the library itself (the kinds of variables), by `cargo xtask
-//! fmu` (the `modelDescription.xml` of [`xml::model_description`]) and by the tests. The XML and
-//! the Rust code come from the same tables, so they cannot disagree. The guid is a hash of the
-//! description itself: a changed description gets a new guid, and a binary built from the old
-//! one refuses to instantiate it.
+//! fmu` (the FMI 2.0 `modelDescription.xml` of [`xml::model_description`] and the FMI 3.0 one of
+//! [`xml3::model_description`]) and by the tests. The XML and the Rust code come from the same
+//! tables, so they cannot disagree; what both descriptions write alike is written once (the
+//! private `common` module). The guid (FMI 2.0) and the instantiation token (FMI 3.0) are each a
+//! hash of their description: a changed description gets a new one, and a binary built from the
+//! old one refuses to instantiate it.
 
+mod common;
 mod models;
 pub mod rust;
 pub mod xml;
+pub mod xml3;
 
 pub use models::model;
 

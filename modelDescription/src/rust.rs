@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use crate::{model, model_identifiers, xml, Model, LOG_CATEGORIES};
+use crate::{model, model_identifiers, xml, xml3, Model, LOG_CATEGORIES};
 
 /// Every model's description, in [`model_identifiers`] order.
 fn models() -> Vec<Model> {
@@ -48,6 +48,11 @@ pub fn variable_tables() -> String {
         let _ = writeln!(out, "    ModelInfo {{");
         let _ = writeln!(out, "        identifier: {:?},", m.identifier);
         let _ = writeln!(out, "        guid: {:?},", xml::guid(m.identifier));
+        let _ = writeln!(
+            out,
+            "        instantiation_token: {:?},",
+            xml3::instantiation_token(m.identifier)
+        );
         let _ = writeln!(out, "        drive_train: DriveTrain::{},", m.drive_train.rust());
         let e = m.default_experiment;
         let _ = writeln!(

@@ -8,11 +8,15 @@ pub use model_description::{Causality, DefaultExperiment, DriveTrain, Initial, R
 /// One scalar variable of a model, with the [`Symbol`] that says what it is.
 pub type Variable = model_description::Variable<Symbol>;
 
-/// One model: identifier, guid and its variables in value-reference order.
+/// One model: identifier, guid (FMI 2.0), instantiation token (FMI 3.0) and its variables in
+/// value-reference order.
 #[derive(Debug)]
 pub struct ModelInfo {
     pub identifier: &'static str,
     pub guid: &'static str,
+    /// The `instantiationToken` of the model's FMI 3.0 description (a hash of that description,
+    /// as the guid is of the FMI 2.0 one).
+    pub instantiation_token: &'static str,
     pub drive_train: DriveTrain,
     pub default_experiment: DefaultExperiment,
     pub variables: &'static [Variable],
@@ -51,6 +55,11 @@ include!(concat!(env!("OUT_DIR"), "/model_variables.rs"));
 /// The model whose description carries `guid`.
 pub fn model_by_guid(guid: &str) -> Option<&'static ModelInfo> {
     MODELS.iter().find(|m| m.guid == guid)
+}
+
+/// The model whose FMI 3.0 description carries `token`.
+pub fn model_by_instantiation_token(token: &str) -> Option<&'static ModelInfo> {
+    MODELS.iter().find(|m| m.instantiation_token == token)
 }
 
 pub fn model_by_identifier(identifier: &str) -> Option<&'static ModelInfo> {

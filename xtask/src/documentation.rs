@@ -1,6 +1,11 @@
 //! `documentation/index.html` of each archive: a shared page (`template.html`) with the model's
 //! drive-train section and a variable table taken from the generated model description, so that
 //! the documented names, units and start values cannot drift from the ones the FMU serves.
+//!
+//! One template serves both standards; the description's `fmiVersion` says which page it is:
+//! `{{FMI_VERSION}}` becomes `2.0` or `3.0`, `{{fmi}}` the function prefix `fmi2` or `fmi3`, and
+//! the text between `{{#fmi2}}` and `{{/fmi2}}` (likewise `fmi3`) appears on that standard's page
+//! only.
 
 use std::fs;
 use std::path::PathBuf;
@@ -25,10 +30,18 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
     if !root.has_tag_name("fmiModelDescription") {
         return Err(format!("{id}: no <fmiModelDescription> element"));
     }
+    let (version, prefix, other) = match root.attribute("fmiVersion") {
+        Some("2.0") => ("2.0", "fmi2", "fmi3"),
+        Some("3.0") => ("3.0", "fmi3", "fmi2"),
+        other => return Err(format!("{id}: no page for fmiVersion {other:?}")),
+    };
     let description = escape(root.attribute("description").unwrap_or_default());
     let table = variable_table(&doc)?;
 
+    let template = sections(&template, prefix, other).map_err(|e| format!("{id}: template.html: {e}"))?;
     let page = template
+        .replace("{{FMI_VERSION}}", version)
+        .replace("{{fmi}}", prefix)
         .replace("{{MODEL}}", id)
         .replace("{{DESCRIPTION}}", &description)
         .replace("{{DRIVE_TRAIN}}", &drive_train)
@@ -40,8 +53,34 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
     Ok(page)
 }
 
-/// The variable table: one row per `<ScalarVariable>`, with the unit, start and bounds of its
-/// type element (`<Real>`, `<Integer>`, ...).
+/// `text` with the sections of the standard `keep` (`{{#keep}}...{{/keep}}`) in place, without
+/// their markers, and those of `drop` removed with their content.
+fn sections(text: &str, keep: &str, drop: &str) -> Result<String, String> {
+    let mut text = text.to_string();
+    for (tag, kept) in [(keep, true), (drop, false)] {
+        let (open, close) = (format!("{{{{#{tag}}}}}"), format!("{{{{/{tag}}}}}"));
+        while let Some(start) = text.find(&open) {
+            let end = text[start..]
+                .find(&close)
+                .map(|e| start + e)
+                .ok_or_else(|| format!("{open} without {close}"))?;
+            let inner = &text[start + open.len()..end];
+            if inner.contains(&open) {
+                return Err(format!("{open} inside {open}"));
+            }
+            let replacement = if kept { inner.to_string() } else { String::new() };
+            text.replace_range(start..end + close.len(), &replacement);
+        }
+        if text.contains(&close) {
+            return Err(format!("{close} without {open}"));
+        }
+    }
+    Ok(text)
+}
+
+/// The variable table: one row per variable, with the unit, start and bounds of its type
+/// element. FMI 2.0 writes a `<ScalarVariable>` around the type element (`<Real>`,
+/// `<Integer>`, ...); in FMI 3.0 the variable is its type element (`<Float64>`, `<Int32>`, ...).
 fn variable_table(doc: &roxmltree::Document) -> Result<String, String> {
     let variables = doc
         .descendants()
@@ -49,8 +88,12 @@ fn variable_table(doc: &roxmltree::Document) -> Result<String, String> {
         .ok_or("model description has no <ModelVariables>")?;
     let mut rows = String::new();
     let mut count = 0;
-    for variable in variables.children().filter(|n| n.has_tag_name("ScalarVariable")) {
-        let typed = variable.children().find(|n| n.is_element());
+    for variable in variables.children().filter(|n| n.is_element()) {
+        let typed = if variable.has_tag_name("ScalarVariable") {
+            variable.children().find(|n| n.is_element())
+        } else {
+            Some(variable)
+        };
         let kind = typed.map_or("?", |t| t.tag_name().name());
         let get = |node: Option<roxmltree::Node>, k: &str| escape(node.and_then(|n| n.attribute(k)).unwrap_or(""));
         let range = match (
@@ -74,7 +117,7 @@ fn variable_table(doc: &roxmltree::Document) -> Result<String, String> {
         count += 1;
     }
     if count == 0 {
-        return Err("model description lists no <ScalarVariable>".into());
+        return Err("model description lists no variable".into());
     }
     Ok(format!(
         "<table>\n    <thead><tr><th>name</th><th>causality</th><th>variability</th><th>type</th><th>unit</th>\
@@ -97,5 +140,28 @@ mod tests {
         assert_eq!(table.matches("<tr><td>").count(), 2);
         assert!(table.contains("<td><code>J_m</code></td><td>parameter</td><td>fixed</td><td>Real</td><td>kg.m2</td><td>2.28</td><td>[0, ∞]</td><td>J &gt; 0 &amp; finite</td>"));
         assert!(table.contains("<td><code>contact</code></td><td>output</td><td></td><td>Integer</td>"));
+    }
+
+    #[test]
+    fn fmi3_variables_are_their_type_elements() {
+        let xml = r#"<fmiModelDescription fmiVersion="3.0"><ModelVariables>
+            <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+            <Float64 name="J_m" valueReference="12" causality="parameter" variability="fixed" unit="kg.m2" start="2.28" min="0.0"/>
+            <Int32 name="contact" valueReference="8" causality="output" variability="discrete" min="-1" max="1"/>
+            </ModelVariables></fmiModelDescription>"#;
+        let table = variable_table(&roxmltree::Document::parse(xml).unwrap()).unwrap();
+        assert_eq!(table.matches("<tr><td>").count(), 3);
+        assert!(table.contains("<td><code>time</code></td><td>independent</td><td>continuous</td><td>Float64</td>"));
+        assert!(table.contains("<td><code>J_m</code></td><td>parameter</td><td>fixed</td><td>Float64</td><td>kg.m2</td><td>2.28</td><td>[0.0, ∞]</td>"));
+        assert!(table.contains("<td>Int32</td><td></td><td></td><td>[-1, 1]</td>"));
+    }
+
+    #[test]
+    fn sections_keep_one_standard_and_drop_the_other() {
+        let text = "a{{#fmi2}}b{{/fmi2}}{{#fmi3}}c{{/fmi3}}d{{#fmi2}}e{{/fmi2}}";
+        assert_eq!(sections(text, "fmi2", "fmi3").unwrap(), "abde");
+        assert_eq!(sections(text, "fmi3", "fmi2").unwrap(), "acd");
+        assert!(sections("a{{#fmi2}}b", "fmi2", "fmi3").is_err());
+        assert!(sections("a{{/fmi3}}b", "fmi2", "fmi3").is_err());
     }
 }

@@ -1,8 +1,10 @@
-//! `cargo xtask fmu`: builds the cdylib once and packages one FMI 2.0 archive per model
-//! (Model Exchange and Co-Simulation in one description, one binary).
+//! `cargo xtask fmu`: builds the cdylib once and packages one archive per model and standard
+//! (Model Exchange and Co-Simulation in one description, one binary): FMI 2.0 in `target/fmu/`,
+//! FMI 3.0 in `target/fmu/fmi3/` ([`STANDARDS`]).
 //!
-//! Layout of each archive (FMI 2.0 §2.3): `modelDescription.xml`, `binaries/linux64/<id>.so`
-//! (the same library under each model's identifier), `documentation/index.html`.
+//! Layout of each archive (FMI 2.0 §2.3, FMI 3.0 §2.5): `modelDescription.xml`,
+//! `binaries/<platform>/<id>.so` (the same library under each model's identifier; `linux64` in
+//! FMI 2.0, `x86_64-linux` in FMI 3.0), `documentation/index.html`.
 
 use std::fs;
 use std::io::{Read, Write};
@@ -17,8 +19,44 @@ use crate::util::{self, step};
 /// Name of the cdylib that cargo writes for the `backlash_fmu` library.
 pub const LIBRARY_FILE: &str = "libbacklash_fmu.so";
 
-/// FMI 2.0 §2.3 platform folder for 64-bit Linux; the only platform this build produces.
-const PLATFORM: &str = "linux64";
+/// What the archives of one FMI standard differ in.
+pub struct Standard {
+    /// The `fmiVersion` of its descriptions.
+    pub fmi_version: &'static str,
+    /// Its folder under `target/fmu/`; "" for FMI 2.0, whose archives the tests read there.
+    pub subdir: &'static str,
+    /// Its folder under `binaries/` for 64-bit Linux on x86_64, the only platform this build
+    /// produces.
+    pub platform: &'static str,
+    /// The model description of a model identifier.
+    pub description: fn(&str) -> String,
+}
+
+impl Standard {
+    /// The folder its archives are written to.
+    pub fn out_dir(&self) -> PathBuf {
+        util::fmu_dir().join(self.subdir)
+    }
+}
+
+/// FMI 2.0 (§2.3: platform folder `linux64`).
+pub const FMI2: Standard = Standard {
+    fmi_version: "2.0",
+    subdir: "",
+    platform: "linux64",
+    description: model_description::xml::model_description,
+};
+
+/// FMI 3.0 (§2.5.1.4: platform tuple `x86_64-linux`), beside the FMI 2.0 archives.
+pub const FMI3: Standard = Standard {
+    fmi_version: "3.0",
+    subdir: "fmi3",
+    platform: "x86_64-linux",
+    description: model_description::xml3::model_description,
+};
+
+/// The archives `cargo xtask fmu` writes for every model, in this order.
+pub const STANDARDS: [&Standard; 2] = [&FMI2, &FMI3];
 
 /// The release cdylib, as built by [`build_library`].
 pub fn library_path() -> PathBuf {
@@ -32,32 +70,34 @@ pub fn run(args: &[String]) -> Result<(), String> {
     package_all().map(|_| ())
 }
 
-/// Builds the library and writes every model's archive; returns the archive paths.
+/// Builds the library and writes every model's archive of every standard; returns the archive
+/// paths, those of FMI 2.0 first.
 pub fn package_all() -> Result<Vec<PathBuf>, String> {
     if !(cfg!(target_os = "linux") && cfg!(target_arch = "x86_64")) {
-        return Err(format!(
-            "packaging produces binaries/{PLATFORM} only; build on x86_64 Linux"
-        ));
+        return Err("packaging produces x86_64 Linux binaries only; build on x86_64 Linux".into());
     }
     build_library()?;
     let library = fs::read(library_path()).map_err(|e| format!("reading {}: {e}", library_path().display()))?;
 
-    let out_dir = util::fmu_dir();
-    fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
     let mut written = Vec::new();
-    for &id in model_description::model_identifiers() {
-        let xml = model_description::xml::model_description(id);
-        check_description(id, &xml)?;
-        let html = documentation::render(id, &xml)?;
-        let path = out_dir.join(format!("{id}.fmu"));
-        write_archive(&path, id, &xml, &library, &html)?;
-        verify_archive(&path, id)?;
-        println!(
-            "wrote {} ({} bytes)",
-            util::shown(&path),
-            fs::metadata(&path).map(|m| m.len()).unwrap_or(0)
-        );
-        written.push(path);
+    for standard in STANDARDS {
+        let out_dir = standard.out_dir();
+        fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
+        for &id in model_description::model_identifiers() {
+            let xml = (standard.description)(id);
+            check_description(standard, id, &xml)?;
+            let html = documentation::render(id, &xml)?;
+            let path = out_dir.join(format!("{id}.fmu"));
+            let binaries = [(format!("binaries/{}/{id}.so", standard.platform), library.as_slice())];
+            write_archive(&path, &xml, &binaries, &html)?;
+            verify_archive(&path, standard, id, &binaries)?;
+            println!(
+                "wrote {} ({} bytes)",
+                util::shown(&path),
+                fs::metadata(&path).map(|m| m.len()).unwrap_or(0)
+            );
+            written.push(path);
+        }
     }
     if written.is_empty() {
         return Err("the model-description crate lists no model identifiers".into());
@@ -77,13 +117,16 @@ fn build_library() -> Result<(), String> {
     Ok(())
 }
 
-/// The description must be an FMI 2.0 description naming this model in its ModelExchange and
-/// CoSimulation elements, or an importer would look for a library that is not in the archive.
-fn check_description(id: &str, xml: &str) -> Result<(), String> {
+/// The description must be a description of `standard` naming this model in its ModelExchange
+/// and CoSimulation elements, or an importer would look for a library that is not in the archive.
+fn check_description(standard: &Standard, id: &str, xml: &str) -> Result<(), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
     let root = doc.root_element();
-    if !root.has_tag_name("fmiModelDescription") || root.attribute("fmiVersion") != Some("2.0") {
-        return Err(format!("{id}: generated text is not an FMI 2.0 model description"));
+    if !root.has_tag_name("fmiModelDescription") || root.attribute("fmiVersion") != Some(standard.fmi_version) {
+        return Err(format!(
+            "{id}: generated text is not an FMI {} model description",
+            standard.fmi_version
+        ));
     }
     for interface in ["ModelExchange", "CoSimulation"] {
         let element = root
@@ -97,7 +140,9 @@ fn check_description(id: &str, xml: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn write_archive(path: &Path, id: &str, xml: &str, library: &[u8], html: &str) -> Result<(), String> {
+/// Writes the archive `path`: the description, the `binaries` (archive name and bytes) and the
+/// documentation page.
+fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], html: &str) -> Result<(), String> {
     // Write beside the target and rename, so that an interrupted run never leaves a truncated
     // archive where the tests look for one.
     let partial = path.with_extension("fmu.partial");
@@ -107,11 +152,10 @@ fn write_archive(path: &Path, id: &str, xml: &str, library: &[u8], html: &str) -
         .compression_method(CompressionMethod::Deflated)
         .unix_permissions(0o644);
     let binary = text.unix_permissions(0o755);
-    let entries: [(String, &[u8], SimpleFileOptions); 3] = [
-        ("modelDescription.xml".into(), xml.as_bytes(), text),
-        (format!("binaries/{PLATFORM}/{id}.so"), library, binary),
-        ("documentation/index.html".into(), html.as_bytes(), text),
-    ];
+    let mut entries: Vec<(String, &[u8], SimpleFileOptions)> =
+        vec![("modelDescription.xml".into(), xml.as_bytes(), text)];
+    entries.extend(binaries.iter().map(|(name, bytes)| (name.clone(), *bytes, binary)));
+    entries.push(("documentation/index.html".into(), html.as_bytes(), text));
     for (name, bytes, options) in entries {
         zip.start_file(name.as_str(), options)
             .and_then(|_| zip.write_all(bytes).map_err(Into::into))
@@ -122,8 +166,9 @@ fn write_archive(path: &Path, id: &str, xml: &str, library: &[u8], html: &str) -
     fs::rename(&partial, path).map_err(|e| format!("renaming to {}: {e}", path.display()))
 }
 
-/// Reopens the archive and checks it holds exactly the expected entries, with forward slashes.
-fn verify_archive(path: &Path, id: &str) -> Result<(), String> {
+/// Reopens the archive and checks it holds exactly the expected entries, with forward slashes,
+/// and a description of `standard` for this model.
+fn verify_archive(path: &Path, standard: &Standard, id: &str, binaries: &[(String, &[u8])]) -> Result<(), String> {
     let file = fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut archive = zip::ZipArchive::new(file).map_err(|e| format!("{}: not a zip archive: {e}", path.display()))?;
     let mut names: Vec<String> = archive
@@ -132,11 +177,11 @@ fn verify_archive(path: &Path, id: &str) -> Result<(), String> {
         .collect::<Result<_, _>>()
         .map_err(|e| format!("{}: {e}", path.display()))?;
     names.sort();
-    let mut expected = vec![
-        format!("binaries/{PLATFORM}/{id}.so"),
+    let mut expected: Vec<String> = binaries.iter().map(|(name, _)| name.clone()).collect();
+    expected.extend([
         "documentation/index.html".to_string(),
         "modelDescription.xml".to_string(),
-    ];
+    ]);
     expected.sort();
     if names != expected {
         return Err(format!("{}: entries {names:?}, expected {expected:?}", path.display()));
@@ -147,5 +192,5 @@ fn verify_archive(path: &Path, id: &str) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", path.display()))?
         .read_to_string(&mut xml)
         .map_err(|e| format!("{}: modelDescription.xml: {e}", path.display()))?;
-    check_description(id, &xml)
+    check_description(standard, id, &xml)
 }

@@ -1,0 +1,147 @@
+"""The FMI 3.0 archives (target/fmu/fmi3/, docs/model.md §7) as a tool sees them, without loading
+the binary: fmpy's validator, and fmpy's reading of both archives of each model, which must
+describe the same variables."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+import fmpy
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+import fmu_driver
+
+XS = "{http://www.w3.org/2001/XMLSchema}"
+# The FMI 2.0 type element of each FMI 3.0 variable element.
+FMI2_TYPE = {"Float64": "Real", "Int32": "Integer"}
+
+
+def fmi3_path(model: str) -> Path:
+    return fmu_driver.fmu_dir() / "fmi3" / f"{model}.fmu"
+
+
+@pytest.fixture(params=fmu_driver.MODELS)
+def model(request) -> str:
+    """Each model; its FMI 3.0 archive must exist (a missing one fails, never skips)."""
+    if not fmi3_path(request.param).is_file():
+        pytest.fail(f"FMU archive not found: {fmi3_path(request.param)} (build with `cargo xtask fmu`)")
+    return request.param
+
+
+def test_fmpy_validation_finds_no_problem(model):
+    # Schema (fmpy's copy of the FMI 3.0 XSD), names, start values, causality and variability,
+    # units, and the model structure's lists of outputs, derivatives and initial unknowns.
+    assert validate_fmu(str(fmi3_path(model))) == []
+
+
+def test_both_interfaces_name_the_model(model):
+    md = read_model_description(str(fmi3_path(model)))
+    assert md.fmiVersion == "3.0"
+    assert md.modelName == model
+    for interface in (md.modelExchange, md.coSimulation):
+        assert interface is not None
+        assert interface.modelIdentifier == model
+        # fmpy stores FMI 3.0's canGetAndSetFMUState under its FMI 2.0 spelling.
+        assert interface.canGetAndSetFMUstate and interface.canSerializeFMUstate
+    assert not md.modelExchange.needsCompletedIntegratorStep
+    cs = md.coSimulation
+    assert cs.canHandleVariableCommunicationStepSize and cs.maxOutputDerivativeOrder == 1
+    assert cs.hasEventMode and cs.mightReturnEarlyFromDoStep
+    assert not (cs.providesIntermediateUpdate or cs.canReturnEarlyAfterIntermediateUpdate)
+    # fmpy does not read providesDirectionalDerivatives of FMI 3.0: the XML itself.
+    with zipfile.ZipFile(fmi3_path(model)) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+    assert root.find("ModelExchange").get("providesDirectionalDerivatives") == "true"
+    assert root.find("CoSimulation").get("providesDirectionalDerivatives") == "false"
+
+
+def _schema_attributes(complex_type: str) -> set[str]:
+    """The attributes fmpy's FMI 3.0 schema declares for an interface element, its base type's too."""
+    schema = ET.parse(Path(fmpy.__file__).parent / "schema" / "fmi3" / "fmi3InterfaceType.xsd").getroot()
+    types = {t.get("name"): t for t in schema.iter(f"{XS}complexType")}
+    names = set()
+    for name in (complex_type, "fmi3InterfaceType"):
+        names |= {a.get("name") for a in types[name].iter(f"{XS}attribute")}
+    return names
+
+
+def test_interface_attributes_are_declared_by_the_schema(model):
+    # The schema lets any attribute through on <ModelExchange> and <CoSimulation>
+    # (xs:anyAttribute), so a misspelt or FMI 2.0-only capability flag would pass validation
+    # unnoticed and be ignored by every importer.
+    with zipfile.ZipFile(fmi3_path(model)) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+    for element, complex_type in (("ModelExchange", "fmi3ModelExchange"), ("CoSimulation", "fmi3CoSimulation")):
+        declared = _schema_attributes(complex_type)
+        assert "modelIdentifier" in declared and "canGetAndSetFMUState" in declared
+        undeclared = set(root.find(element).attrib) - declared
+        assert not undeclared, f"{model} <{element}>: {sorted(undeclared)} not in the FMI 3.0 schema"
+
+
+def _variable(v, version: str) -> tuple:
+    """What both descriptions must agree on, in FMI 2.0 terms."""
+    vtype = FMI2_TYPE.get(v.type, v.type) if version == "3.0" else v.type
+    as_float = (lambda x: None if x is None else float(x))
+    return (
+        v.name,
+        v.valueReference,
+        vtype,
+        v.causality,
+        v.variability,
+        v.initial,
+        as_float(v.start),
+        v.unit,
+        v.quantity,
+        as_float(v.nominal),
+        as_float(v.min),
+        as_float(v.max),
+        v.description,
+        v.derivative.name if v.derivative is not None else None,
+    )
+
+
+def test_variables_equal_those_of_the_fmi2_archive(model):
+    md3 = read_model_description(str(fmi3_path(model)))
+    md2 = read_model_description(str(fmu_driver.fmu_path(model)))
+    assert md2.fmiVersion == "2.0"
+    independent = [v for v in md3.modelVariables if v.causality == "independent"]
+    assert [(v.name, v.valueReference, v.type, v.start) for v in independent] == [("time", 0, "Float64", None)]
+    variables = [_variable(v, "3.0") for v in md3.modelVariables if v.causality != "independent"]
+    assert variables == [_variable(v, "2.0") for v in md2.modelVariables]
+    assert md3.instantiationToken != md2.guid
+    assert md3.instantiationToken.startswith("{") and len(md3.instantiationToken) == 38
+
+
+def test_states_derivatives_and_event_indicators(model):
+    md3 = read_model_description(str(fmi3_path(model)))
+    md2 = read_model_description(str(fmu_driver.fmu_path(model)))
+    pairs = [(u.variable.name, u.variable.derivative.name) for u in md3.derivatives]
+    assert pairs == [(f"der({s})", s) for s in fmu_driver.STATE_OUTPUTS]
+    assert pairs == [(u.variable.name, u.variable.derivative.name) for u in md2.derivatives]
+    indicators = [(u.variable.name, u.variable.valueReference) for u in md3.eventIndicators]
+    assert indicators == [("u_minus_g", 28), ("u_plus_g", 29)]
+    assert md2.numberOfEventIndicators == len(indicators)
+    assert [u.variable.name for u in md3.outputs] == [u.variable.name for u in md2.outputs]
+
+
+def test_archive_layout_and_page(model):
+    with zipfile.ZipFile(fmi3_path(model)) as zf3, zipfile.ZipFile(fmu_driver.fmu_path(model)) as zf2:
+        assert sorted(zf3.namelist()) == [
+            f"binaries/x86_64-linux/{model}.so",
+            "documentation/index.html",
+            "modelDescription.xml",
+        ]
+        # The same library as the FMI 2.0 archive's.
+        assert zf3.read(f"binaries/x86_64-linux/{model}.so") == zf2.read(f"binaries/linux64/{model}.so")
+        page3 = zf3.read("documentation/index.html").decode()
+        page2 = zf2.read("documentation/index.html").decode()
+    # Each page names its own standard and its functions only.
+    assert "An FMI 3.0 FMU" in page3 and "fmi2" not in page3 and "FMI 2.0" not in page3
+    assert "An FMI 2.0 FMU" in page2 and "fmi3" not in page2 and "FMI 3.0" not in page2
+    assert "<td><code>time</code></td><td>independent</td>" in page3
+    assert "{{" not in page3
+
