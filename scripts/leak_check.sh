@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Leak check of the packaged FMUs: 10 000 fmi2Instantiate/fmi2FreeInstance cycles (with
-# initialization, steps, FMU states and a refused call in each) through the C ABI.
+# Leak check of the packaged FMUs: 10 000 fmi2Instantiate/fmi2FreeInstance cycles per interface
+# (Co-Simulation and Model Exchange; with initialization, steps, FMU states and a refused call in
+# each) through the C ABI.
 #
 #   scripts/leak_check.sh [cycles]        (default 10000; FMUs from target/fmu, built if missing)
 #
@@ -44,4 +45,4 @@ for model in BacklashShaft BacklashBelt; do
         --errors-for-leak-kinds=definite,indirect --error-exitcode=3 \
         "$work/leak_driver" "$so" "$guid" "$cycles" "$tau_m" "$omega_m"
 done
-echo "leak check passed: $cycles cycles per model, no heap growth, nothing lost"
+echo "leak check passed: $cycles cycles per model and interface, no heap growth, nothing lost"

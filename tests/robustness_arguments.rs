@@ -1,8 +1,11 @@
 //! Misuse of every C function's arguments: NULL instances, NULL arrays and out-pointers,
 //! unknown or mistyped value references, variables that cannot be set now, non-finite and
 //! out-of-range values, bad step sizes and communication points, bad fmi2Instantiate
-//! arguments. Each refusal must be fmi2Error/fmi2Discard with its reason logged through the
-//! importer's logger, must change nothing, and a fresh instance must work normally after.
+//! arguments; for Model Exchange, state, derivative, nominal and indicator vectors of the wrong
+//! length, non-finite or overflowing states, times that are not finite or lie before the start
+//! time, bad seeds and references of fmi2GetDirectionalDerivative. Each refusal must be
+//! fmi2Error/fmi2Discard with its reason logged through the importer's logger, must change
+//! nothing, and a fresh instance must work normally after.
 #![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 
 mod robustness_common;
@@ -16,8 +19,11 @@ use std::ptr::{null, null_mut};
 const OK: fmi2Status = fmi2Status::fmi2OK;
 const ERROR: fmi2Status = fmi2Status::fmi2Error;
 
+/// A call of one C function on the instance passed.
+type InstanceCall = Box<dyn Fn(fmi2Component) -> fmi2Status>;
+
 /// Every function that takes an instance, called on `c` with otherwise valid arguments.
-fn every_instance_function() -> Vec<(&'static str, Box<dyn Fn(fmi2Component) -> fmi2Status>)> {
+fn every_instance_function() -> Vec<(&'static str, InstanceCall)> {
     let vr = [MODELS[0].vr("tau_m")];
     let out_vr = [MODELS[0].vr("omega_m")];
     // SAFETY (all closures): every pointer is a live local or static of the announced length.
@@ -177,12 +183,15 @@ fn a_null_freed_or_foreign_instance_is_refused_by_every_function() {
     let freed = Fmu::new(SHAFT);
     let stale = freed.c;
     drop(freed);
+    let freed = Fmu::me_continuous(BELT);
+    let stale_me = freed.c;
+    drop(freed);
     let mut local = 0u64;
     let foreign = &mut local as *mut u64 as fmi2Component;
     let calls = every_instance_function();
     assert_eq!(calls.len(), 40, "every FMI 2.0 function that takes an instance");
     for (name, call) in &calls {
-        for c in [null_mut(), stale, foreign, usize::MAX as fmi2Component] {
+        for c in [null_mut(), stale, stale_me, foreign, usize::MAX as fmi2Component] {
             // No instance means no logger: the status is the only channel.
             assert_eq!(call(c), ERROR, "{name} on {c:p}");
         }
@@ -190,6 +199,7 @@ fn a_null_freed_or_foreign_instance_is_refused_by_every_function() {
     // Freeing what is not an instance is ignored.
     fmi2FreeInstance(null_mut());
     fmi2FreeInstance(stale);
+    fmi2FreeInstance(stale_me);
     fmi2FreeInstance(foreign);
     assert_eq!(local, 0, "a foreign pointer was written through");
     fresh_instance_works(SHAFT);
@@ -798,4 +808,620 @@ fn debug_logging_refuses_unknown_categories() {
         fmi2SetDebugLogging(c, 1, 2, [c"logCalls".as_ptr(), c"logEverything".as_ptr()].as_ptr())
     });
     f.reset_and_check();
+}
+
+// ---- Model Exchange ----
+
+/// Continuous states away from rest, inside the gap of both models (u = 2e-5 rad on the shaft).
+const X: [f64; NX] = [3e-5, 0.2, 1e-5, 0.1];
+
+/// Everything a Model Exchange instance shows, as bits: every variable, the continuous states,
+/// the event indicators and the nominals (all readable in Event, Continuous-Time and Error mode).
+fn observe(f: &Fmu) -> Vec<u64> {
+    let (s, values) = f.all_values();
+    assert_eq!(s, OK, "{:?}", f.entries().last());
+    let mut bits: Vec<u64> = values.iter().map(|(_, x)| x.to_bits()).collect();
+    let (s, x) = f.continuous_states();
+    assert_eq!(s, OK);
+    let (s2, z) = f.event_indicators();
+    assert_eq!(s2, OK);
+    let (s3, n) = f.nominals();
+    assert_eq!(s3, OK);
+    bits.extend(x.iter().chain(&z).chain(&n).map(|x| x.to_bits()));
+    bits
+}
+
+/// A Model Exchange instance of `model` at t = 0.2 with the states `X` and τ_m = 1.5, in
+/// Continuous-Time Mode or (`event_mode`) back in Event Mode.
+fn me_at_work(model: usize, event_mode: bool) -> Fmu {
+    let f = Fmu::me_continuous(model);
+    assert_eq!(fmi2SetTime(f.c, 0.2), OK);
+    assert_eq!(f.set_continuous_states(&X), OK);
+    assert_eq!(f.set_real("tau_m", 1.5), OK);
+    if event_mode {
+        assert_eq!(fmi2EnterEventMode(f.c), OK);
+    }
+    f.assert_all_finite("at work");
+    f
+}
+
+/// A refused Model Exchange call, on a fresh instance at work: the reason is logged, nothing the
+/// instance shows changed, and fmi2Reset gives a working instance.
+#[track_caller]
+fn refused_in_me(model: usize, event_mode: bool, reason: &str, call: impl FnOnce(fmi2Component) -> fmi2Status) {
+    let f = me_at_work(model, event_mode);
+    let before = observe(&f);
+    let status = f.refuses(reason, call);
+    assert_eq!(status, ERROR);
+    assert_eq!(observe(&f), before, "the refused call changed a value ({reason})");
+    f.reset_and_check();
+}
+
+/// After a call that may have pushed the instance to the edge of f64: every read either
+/// succeeds with finite values or is refused with a reason that names an overflow; never a NaN.
+#[track_caller]
+fn reads_are_finite_or_refused(f: &Fmu, context: &str) {
+    let check = |what: &str, status: fmi2Status, before: usize, values: &[f64]| {
+        if status == OK {
+            assert!(
+                values.iter().all(|x| x.is_finite()) || what == "bound_sup",
+                "{context}: {what} = {values:?}"
+            );
+        } else {
+            f.assert_refused(status, before, "overflow");
+        }
+    };
+    let n = f.log_len();
+    let (s, x) = f.continuous_states();
+    check("continuous states", s, n, &x);
+    let n = f.log_len();
+    let (s, dx) = f.derivatives();
+    check("derivatives", s, n, &dx);
+    let n = f.log_len();
+    let (s, z) = f.event_indicators();
+    check("event indicators", s, n, &z);
+    let n = f.log_len();
+    let (s, nominal) = f.nominals();
+    check("nominals", s, n, &nominal);
+    for v in f.model.variables.iter().filter(|v| v.name != "contact") {
+        let n = f.log_len();
+        let (s, x) = f.get_real(v.name);
+        assert!(!x.is_nan() || s != OK, "{context}: {} is NaN", v.name);
+        check(v.name, s, n, &[x]);
+    }
+}
+
+#[test]
+fn model_exchange_null_arrays_and_out_pointers_are_refused() {
+    let m = &MODELS[SHAFT];
+    let unknown = [m.vr("der(omega_m)")];
+    let known = [m.vr("tau_m")];
+    let (unknown, known) = (unknown.as_ptr(), known.as_ptr());
+    type Call = Box<dyn Fn(fmi2Component) -> fmi2Status>;
+    // (event mode?, reason, call): each call passes one NULL where values are announced.
+    // SAFETY (all closures): the non-NULL pointers point to live values of the announced length.
+    let cases: Vec<(bool, &str, Call)> = unsafe {
+        vec![
+            (
+                false,
+                "argument x is NULL but 4 values were announced",
+                Box::new(|c| fmi2SetContinuousStates(c, null(), NX)),
+            ),
+            (
+                false,
+                "argument x is NULL but 4 values were announced",
+                Box::new(|c| fmi2GetContinuousStates(c, null_mut(), NX)),
+            ),
+            (
+                true,
+                "argument x is NULL but 4 values were announced",
+                Box::new(|c| fmi2GetContinuousStates(c, null_mut(), NX)),
+            ),
+            (
+                false,
+                "argument derivatives is NULL but 4 values",
+                Box::new(|c| fmi2GetDerivatives(c, null_mut(), NX)),
+            ),
+            (
+                true,
+                "argument derivatives is NULL but 4 values",
+                Box::new(|c| fmi2GetDerivatives(c, null_mut(), NX)),
+            ),
+            (
+                false,
+                "argument eventIndicators is NULL but 2 values",
+                Box::new(|c| fmi2GetEventIndicators(c, null_mut(), NI)),
+            ),
+            (
+                false,
+                "argument x_nominal is NULL but 4 values",
+                Box::new(|c| fmi2GetNominalsOfContinuousStates(c, null_mut(), NX)),
+            ),
+            (
+                true,
+                "argument fmi2eventInfo is NULL",
+                Box::new(|c| fmi2NewDiscreteStates(c, null_mut())),
+            ),
+            (
+                false,
+                "argument enterEventMode is NULL",
+                Box::new(|c| fmi2CompletedIntegratorStep(c, 1, null_mut(), &mut 0)),
+            ),
+            (
+                false,
+                "argument terminateSimulation is NULL",
+                Box::new(|c| fmi2CompletedIntegratorStep(c, 0, &mut 0, null_mut())),
+            ),
+            (
+                false,
+                "argument vUnknown_ref is NULL",
+                Box::new(move |c| {
+                    fmi2GetDirectionalDerivative(c, null(), 1, known, 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
+                }),
+            ),
+            (
+                true,
+                "argument vKnown_ref is NULL",
+                Box::new(move |c| {
+                    fmi2GetDirectionalDerivative(c, unknown, 1, null(), 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
+                }),
+            ),
+            (
+                false,
+                "argument dvKnown is NULL",
+                Box::new(move |c| fmi2GetDirectionalDerivative(c, unknown, 1, known, 1, null(), [0.0].as_mut_ptr())),
+            ),
+            (
+                false,
+                "argument dvUnknown is NULL",
+                Box::new(move |c| fmi2GetDirectionalDerivative(c, unknown, 1, known, 1, [1.0].as_ptr(), null_mut())),
+            ),
+            // Value references of fmi2GetReal / fmi2SetReal in Continuous-Time Mode.
+            (
+                false,
+                "argument vr is NULL",
+                Box::new(|c| fmi2SetReal(c, null(), 1, [1.0].as_ptr())),
+            ),
+            (
+                false,
+                "argument value is NULL",
+                Box::new(move |c| fmi2GetReal(c, known, 1, null_mut())),
+            ),
+        ]
+    };
+    let count = cases.len();
+    for (event_mode, reason, call) in cases {
+        refused_in_me(SHAFT, event_mode, reason, call);
+    }
+    assert_eq!(count, 16);
+    fresh_me_instance_works(SHAFT);
+}
+
+#[test]
+fn model_exchange_vectors_of_the_wrong_length_are_refused_and_left_unwritten() {
+    for model in [SHAFT, BELT] {
+        for nx in [0, 1, 3, 5, 1000] {
+            let reason = |what: &str| format!("{what}: {nx} values given, 4 expected");
+            let x: Vec<f64> = (0..nx).map(|i| X[i % NX]).collect();
+            // SAFETY (all calls): buffers of length nx (NULL for nx = 0, where nothing is read).
+            unsafe {
+                let input = if nx == 0 { null() } else { x.as_ptr() };
+                refused_in_me(model, false, &reason("continuous states"), |c| {
+                    fmi2SetContinuousStates(c, input, nx)
+                });
+                type Getter = unsafe extern "C" fn(fmi2Component, *mut f64, usize) -> fmi2Status;
+                let getters: [(&str, Getter, bool); 3] = [
+                    ("continuous states", fmi2GetContinuousStates, true),
+                    ("derivatives", fmi2GetDerivatives, false),
+                    (
+                        "nominals of the continuous states",
+                        fmi2GetNominalsOfContinuousStates,
+                        true,
+                    ),
+                ];
+                for (what, get, in_event_mode) in getters {
+                    let mut out = vec![7.0; nx];
+                    let ptr = if nx == 0 { null_mut() } else { out.as_mut_ptr() };
+                    refused_in_me(model, in_event_mode, &reason(what), |c| get(c, ptr, nx));
+                    assert!(
+                        out.iter().all(|x| *x == 7.0),
+                        "{what} wrote into a refused buffer: {out:?}"
+                    );
+                }
+            }
+        }
+        for ni in [0, 1, 3, 4, 100] {
+            let mut out = vec![7.0; ni];
+            let ptr = if ni == 0 { null_mut() } else { out.as_mut_ptr() };
+            // SAFETY: a buffer of length ni.
+            refused_in_me(
+                model,
+                false,
+                &format!("event indicators: {ni} values given, 2 expected"),
+                |c| unsafe { fmi2GetEventIndicators(c, ptr, ni) },
+            );
+            assert!(out.iter().all(|x| *x == 7.0), "{out:?}");
+        }
+    }
+    fresh_me_instance_works(BELT);
+}
+
+#[test]
+fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
+    for model in [SHAFT, BELT] {
+        let m = &MODELS[model];
+        // Each state in turn non-finite, the others valid: nothing is stored (all or nothing).
+        for (i, name) in STATE_NAMES.iter().enumerate() {
+            for bad in [f64::NAN, -f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut x = X.map(|x| 3.0 * x);
+                x[i] = bad;
+                let reason = format!("continuous state {} ({name}) is", i + 1);
+                refused_in_me(model, false, &reason, |c| unsafe {
+                    // SAFETY: NX values.
+                    fmi2SetContinuousStates(c, x.as_ptr(), NX)
+                });
+                let f = me_at_work(model, false);
+                f.refuses("states must be finite", |_| f.set_continuous_states(&x));
+                assert_eq!(f.continuous_states(), (OK, X), "a state was stored");
+            }
+        }
+        // Finite states whose force overflows are refused too.
+        let huge = [f64::MAX, 0.0, -f64::MAX, 0.0];
+        refused_in_me(model, false, "the continuous states overflow", |c| unsafe {
+            // SAFETY: NX values.
+            fmi2SetContinuousStates(c, huge.as_ptr(), NX)
+        });
+        // Finite states at the edge of f64: accepted or refused, never a NaN read after.
+        for edge in [
+            [0.0, f64::MAX, 0.0, 0.0],
+            [0.0, 0.0, 0.0, -f64::MAX],
+            [1e300, 1e300, 1e300, 1e300],
+            [5e-324, -5e-324, f64::MIN_POSITIVE, 0.0],
+            [1e-3, 1e150, -1e-3, -1e150],
+        ] {
+            let f = me_at_work(model, false);
+            let before = f.log_len();
+            let s = f.set_continuous_states(&edge);
+            if s == OK {
+                assert_eq!(f.continuous_states(), (OK, edge));
+            } else {
+                f.assert_refused(s, before, "overflow");
+                assert_eq!(f.continuous_states(), (OK, X));
+            }
+            reads_are_finite_or_refused(&f, &format!("{} states {edge:?}", m.identifier));
+            f.reset_and_check();
+        }
+
+        // fmi2SetTime: non-finite times, and times before the start time.
+        for t in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -1e-300, -1.0, -f64::MAX] {
+            let reason = format!("time {t} must be finite and >= the startTime 0");
+            refused_in_me(model, false, &reason, |c| fmi2SetTime(c, t));
+            refused_in_me(model, true, &reason, |c| fmi2SetTime(c, t));
+        }
+        let f = Fmu::new_model_exchange(model);
+        assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 1.0, 1, 2.0), OK);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        let before = observe(&f);
+        for t in [1.0, 1.5, 1.0] {
+            assert_eq!(fmi2SetTime(f.c, t), OK, "t = {t}");
+        }
+        assert_eq!(
+            observe(&f),
+            before,
+            "back at the start time, the values are those at the start"
+        );
+        let just_before = f64::from_bits(1f64.to_bits() - 1);
+        f.refuses(
+            &format!("time {just_before} must be finite and >= the startTime 1 set in fmi2SetupExperiment"),
+            |c| fmi2SetTime(c, just_before),
+        );
+        assert_eq!(observe(&f), before);
+        f.reset_and_check();
+        // -0 is the start time 0.
+        let f = me_at_work(model, false);
+        assert_eq!(fmi2SetTime(f.c, -0.0), OK);
+        f.assert_all_finite("t = -0");
+    }
+    fresh_me_instance_works(SHAFT);
+}
+
+#[test]
+fn model_exchange_directional_derivatives_refuse_bad_seeds_and_references() {
+    for model in [SHAFT, BELT] {
+        let m = &MODELS[model];
+        let vr = |name: &str| m.vr(name);
+        let identifier = m.identifier;
+        // (reason, unknowns, knowns, seeds)
+        type Case = (String, Vec<u32>, Vec<u32>, Vec<f64>);
+        let cases: Vec<Case> = vec![
+            (
+                "value NaN refused for tau_m: it must be a finite seed".into(),
+                vec![vr("der(omega_m)")],
+                vec![vr("theta_m"), vr("tau_m")],
+                vec![1.0, f64::NAN],
+            ),
+            (
+                "value inf refused for theta_m: it must be a finite seed".into(),
+                vec![vr("der(omega_m)")],
+                vec![vr("theta_m")],
+                vec![f64::INFINITY],
+            ),
+            (
+                "value -inf refused for omega_L".into(),
+                vec![vr("psi")],
+                vec![vr("omega_L")],
+                vec![f64::NEG_INFINITY],
+            ),
+            (
+                "value NaN refused for tau_L".into(),
+                vec![vr("der(omega_L)")],
+                vec![vr("tau_L")],
+                vec![-f64::NAN],
+            ),
+            (
+                format!("value reference 1000 is not a variable of {identifier}"),
+                vec![vr("der(omega_m)"), 1000],
+                vec![vr("tau_m")],
+                vec![1.0],
+            ),
+            (
+                format!("value reference 1000 is not a variable of {identifier}"),
+                vec![vr("der(omega_m)")],
+                vec![vr("tau_m"), 1000],
+                vec![1.0, 1.0],
+            ),
+            (
+                format!("value reference 4294967295 is not a variable of {identifier}"),
+                vec![u32::MAX],
+                vec![vr("tau_m")],
+                vec![1.0],
+            ),
+            (
+                "variable contact (value reference".into(),
+                vec![vr("contact")],
+                vec![vr("tau_m")],
+                vec![1.0],
+            ),
+            (
+                "variable contact (value reference".into(),
+                vec![vr("der(theta_m)")],
+                vec![vr("contact")],
+                vec![1.0],
+            ),
+        ];
+        let mut cases = cases;
+        // Knowns that are neither continuous states nor inputs.
+        for name in [
+            "J_m",
+            "Delta",
+            "psi",
+            "der(theta_m)",
+            "der(omega_L)",
+            "bound",
+            "bound_paper",
+            "bound_sup",
+        ] {
+            cases.push((
+                format!("{name} is not a known of the Jacobian: the knowns are the continuous states and the inputs"),
+                vec![vr("der(omega_m)")],
+                vec![vr("theta_m"), vr(name)],
+                vec![1.0, 1.0],
+            ));
+        }
+        // Unknowns that are neither state derivatives nor outputs.
+        for name in ["tau_m", "tau_L", "J_L", "Kp", "bound_sup"] {
+            cases.push((
+                format!(
+                    "{name} is not an unknown of the Jacobian: the unknowns are the state derivatives and the outputs"
+                ),
+                vec![vr("der(omega_m)"), vr(name)],
+                vec![vr("tau_m")],
+                vec![1.0],
+            ));
+        }
+        for (reason, unknowns, knowns, seeds) in &cases {
+            for event_mode in [false, true] {
+                let mut out = vec![7.0; unknowns.len()];
+                // SAFETY: arrays of the announced lengths.
+                refused_in_me(model, event_mode, reason, |c| unsafe {
+                    fmi2GetDirectionalDerivative(
+                        c,
+                        unknowns.as_ptr(),
+                        unknowns.len(),
+                        knowns.as_ptr(),
+                        knowns.len(),
+                        seeds.as_ptr(),
+                        out.as_mut_ptr(),
+                    )
+                });
+                assert!(out.iter().all(|x| *x == 7.0), "{reason}: {out:?}");
+            }
+        }
+        // Finite seeds whose sum overflows: refused with a reason or finite, never NaN with OK.
+        let f = me_at_work(model, false);
+        let unknowns: Vec<u32> = [
+            "der(theta_m)",
+            "der(omega_m)",
+            "der(theta_L)",
+            "der(omega_L)",
+            "psi",
+            "theta_m",
+            "bound",
+        ]
+        .map(vr)
+        .to_vec();
+        let knowns = [vr("theta_m"), vr("theta_m"), vr("omega_L"), vr("tau_m")];
+        let mut out = vec![f64::NAN; unknowns.len()];
+        let before = f.log_len();
+        // SAFETY: arrays of the announced lengths.
+        let s = unsafe {
+            fmi2GetDirectionalDerivative(
+                f.c,
+                unknowns.as_ptr(),
+                unknowns.len(),
+                knowns.as_ptr(),
+                knowns.len(),
+                [f64::MAX, f64::MAX, -f64::MAX, f64::MAX].as_ptr(),
+                out.as_mut_ptr(),
+            )
+        };
+        if s == OK {
+            assert!(out.iter().all(|x| x.is_finite()), "{out:?}");
+        } else {
+            f.assert_refused(s, before, "overflow");
+        }
+        reads_are_finite_or_refused(&f, "after huge seeds");
+        f.reset_and_check();
+        // Zero-length calls are fine; a legal call keeps the instance at work.
+        let f = me_at_work(model, true);
+        // SAFETY: n = 0: nothing is read or written.
+        assert_eq!(
+            unsafe { fmi2GetDirectionalDerivative(f.c, null(), 0, null(), 0, null(), null_mut()) },
+            OK
+        );
+        let mut dv = [f64::NAN; 4];
+        // SAFETY: arrays of the announced lengths.
+        let s = unsafe {
+            fmi2GetDirectionalDerivative(
+                f.c,
+                [vr("theta_m"), vr("bound"), vr("u_minus_g"), vr("u_plus_g")].as_ptr(),
+                4,
+                [vr("theta_m"), vr("tau_L")].as_ptr(),
+                2,
+                [0.5, 3.0].as_ptr(),
+                dv.as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, OK);
+        // d theta_m = the theta_m seed; the bound depends on time alone; u = r_m theta_m - r_L theta_L
+        // moves with theta_m (r_m = 1 on the shaft).
+        assert_eq!(dv[..2], [0.5, 0.0]);
+        assert_eq!(dv[2], dv[3]);
+        if model == SHAFT {
+            assert_eq!(dv[2], 0.5);
+        } else {
+            assert!(dv[2] > 0.0, "{dv:?}");
+        }
+        assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+        f.reset_and_check();
+    }
+    fresh_me_instance_works(SHAFT);
+}
+
+#[test]
+fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
+    use backlash_fmu::fmu::variables::Causality::*;
+    for model in [SHAFT, BELT] {
+        let m = &MODELS[model];
+        for event_mode in [true, false] {
+            for v in m.variables.iter().filter(|v| v.name != "contact") {
+                let reason = match (v.causality, v.is_initial_state()) {
+                    (Input, _) => None,
+                    (Output, true) => Some("fmi2SetContinuousStates sets the state"),
+                    (Output, false) => Some("output computed by the FMU"),
+                    (Parameter, _) => Some("fixed parameter"),
+                    (CalculatedParameter, _) => Some("calculatedParameter"),
+                    // der(...) and the event indicators u_minus_g, u_plus_g.
+                    (Local, _) if v.name.starts_with("der(") => Some("state derivative, computed by the FMU"),
+                    (Local, _) => Some("computed by the FMU"),
+                };
+                match reason {
+                    Some(reason) => refused_in_me(model, event_mode, reason, |c| unsafe {
+                        // SAFETY: arrays of length 1.
+                        fmi2SetReal(c, [v.vr].as_ptr(), 1, [1.5].as_ptr())
+                    }),
+                    None => {
+                        // An input: set, and seen in the derivatives at once.
+                        let f = me_at_work(model, event_mode);
+                        let (_, before) = f.derivatives();
+                        assert_eq!(f.set_real(v.name, -4.0), OK);
+                        assert_eq!(f.get_real(v.name), (OK, -4.0));
+                        let (s, after) = f.derivatives();
+                        assert_eq!(s, OK);
+                        assert_ne!(before, after, "{} changed no derivative", v.name);
+                        // Non-finite inputs are refused, and nothing else changes.
+                        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                            let f = me_at_work(model, event_mode);
+                            let before = observe(&f);
+                            f.refuses(&format!("value {bad} refused for {}", v.name), |_| {
+                                f.set_real(v.name, bad)
+                            });
+                            assert_eq!(observe(&f), before);
+                        }
+                        // All or nothing: a valid input before a refused variable is not stored.
+                        let both = [v.vr, m.vr("J_m")];
+                        refused_in_me(model, event_mode, "fixed parameter", |c| unsafe {
+                            // SAFETY: arrays of length 2.
+                            fmi2SetReal(c, both.as_ptr(), 2, [9.0, 1.0].as_ptr())
+                        });
+                        // Huge finite inputs: accepted (finite), and then every read is finite
+                        // or refused as an overflow.
+                        let f = me_at_work(model, event_mode);
+                        assert_eq!(f.set_real(v.name, f64::MAX), OK);
+                        reads_are_finite_or_refused(&f, &format!("{} = f64::MAX", v.name));
+                        f.reset_and_check();
+                    }
+                }
+            }
+            // contact, the only Integer, is a calculated output; in Continuous-Time Mode no
+            // Integer can be set at all.
+            let contact = [m.vr("contact")];
+            let reason = if event_mode {
+                "output computed by the FMU"
+            } else {
+                "fmi2SetInteger is not allowed in state ContinuousTimeMode"
+            };
+            refused_in_me(model, event_mode, reason, |c| unsafe {
+                // SAFETY: arrays of length 1.
+                fmi2SetInteger(c, contact.as_ptr(), 1, [1].as_ptr())
+            });
+        }
+    }
+    fresh_me_instance_works(BELT);
+}
+
+/// fmi2SetTime accepts any finite time from the start time on; the bounds are then brought to
+/// that time when read. That must not take unbounded work: a far time is refused with a reason,
+/// or the read answers promptly. (Each time runs in its own thread, so that a hang fails the
+/// test instead of stalling the suite; a hung thread is left behind until the process exits.)
+#[test]
+fn model_exchange_far_times_are_refused_or_answered_promptly() {
+    let limit = std::time::Duration::from_secs(5);
+    let start = std::time::Instant::now();
+    // All at once, against one deadline; a time that hangs is tried on one model only, since
+    // its thread spins until the process exits.
+    let cases = [(SHAFT, 1e3), (BELT, 1e3), (SHAFT, 1e6), (BELT, 1e6), (BELT, 1e300)];
+    let waiting: Vec<_> = cases
+        .into_iter()
+        .map(|(model, t)| {
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let f = Fmu::me_initialized(model, None);
+                let before = f.log_len();
+                let s = fmi2SetTime(f.c, t);
+                if s != OK {
+                    f.assert_refused(s, before, "time");
+                } else {
+                    let (s, bound) = f.get_real("bound");
+                    assert!(s != OK || bound.is_finite(), "bound = {bound}");
+                }
+                let _ = tx.send(());
+            });
+            (MODELS[model].identifier, t, rx)
+        })
+        .collect();
+    let mut slow = Vec::new();
+    for (identifier, t, rx) in waiting {
+        match rx.recv_timeout(limit.saturating_sub(start.elapsed())) {
+            Ok(()) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => slow.push((identifier, t)),
+            Err(e) => panic!("{identifier} at t = {t}: the call panicked ({e})"),
+        }
+    }
+    assert!(
+        slow.is_empty(),
+        "fmi2SetTime(t) accepted, then fmi2GetReal(bound) did not return within {limit:?} for {slow:?}: \
+         the bound is advanced in steps of at most max_step up to t"
+    );
 }

@@ -1,17 +1,24 @@
-//! Random call sequences over the whole C ABI (see `robustness_common/fuzz.rs` for what is
-//! checked after every call), from a deterministic PRNG.
+//! Random call sequences over the whole C ABI, on Co-Simulation and Model Exchange instances
+//! (see `robustness_common/fuzz.rs` for what is checked after every call), from a
+//! deterministic PRNG.
 //!
 //! `cargo test --test robustness_fuzz` runs a fixed set of seeds in a few seconds. The longer
 //! mode runs fresh seeds until a time budget is spent and prints the failing seed:
 //!
 //!     FUZZ_SECONDS=180 cargo test --release --test robustness_fuzz -- --nocapture
 //!     FUZZ_SEED=12345 cargo test --test robustness_fuzz   # replay one seed
+//!     FUZZ_SEED=12345 FUZZ_CO_SIMULATION_ONLY=1 cargo test --test robustness_fuzz   # one of SLOW_SEEDS
 //!
 //! Every run first replays `SLOW_SEEDS`, seeds that once hung a call.
 //!
 //! FUZZ_EXTREME=1 also gives parameters extreme finite magnitudes (1e±300, f64::MAX), which
 //! the plant refuses by scale (tests/robustness_extremes.rs); off by default to keep most calls
 //! on plants that step.
+//!
+//! FUZZ_FAR_TIMES=1 lets Model Exchange times lie any distance from the start time; reading the
+//! bounds after fmi2SetTime to a far time takes work proportional to the time, so such runs hang
+//! (the watchdog aborts them) until that is bounded (see
+//! `model_exchange_far_times_are_refused_or_answered_promptly` in tests/robustness_arguments.rs).
 #![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 
 mod robustness_common;
@@ -21,14 +28,32 @@ use robustness_common::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-/// Calls per seed: long enough to reach stepping after initialization, FMU states and
-/// recovery from Error many times over.
-const CALLS_PER_SEED: u64 = 400;
+/// Calls per seed: long enough to reach stepping (Co-Simulation) or Continuous-Time Mode (Model
+/// Exchange) after initialization, FMU states and recovery from Error many times over.
+const CALLS_PER_SEED: u64 = 800;
+/// As it was before Model Exchange, for `SLOW_SEEDS` (Co-Simulation only).
+const CO_SIMULATION_CALLS_PER_SEED: u64 = 400;
 
 static PANICS: AtomicUsize = AtomicUsize::new(0);
 static PROGRESS: AtomicU64 = AtomicU64::new(0);
 /// The seed being run, for the watchdog's message.
 static CURRENT_SEED: AtomicU64 = AtomicU64::new(0);
+/// Whether that seed runs the Co-Simulation-only driver.
+static CURRENT_CO_SIMULATION_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// How to replay `seed` (with the same FUZZ_EXTREME and FUZZ_FAR_TIMES, if they were set).
+fn replay_hint(seed: u64, co_simulation_only: bool) -> String {
+    let mut hint = format!("FUZZ_SEED={seed}");
+    if co_simulation_only {
+        hint += " FUZZ_CO_SIMULATION_ONLY=1";
+    }
+    for flag in ["FUZZ_EXTREME", "FUZZ_FAR_TIMES"] {
+        if std::env::var(flag).is_ok_and(|v| v == "1") {
+            hint += &format!(" {flag}=1");
+        }
+    }
+    hint
+}
 
 /// Counts every panic, including those the FMU's guard catches: a panic inside the FMU is a
 /// defect even when the boundary contains it. A watchdog aborts the process if no seed
@@ -46,7 +71,8 @@ fn instrument() {
             let now = PROGRESS.load(Ordering::SeqCst);
             if now == last {
                 let seed = CURRENT_SEED.load(Ordering::SeqCst);
-                eprintln!("fuzz: seed {seed} did not finish within 60 s: a call hangs (replay with FUZZ_SEED={seed})");
+                let hint = replay_hint(seed, CURRENT_CO_SIMULATION_ONLY.load(Ordering::SeqCst));
+                eprintln!("fuzz: seed {seed} did not finish within 60 s: a call hangs (replay with {hint})");
                 std::process::abort();
             }
             last = now;
@@ -56,7 +82,8 @@ fn instrument() {
 
 /// Seeds that once made a call run for minutes, all with extreme parameters: a sign-change
 /// search on a signal hovering at zero through thousands of pieces per step (fixed by a
-/// resolution floor on bisection and a work budget per step). Replayed on every run.
+/// resolution floor on bisection and a work budget per step). Replayed on every run, with the
+/// driver of their time: Co-Simulation only, 400 calls.
 const SLOW_SEEDS: [u64; 4] = [
     3158627156007275700,
     1036976658639528566,
@@ -64,19 +91,53 @@ const SLOW_SEEDS: [u64; 4] = [
     4355302118784622655,
 ];
 
-fn run_seed(seed: u64, extreme: bool) -> (u64, u64) {
+/// What one seed did.
+#[derive(Default)]
+struct Counts {
+    calls: u64,
+    ok_steps: u64,
+    me_calls: u64,
+    ok_state_sets: u64,
+}
+
+/// A bijective scramble of the seed (splitmix64's output function).
+fn splitmix64(seed: u64) -> u64 {
+    let mut z = seed.wrapping_add(0x9E3779B97F4A7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+    z ^ (z >> 31)
+}
+
+/// Runs one seed; `model_exchange` false: the Co-Simulation-only driver of `SLOW_SEEDS`.
+fn run_seed(seed: u64, extreme: bool, far_times: bool, model_exchange: bool) -> Counts {
     CURRENT_SEED.store(seed, Ordering::SeqCst);
+    CURRENT_CO_SIMULATION_ONLY.store(!model_exchange, Ordering::SeqCst);
     let result = std::panic::catch_unwind(|| {
-        let mut d = Driver::new(Prng(seed | 1));
+        // The Co-Simulation-only driver as it always was (where seeds 2k and 2k + 1 coincide);
+        // otherwise every seed its own sequence.
+        let state = if model_exchange { splitmix64(seed) | 1 } else { seed | 1 };
+        let mut d = Driver::new(Prng(state));
         d.extreme_parameters = extreme;
-        d.run(CALLS_PER_SEED);
-        (d.calls, d.ok_steps)
+        d.far_times = far_times;
+        d.model_exchange = model_exchange;
+        d.run(if model_exchange {
+            CALLS_PER_SEED
+        } else {
+            CO_SIMULATION_CALLS_PER_SEED
+        });
+        Counts {
+            calls: d.calls,
+            ok_steps: d.ok_steps,
+            me_calls: d.me_calls,
+            ok_state_sets: d.ok_state_sets,
+        }
     });
     PROGRESS.fetch_add(1, Ordering::SeqCst);
     match result {
         Ok(counts) => counts,
         Err(e) => std::panic::resume_unwind(Box::new(format!(
-            "fuzz seed {seed} failed (replay with FUZZ_SEED={seed}): {}",
+            "fuzz seed {seed} failed (replay with {}): {}",
+            replay_hint(seed, !model_exchange),
             e.downcast_ref::<String>()
                 .cloned()
                 .or(e.downcast_ref::<&str>().map(|s| s.to_string()))
@@ -91,10 +152,12 @@ fn random_call_sequences_keep_every_invariant() {
     let start = Instant::now();
     let budget = std::env::var("FUZZ_SECONDS").ok().and_then(|s| s.parse::<u64>().ok());
     let extreme = std::env::var("FUZZ_EXTREME").is_ok_and(|v| v == "1");
+    let far_times = std::env::var("FUZZ_FAR_TIMES").is_ok_and(|v| v == "1");
+    let model_exchange = !std::env::var("FUZZ_CO_SIMULATION_ONLY").is_ok_and(|v| v == "1");
     let replay = std::env::var("FUZZ_SEED").ok();
     if replay.is_none() {
         for seed in SLOW_SEEDS {
-            run_seed(seed, true);
+            run_seed(seed, true, far_times, false);
         }
     }
     let seeds: Box<dyn Iterator<Item = u64>> = match (replay.clone(), budget) {
@@ -107,24 +170,31 @@ fn random_call_sequences_keep_every_invariant() {
                 .as_nanos() as u64;
             Box::new((0..).map(move |k: u64| base.wrapping_add(k.wrapping_mul(0x9E3779B97F4A7C15))))
         }
-        (None, None) => Box::new(1..=25),
+        (None, None) => Box::new(1..=15),
     };
-    let (mut seeds_run, mut calls, mut steps) = (0, 0, 0);
+    let (mut seeds_run, mut total) = (0, Counts::default());
     for seed in seeds {
         let t = Instant::now();
-        let (c, s) = run_seed(seed, extreme);
+        let c = run_seed(seed, extreme, far_times, model_exchange);
         if t.elapsed() > Duration::from_secs(2) {
             eprintln!("fuzz: seed {seed} took {:.1} s", t.elapsed().as_secs_f64());
         }
         seeds_run += 1;
-        calls += c;
-        steps += s;
+        total.calls += c.calls;
+        total.ok_steps += c.ok_steps;
+        total.me_calls += c.me_calls;
+        total.ok_state_sets += c.ok_state_sets;
         if budget.is_some_and(|b| start.elapsed() >= Duration::from_secs(b)) {
             break;
         }
     }
+    let steps = total.ok_steps;
     eprintln!(
-        "fuzz: {seeds_run} seeds, {calls} calls, {steps} successful steps in {:.1} s",
+        "fuzz: {seeds_run} seeds, {} calls ({} of the Model Exchange functions), {steps} successful steps, \
+         {} successful fmi2SetContinuousStates in {:.1} s",
+        total.calls,
+        total.me_calls,
+        total.ok_state_sets,
         start.elapsed().as_secs_f64()
     );
     assert_eq!(
@@ -138,6 +208,14 @@ fn random_call_sequences_keep_every_invariant() {
         replay.is_some() || steps > seeds_run * 5,
         "only {steps} successful steps in {seeds_run} seeds"
     );
+    // Likewise Model Exchange sequences must reach Continuous-Time Mode and move the states.
+    assert!(
+        replay.is_some() || !model_exchange || total.ok_state_sets > seeds_run * 5,
+        "only {} successful fmi2SetContinuousStates in {seeds_run} seeds",
+        total.ok_state_sets
+    );
     fresh_instance_works(SHAFT);
     fresh_instance_works(BELT);
+    fresh_me_instance_works(SHAFT);
+    fresh_me_instance_works(BELT);
 }

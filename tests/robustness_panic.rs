@@ -127,3 +127,58 @@ fn a_panic_without_a_logger_is_still_caught() {
     assert_eq!(fmi2DoStep(c, 0.0, 1e-3, 1), OK);
     fmi2FreeInstance(c);
 }
+
+#[test]
+fn a_panic_in_a_model_exchange_function_is_caught_and_leaves_error() {
+    quiet_panics();
+    // Model Exchange functions in states where they are legal, so the panic happens inside
+    // the work itself.
+    let cases = [
+        (Function::GetNominalsOfContinuousStates, "Instantiated"),
+        (Function::SetTime, "EventMode"),
+        (Function::NewDiscreteStates, "EventMode"),
+        (Function::EnterContinuousTimeMode, "EventMode"),
+        (Function::SetContinuousStates, "ContinuousTimeMode"),
+        (Function::GetDerivatives, "ContinuousTimeMode"),
+        (Function::GetEventIndicators, "ContinuousTimeMode"),
+        (Function::GetContinuousStates, "ContinuousTimeMode"),
+        (Function::CompletedIntegratorStep, "ContinuousTimeMode"),
+        (Function::EnterEventMode, "ContinuousTimeMode"),
+        (Function::GetDirectionalDerivative, "Terminated"),
+    ];
+    let other = Fmu::me_continuous(BELT);
+    let twin = Fmu::me_continuous(BELT);
+    for (k, (function, phase)) in cases.into_iter().enumerate() {
+        let f = match phase {
+            "Instantiated" => Fmu::new_model_exchange(SHAFT),
+            "EventMode" => Fmu::me_initialized(SHAFT, None),
+            "ContinuousTimeMode" => Fmu::me_continuous(SHAFT),
+            _ => {
+                let f = Fmu::me_continuous(SHAFT);
+                assert_eq!(fmi2Terminate(f.c), OK);
+                f
+            }
+        };
+        let before = f.log_len();
+        let status = guard(f.c, function, |_| -> Result<Status, _> { panic!("deliberate ME {k}") });
+        f.assert_refused(
+            status,
+            before,
+            &format!("internal error in {}: deliberate ME {k}", function.c_name()),
+        );
+        assert_eq!(status, ERROR);
+        f.refuses("not allowed in state Error", |c| fmi2EnterEventMode(c));
+        f.assert_all_finite(&format!("after a panic in {}", function.c_name()));
+        f.reset_and_check();
+        // Another instance integrating alongside is untouched: it matches its twin bit for bit.
+        let x = [1e-4 * k as f64, 0.1, 0.0, 0.05];
+        for g in [&other, &twin] {
+            assert_eq!(fmi2SetTime(g.c, 0.01 * k as f64), OK);
+            assert_eq!(g.set_continuous_states(&x), OK);
+        }
+        let bits = |f: &Fmu| f.all_values().1.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&other), bits(&twin));
+        assert_eq!(other.derivatives(), twin.derivatives());
+    }
+    fresh_me_instance_works(SHAFT);
+}

@@ -1,9 +1,10 @@
-//! Every C function in every state of the FMI 2.0 Co-Simulation state machine, through the C
-//! ABI, against the standard's table of allowed calls (FMI 2.0.4 §4.2.4) written out here
-//! independently of `src/fmu/state_machine.rs`. StepFailed, which this FMU never enters by
-//! itself, is reached through an FMU state. An illegal call must return fmi2Error, log
-//! "not allowed in state X" and leave the instance in state Error; a legal one must do its
-//! work.
+//! Every C function in every state of the FMI 2.0 state machines, through the C ABI, against
+//! the standard's tables of allowed calls written out here independently of
+//! `src/fmu/state_machine.rs`: Co-Simulation (FMI 2.0.4 §4.2.4) and Model Exchange (§3.2.3).
+//! StepFailed, which this FMU never enters by itself, is reached through an FMU state. An
+//! illegal call must return fmi2Error, log "not allowed in state X" (or, for a function of the
+//! other interface, "belongs to FMI for ...") and leave the instance in state Error; a legal one
+//! must do its work.
 #![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 
 mod robustness_common;
@@ -169,7 +170,7 @@ fn every_call_in_every_state_follows_the_standard_table() {
                 }
             } else {
                 let reason = if model_exchange {
-                    "Model Exchange".to_string()
+                    "belongs to FMI for Model Exchange; this instance was instantiated for Co-Simulation".to_string()
                 } else {
                     format!("{name} is not allowed in state {phase}")
                 };
@@ -222,4 +223,473 @@ fn error_is_left_only_by_reset_or_an_fmu_state() {
     assert_eq!(fmi2DoStep(reference.c, 0.01, 0.01, 1), OK);
     let bits = |f: &Fmu| f.all_values().1.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&f), bits(&reference));
+}
+
+// ---- Model Exchange (FMI 2.0.4 §3.2.3) ----
+
+/// The states of a Model Exchange instance; "Error" is entered twice in the test, from Event
+/// Mode (a simulation to read) and before initialization (none yet).
+const ME_PHASES: [&str; 6] = [
+    "Instantiated",
+    "InitializationMode",
+    "EventMode",
+    "ContinuousTimeMode",
+    "Terminated",
+    "Error",
+];
+
+/// The states in which the table is checked: the six above, and Error entered from
+/// Instantiated, with the legality of Error.
+const ME_COLUMNS: [(&str, usize); 7] = [
+    ("Instantiated", 0),
+    ("InitializationMode", 1),
+    ("EventMode", 2),
+    ("ContinuousTimeMode", 3),
+    ("Terminated", 4),
+    ("Error", 5),
+    ("Error before initialization", 5),
+];
+
+/// The continuous states the table's fmi2SetContinuousStates sets, and the donor's states.
+const X: [f64; NX] = [1e-4, 0.2, -1e-4, 0.1];
+
+fn in_me_phase(model: usize, phase: &str) -> Fmu {
+    match phase {
+        "Instantiated" => Fmu::new_model_exchange(model),
+        "InitializationMode" => {
+            let f = Fmu::new_model_exchange(model);
+            assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+            f
+        }
+        "EventMode" => Fmu::me_initialized(model, None),
+        "ContinuousTimeMode" => Fmu::me_continuous(model),
+        "Terminated" => {
+            let f = Fmu::me_continuous(model);
+            assert_eq!(fmi2Terminate(f.c), OK);
+            f
+        }
+        "Error" => {
+            let f = Fmu::me_initialized(model, None);
+            assert_eq!(fmi2EnterInitializationMode(f.c), ERROR);
+            f
+        }
+        "Error before initialization" => {
+            let f = Fmu::new_model_exchange(model);
+            assert_eq!(fmi2ExitInitializationMode(f.c), ERROR);
+            f
+        }
+        _ => unreachable!("{phase}"),
+    }
+}
+
+/// What a legal call must have done, checked right after it with further calls.
+type Effect = fn(&Fmu, &str);
+
+struct MeCase {
+    name: &'static str,
+    call: Call,
+    /// Legal in [Instantiated, InitializationMode, EventMode, ContinuousTimeMode, Terminated, Error].
+    legal: [bool; 6],
+    when_legal: fmi2Status,
+    effect: Option<Effect>,
+}
+
+/// An ME instance in Continuous-Time Mode at t = 0.3 with the states `X`: the source of the
+/// FMU state the table's fmi2SetFMUstate loads.
+fn me_donor() -> Fmu {
+    let donor = Fmu::me_continuous(SHAFT);
+    assert_eq!(fmi2SetTime(donor.c, 0.3), OK);
+    assert_eq!(donor.set_continuous_states(&X), OK);
+    donor
+}
+
+fn bits<const N: usize>(x: [f64; N]) -> [u64; N] {
+    x.map(f64::to_bits)
+}
+
+/// The Model Exchange table of FMI 2.0.4 §3.2.3 ("x": the call is allowed in that state), one
+/// row per function in the order of [`table`], with the effect a legal call must have.
+#[rustfmt::skip]
+fn me_table() -> Vec<MeCase> {
+    const ALL: [bool; 6] = [true; 6];
+    const NONE: [bool; 6] = [false; 6];
+    // I, M, V (Event Mode), N (Continuous-Time Mode), T, E.
+    const I: [bool; 6] = [true, false, false, false, false, false];
+    const M: [bool; 6] = [false, true, false, false, false, false];
+    const V: [bool; 6] = [false, false, true, false, false, false];
+    const N: [bool; 6] = [false, false, false, true, false, false];
+    const V_N: [bool; 6] = [false, false, true, true, false, false];
+    const READ: [bool; 6] = [false, true, true, true, true, true];
+    fn case(name: &'static str, call: Call, legal: [bool; 6], when_legal: fmi2Status, effect: Option<Effect>) -> MeCase {
+        MeCase { name, call, legal, when_legal, effect }
+    }
+    // SAFETY (every entry): pointers to locals or statics of the announced length.
+    unsafe {
+        vec![
+            case("fmi2SetDebugLogging", |c| fmi2SetDebugLogging(c, 1, 1, [c"logCalls".as_ptr()].as_ptr()), ALL, OK, None),
+            // Start time 0.5: an earlier time is refused afterwards.
+            case("fmi2SetupExperiment", |c| fmi2SetupExperiment(c, 1, 1e-6, 0.5, 1, 10.0), I, OK, Some(|f, _| {
+                assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+                assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+                f.refuses("startTime 0.5", |c| fmi2SetTime(c, 0.25));
+            })),
+            case("fmi2EnterInitializationMode", |c| fmi2EnterInitializationMode(c), I, OK, Some(|f, _| {
+                assert_eq!(f.get_real("theta_m"), (OK, 0.0));
+                f.refuses("not allowed in state InitializationMode", |c| fmi2EnterEventMode(c));
+            })),
+            case("fmi2ExitInitializationMode", |c| fmi2ExitInitializationMode(c), M, OK, Some(|f, _| {
+                // Event Mode: the event iteration, then Continuous-Time Mode.
+                let mut info = event_info();
+                assert_eq!(fmi2NewDiscreteStates(f.c, &mut info), OK);
+                assert_eq!(info.newDiscreteStatesNeeded, fmi2False);
+                assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+                assert_eq!(fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1), OK);
+            })),
+            case("fmi2Terminate", |c| fmi2Terminate(c), V_N, OK, Some(|f, _| {
+                f.assert_all_finite("after fmi2Terminate");
+                assert_eq!(f.derivatives().0, OK);
+                f.refuses("not allowed in state Terminated", |c| fmi2EnterEventMode(c));
+            })),
+            case("fmi2Reset", |c| fmi2Reset(c), ALL, OK, Some(|f, _| {
+                f.refuses("not allowed in state Instantiated", |c| fmi2GetReal(c, vr("theta_m").as_ptr(), 1, [0.0].as_mut_ptr()));
+                f.reset_and_check();
+            })),
+            case("fmi2GetReal", |c| fmi2GetReal(c, vr("theta_m").as_ptr(), 1, [0.0].as_mut_ptr()), READ, OK, Some(|f, _| {
+                f.assert_all_finite("fmi2GetReal of every variable");
+            })),
+            case("fmi2GetInteger", |c| fmi2GetInteger(c, vr("contact").as_ptr(), 1, [0].as_mut_ptr()), READ, OK, None),
+            case("fmi2GetBoolean", |c| fmi2GetBoolean(c, null(), 0, null_mut()), READ, OK, None),
+            case("fmi2GetString", |c| fmi2GetString(c, null(), 0, null_mut()), READ, OK, None),
+            case("fmi2SetReal", |c| fmi2SetReal(c, vr("tau_m").as_ptr(), 1, [0.5].as_ptr()), [true, true, true, true, false, false], OK, Some(|f, phase| {
+                if phase == "Instantiated" {
+                    assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+                }
+                assert_eq!(f.get_real("tau_m"), (OK, 0.5));
+                // der(omega_m) = (tau_m - b_m omega_m - psi) / J_m, from rest at theta = 0.
+                assert_eq!(f.get_real("der(omega_m)"), (OK, 0.5 / f.get_real("J_m").1));
+            })),
+            case("fmi2SetInteger", |c| fmi2SetInteger(c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
+            case("fmi2SetBoolean", |c| fmi2SetBoolean(c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
+            case("fmi2SetString", |c| fmi2SetString(c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
+            case("fmi2GetFMUstate", |c| {
+                let mut s = null_mut();
+                let status = fmi2GetFMUstate(c, &mut s);
+                fmi2FreeFMUstate(c, &mut s);
+                status
+            }, ALL, OK, None),
+            case("fmi2SetFMUstate", |c| {
+                let donor = me_donor();
+                let mut s = null_mut();
+                assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
+                fmi2SetFMUstate(c, s)
+            }, ALL, OK, Some(|f, _| {
+                // Now the donor's: Continuous-Time Mode with its states.
+                assert_eq!(f.continuous_states(), (OK, X));
+                assert_eq!(fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1), OK);
+                let donor = me_donor();
+                assert_eq!(f.get_real("bound"), donor.get_real("bound"));
+            })),
+            case("fmi2FreeFMUstate", |c| {
+                let donor = Fmu::new_model_exchange(0);
+                let mut s = null_mut();
+                assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
+                fmi2FreeFMUstate(c, &mut s)
+            }, ALL, OK, None),
+            case("fmi2SerializedFMUstateSize", |c| {
+                let donor = Fmu::new_model_exchange(0);
+                let mut s = null_mut();
+                assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
+                fmi2SerializedFMUstateSize(c, s, &mut 0)
+            }, ALL, OK, None),
+            case("fmi2SerializeFMUstate", |c| {
+                let donor = Fmu::new_model_exchange(0);
+                let mut s = null_mut();
+                assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
+                fmi2SerializeFMUstate(c, s, [0; 4096].as_mut_ptr(), 4096)
+            }, ALL, OK, None),
+            case("fmi2DeSerializeFMUstate", |c| {
+                let bytes = serialized(&me_donor());
+                fmi2DeSerializeFMUstate(c, bytes.as_ptr().cast(), bytes.len(), &mut null_mut())
+            }, ALL, OK, None),
+            case("fmi2GetDirectionalDerivative", |c| {
+                fmi2GetDirectionalDerivative(c, vr("der(omega_m)").as_ptr(), 1, vr("tau_m").as_ptr(), 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
+            }, READ, OK, Some(|f, _| {
+                // d der(omega_m) / d tau_m = 1/J_m in every mode.
+                let mut dv = [f64::NAN];
+                let s = fmi2GetDirectionalDerivative(f.c, vr("der(omega_m)").as_ptr(), 1, vr("tau_m").as_ptr(), 1, [2.0].as_ptr(), dv.as_mut_ptr());
+                assert_eq!(s, OK);
+                assert_eq!(dv[0], 2.0 / f.get_real("J_m").1);
+            })),
+            case("fmi2SetRealInputDerivatives", |c| {
+                fmi2SetRealInputDerivatives(c, vr("tau_m").as_ptr(), 1, [1].as_ptr(), [0.5].as_ptr())
+            }, NONE, OK, None),
+            case("fmi2GetRealOutputDerivatives", |c| {
+                fmi2GetRealOutputDerivatives(c, vr("omega_m").as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
+            }, NONE, OK, None),
+            case("fmi2DoStep", |c| fmi2DoStep(c, 0.0, 1e-3, 1), NONE, OK, None),
+            case("fmi2CancelStep", |c| fmi2CancelStep(c), NONE, OK, None),
+            case("fmi2GetStatus", |c| fmi2GetStatus(c, fmi2DoStepStatus, &mut fmi2Status::fmi2Error), NONE, OK, None),
+            case("fmi2GetRealStatus", |c| fmi2GetRealStatus(c, fmi2LastSuccessfulTime, &mut 0.0), NONE, OK, None),
+            case("fmi2GetIntegerStatus", |c| fmi2GetIntegerStatus(c, fmi2DoStepStatus, &mut 0), NONE, OK, None),
+            case("fmi2GetBooleanStatus", |c| fmi2GetBooleanStatus(c, fmi2Terminated, &mut 0), NONE, OK, None),
+            case("fmi2GetStringStatus", |c| fmi2GetStringStatus(c, fmi2PendingStatus, &mut null()), NONE, OK, None),
+            case("fmi2EnterEventMode", |c| fmi2EnterEventMode(c), V_N, OK, Some(|f, _| {
+                let mut info = event_info();
+                assert_eq!(fmi2NewDiscreteStates(f.c, &mut info), OK);
+                f.refuses("not allowed in state EventMode", |c| fmi2SetContinuousStates(c, X.as_ptr(), NX));
+            })),
+            case("fmi2NewDiscreteStates", |c| {
+                let mut info = event_info();
+                let s = fmi2NewDiscreteStates(c, &mut info);
+                if s == OK {
+                    // No discrete states, no time events: nothing to iterate, nothing changed.
+                    assert_eq!(
+                        [info.newDiscreteStatesNeeded, info.terminateSimulation, info.nominalsOfContinuousStatesChanged,
+                         info.valuesOfContinuousStatesChanged, info.nextEventTimeDefined],
+                        [fmi2False; 5]
+                    );
+                }
+                s
+            }, V, OK, None),
+            case("fmi2EnterContinuousTimeMode", |c| fmi2EnterContinuousTimeMode(c), V, OK, Some(|f, _| {
+                assert_eq!(f.set_continuous_states(&X), OK);
+                f.refuses("not allowed in state ContinuousTimeMode", |c| fmi2NewDiscreteStates(c, &mut event_info()));
+            })),
+            case("fmi2CompletedIntegratorStep", |c| {
+                let (mut enter, mut terminate) = (fmi2True, fmi2True);
+                let s = fmi2CompletedIntegratorStep(c, 1, &mut enter, &mut terminate);
+                if s == OK {
+                    assert_eq!((enter, terminate), (fmi2False, fmi2False));
+                }
+                s
+            }, N, OK, None),
+            case("fmi2SetTime", |c| fmi2SetTime(c, 0.3), V_N, OK, Some(|f, _| {
+                // The bounds follow time: those of an instance set to 0.3, not those at 0 (= 0).
+                let (s, bound) = f.get_real("bound");
+                assert_eq!(s, OK);
+                assert!(bound > 0.0);
+                assert_eq!(bound.to_bits(), me_donor().get_real("bound").1.to_bits());
+            })),
+            case("fmi2SetContinuousStates", |c| fmi2SetContinuousStates(c, X.as_ptr(), NX), N, OK, Some(|f, _| {
+                assert_eq!(bits(f.continuous_states().1), bits(X));
+                let read = STATE_NAMES.map(|name| f.get_real(name).1);
+                assert_eq!(bits(read), bits(X));
+                // theta' = omega.
+                let (s, dx) = f.derivatives();
+                assert_eq!(s, OK);
+                assert_eq!((dx[0], dx[2]), (X[1], X[3]));
+            })),
+            case("fmi2GetDerivatives", |c| fmi2GetDerivatives(c, [0.0; NX].as_mut_ptr(), NX), [false, false, true, true, true, true], OK, Some(|f, _| {
+                let (s, dx) = f.derivatives();
+                assert_eq!(s, OK);
+                let read = STATE_NAMES.map(|name| f.get_real(&format!("der({name})")).1);
+                assert_eq!(bits(dx), bits(read));
+            })),
+            case("fmi2GetEventIndicators", |c| fmi2GetEventIndicators(c, [0.0; NI].as_mut_ptr(), NI), READ, OK, Some(|f, _| {
+                // [u - g, u + g] with u = theta_m - theta_L on the shaft, and g > 0.
+                let (s, z) = f.event_indicators();
+                assert_eq!(s, OK);
+                let u = f.get_real("theta_m").1 - f.get_real("theta_L").1;
+                assert!(z[0] < z[1], "{z:?}");
+                assert!(((z[0] + z[1]) / 2.0 - u).abs() <= 1e-15, "{z:?}, u = {u}");
+            })),
+            case("fmi2GetContinuousStates", |c| fmi2GetContinuousStates(c, [0.0; NX].as_mut_ptr(), NX), READ, OK, Some(|f, _| {
+                let (s, x) = f.continuous_states();
+                assert_eq!(s, OK);
+                let read = STATE_NAMES.map(|name| f.get_real(name).1);
+                assert_eq!(bits(x), bits(read));
+            })),
+            case("fmi2GetNominalsOfContinuousStates", |c| fmi2GetNominalsOfContinuousStates(c, [0.0; NX].as_mut_ptr(), NX), [true, false, true, true, true, true], OK, Some(|f, _| {
+                let (s, n) = f.nominals();
+                assert_eq!(s, OK);
+                assert!(n.iter().all(|x| x.is_finite() && *x > 0.0), "{n:?}");
+            })),
+        ]
+    }
+}
+
+#[test]
+fn every_call_in_every_model_exchange_state_follows_the_standard_table() {
+    let table = me_table();
+    assert_eq!(table.len(), 40, "every FMI 2.0 function that takes an instance");
+    let names: Vec<_> = table.iter().map(|c| c.name).collect();
+    let cs_names: Vec<_> = self::table().iter().map(|c| c.0).collect();
+    assert_eq!(names, cs_names, "the same functions as the Co-Simulation table");
+    let mut checked = 0;
+    let mut effects = 0;
+    for case in &table {
+        let co_simulation = case.legal == [false; 6];
+        for (phase, column) in ME_COLUMNS {
+            let legal = case.legal[column];
+            let f = in_me_phase(SHAFT, phase);
+            let before = f.log_len();
+            let status = (case.call)(f.c);
+            let context = format!("{} in {phase} (Model Exchange)", case.name);
+            if legal {
+                assert_eq!(status, case.when_legal, "{context}: {:?}", f.entries().get(before..));
+                assert!(
+                    f.entries()[before..].iter().all(|e| e.category != "logErrors"),
+                    "{context}: {:?}",
+                    &f.entries()[before..]
+                );
+                if let Some(effect) = case.effect {
+                    effect(&f, phase);
+                    effects += 1;
+                }
+            } else {
+                let reason = if co_simulation {
+                    format!(
+                        "{} belongs to FMI for Co-Simulation; this instance was instantiated for Model Exchange",
+                        case.name
+                    )
+                } else {
+                    format!("{} is not allowed in state {}", case.name, ME_PHASES[column])
+                };
+                f.assert_refused(status, before, &reason);
+                assert_eq!(status, ERROR, "{context}");
+                // Now in state Error: a call legal only in Instantiated says so.
+                f.refuses("not allowed in state Error", |c| fmi2EnterInitializationMode(c));
+                // The values stay readable (for debugging) and finite.
+                f.assert_all_finite(&format!("{context}, then in state Error"));
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 280);
+    // Every legal call with an effect to check was checked in every state it is legal in.
+    let expected: usize = table
+        .iter()
+        .filter(|c| c.effect.is_some())
+        .map(|c| ME_COLUMNS.iter().filter(|(_, k)| c.legal[*k]).count())
+        .sum();
+    assert_eq!(effects, expected);
+    assert!(effects > 60, "{effects}");
+    fresh_me_instance_works(SHAFT);
+    fresh_instance_works(SHAFT);
+}
+
+#[test]
+fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them() {
+    for model in [SHAFT, BELT] {
+        let f = Fmu::new_model_exchange(model);
+        // Instantiated -> InitializationMode -> EventMode.
+        assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), OK);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        // EventMode <-> ContinuousTimeMode, many times, with time moving forwards and backwards.
+        for k in 0..5 {
+            let mut info = event_info();
+            // SAFETY: pointer to a local.
+            assert_eq!(unsafe { fmi2NewDiscreteStates(f.c, &mut info) }, OK);
+            assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64), OK, "fmi2SetTime in Event Mode");
+            assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+            assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64 + 0.05), OK);
+            assert_eq!(f.set_continuous_states(&X.map(|x| x * k as f64)), OK);
+            assert_eq!(f.set_real("tau_L", k as f64), OK, "an input in Continuous-Time Mode");
+            f.assert_all_finite(&format!("round {k}"));
+            // Event Mode is entered from Continuous-Time Mode and from Event Mode itself.
+            assert_eq!(fmi2EnterEventMode(f.c), OK);
+            assert_eq!(fmi2EnterEventMode(f.c), OK);
+        }
+        // Terminate from Event Mode; from Continuous-Time Mode it is covered by the table.
+        assert_eq!(fmi2Terminate(f.c), OK);
+        f.assert_all_finite("Terminated");
+        f.refuses("not allowed in state Terminated", |c| fmi2Terminate(c));
+        // Reset leads back to Instantiated, from which everything starts again.
+        f.reset_and_check();
+    }
+}
+
+#[test]
+fn calls_of_the_other_interface_are_refused_with_the_reason() {
+    // fmi2DoStep on a Model Exchange instance, fmi2SetTime on a Co-Simulation one, in the state
+    // where the call would be legal for its own interface.
+    let me = Fmu::me_continuous(BELT);
+    me.refuses(
+        "fmi2DoStep belongs to FMI for Co-Simulation; this instance was instantiated for Model Exchange",
+        |c| fmi2DoStep(c, 0.0, 1e-3, 1),
+    );
+    me.reset_and_check();
+    let cs = Fmu::initialized(BELT, None);
+    cs.refuses(
+        "fmi2SetTime belongs to FMI for Model Exchange; this instance was instantiated for Co-Simulation",
+        |c| fmi2SetTime(c, 0.0),
+    );
+    cs.reset_and_check();
+    // FMU states do not cross interfaces either (the refusal changes nothing but the state).
+    let me = Fmu::me_continuous(BELT);
+    let cs = Fmu::initialized(BELT, None);
+    let from_me = serialized(&me);
+    let from_cs = serialized(&cs);
+    let refused = |f: &Fmu, bytes: &[u8], reason: &str| {
+        let mut s = null_mut();
+        // SAFETY: `bytes` has the announced length; `s` is a local.
+        assert_eq!(
+            unsafe { fmi2DeSerializeFMUstate(f.c, bytes.as_ptr().cast(), bytes.len(), &mut s) },
+            OK
+        );
+        f.refuses(reason, |c| fmi2SetFMUstate(c, s));
+    };
+    refused(
+        &me,
+        &from_cs,
+        "it was taken from a Co-Simulation instance; this instance serves Model Exchange",
+    );
+    refused(
+        &cs,
+        &from_me,
+        "it was taken from a Model Exchange instance; this instance serves Co-Simulation",
+    );
+    me.reset_and_check();
+    cs.reset_and_check();
+}
+
+#[test]
+fn a_model_exchange_instance_can_be_freed_in_every_state_and_is_gone_after() {
+    for (phase, _) in ME_COLUMNS {
+        let f = in_me_phase(BELT, phase);
+        let c = f.c;
+        let mut s = null_mut();
+        // SAFETY: pointer to a local.
+        assert_eq!(unsafe { fmi2GetFMUstate(c, &mut s) }, OK);
+        drop(f);
+        assert_eq!(fmi2Reset(c), ERROR, "{phase}: a freed instance answered");
+        assert_eq!(fmi2SetTime(c, 0.0), ERROR, "{phase}: a freed instance answered");
+        let other = Fmu::new_model_exchange(BELT);
+        other.refuses("not a live FMU state", |o| fmi2SetFMUstate(o, s));
+    }
+    fresh_me_instance_works(BELT);
+}
+
+#[test]
+fn model_exchange_error_is_left_only_by_reset_or_an_fmu_state() {
+    let f = in_me_phase(SHAFT, "Error");
+    f.refuses("not allowed in state Error", |c| fmi2EnterEventMode(c));
+    f.refuses("not allowed in state Error", |c| fmi2SetTime(c, 0.0));
+    f.reset_and_check();
+    // An FMU state saved in Continuous-Time Mode continues from there, bit for bit.
+    let f = Fmu::me_continuous(SHAFT);
+    assert_eq!(fmi2SetTime(f.c, 0.2), OK);
+    assert_eq!(f.set_continuous_states(&X), OK);
+    let saved = serialized(&f);
+    f.refuses("not allowed in state ContinuousTimeMode", |c| {
+        fmi2ExitInitializationMode(c)
+    });
+    // SAFETY: NX values.
+    f.refuses("not allowed in state Error", |c| unsafe {
+        fmi2SetContinuousStates(c, X.as_ptr(), NX)
+    });
+    assert_eq!(load(&f, &saved), (OK, OK));
+    assert_eq!(f.continuous_states(), (OK, X));
+    let reference = Fmu::me_continuous(SHAFT);
+    assert_eq!(fmi2SetTime(reference.c, 0.2), OK);
+    assert_eq!(reference.set_continuous_states(&X), OK);
+    for g in [&f, &reference] {
+        assert_eq!(fmi2SetTime(g.c, 0.25), OK);
+        assert_eq!(g.set_continuous_states(&X.map(|x| 2.0 * x)), OK);
+        g.assert_all_finite("after leaving Error through an FMU state");
+    }
+    let values = |f: &Fmu| f.all_values().1.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(values(&f), values(&reference));
+    assert_eq!(f.derivatives(), reference.derivatives());
 }

@@ -1,7 +1,7 @@
 //! Instances used from many threads at once (each instance by one thread at a time, as FMI
 //! 2.0 §2.1.5 requires) give bit-identical results to the same runs done one after another:
 //! the live-instance table, the FMU-state table and the shared cache of built plants must
-//! neither corrupt nor couple instances.
+//! neither corrupt nor couple instances, of either interface.
 #![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 
 mod robustness_common;
@@ -13,6 +13,9 @@ use std::sync::{Arc, Barrier};
 
 const OK: fmi2Status = fmi2Status::fmi2OK;
 const RUNS: usize = 12;
+/// Model Exchange runs, and Co-Simulation runs beside them.
+const ME_RUNS: usize = 8;
+const CS_BESIDE: usize = 2;
 
 /// Run `i`: its own model, parameters (more distinct sets than the plant cache holds), inputs
 /// and input ramp; an FMU state saved, serialized, restored into the same instance and into a
@@ -102,6 +105,136 @@ fn concurrent_runs_are_bit_identical_to_sequential_ones() {
     fresh_instance_works(SHAFT);
 }
 
+/// Run `i` as Model Exchange: its own model, parameters and inputs; the importer's side of an
+/// integration (explicit Euler through fmi2SetTime, fmi2SetContinuousStates, fmi2GetDerivatives,
+/// with the event iteration at each sign change of an indicator), time set back and forth, an FMU
+/// state restored into the same instance and into a second one, a refused call, fmi2Reset and a
+/// rerun. Returns the bits of every variable, state, derivative and indicator after every step.
+fn me_scenario(i: usize, start: Option<&Barrier>) -> Vec<u64> {
+    let model = i % 2;
+    let f = Fmu::instantiate(model, &format!("ME thread {i}"), fmi2ModelExchange);
+    let g = Fmu::instantiate(model, &format!("ME copy {i}"), fmi2ModelExchange);
+    if let Some(b) = start {
+        b.wait();
+    }
+    let mut trace = Vec::new();
+    let mut record = |f: &Fmu| {
+        let (s, v) = f.all_values();
+        assert_eq!(s, OK);
+        trace.extend(v.iter().map(|(_, x)| x.to_bits()));
+        for (s, x) in [f.continuous_states(), f.derivatives()] {
+            assert_eq!(s, OK);
+            trace.extend(x.map(f64::to_bits));
+        }
+        let (s, z) = f.event_indicators();
+        assert_eq!(s, OK);
+        trace.extend(z.map(f64::to_bits));
+    };
+    for round in 0..2 {
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(f.set_real("J_m", 1.0 + 0.125 * (i % 10) as f64), OK);
+        // Kp > 0: fmi2ExitInitializationMode of the belt takes seconds with Kp = 0.
+        assert_eq!(f.set_real("Kp", 0.5 + 0.5 * (i % 3) as f64), OK);
+        assert_eq!(f.set_real("tau_m", 1.0 + i as f64), OK);
+        assert_eq!(f.set_real("tau_L", -0.25 * round as f64), OK);
+        let s = fmi2ExitInitializationMode(f.c);
+        assert!(matches!(s, OK | fmi2Status::fmi2Warning), "{s:?}");
+        let events = |f: &Fmu| {
+            let mut info = event_info();
+            // SAFETY: pointer to a local.
+            assert_eq!(unsafe { fmi2NewDiscreteStates(f.c, &mut info) }, OK);
+            assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+        };
+        events(&f);
+        let h = 1e-4;
+        let (_, mut x) = f.continuous_states();
+        let (_, mut z) = f.event_indicators();
+        let mut saved = Vec::new();
+        for k in 0..200 {
+            let (s, dx) = f.derivatives();
+            assert_eq!(s, OK);
+            x = std::array::from_fn(|j| x[j] + h * dx[j]);
+            // A solver that looks ahead and comes back: time forwards, back, forwards.
+            assert_eq!(fmi2SetTime(f.c, (k + 2) as f64 * h), OK);
+            assert_eq!(fmi2SetTime(f.c, (k + 1) as f64 * h), OK);
+            assert_eq!(f.set_continuous_states(&x), OK);
+            let (_, now) = f.event_indicators();
+            if now.iter().zip(&z).any(|(a, b)| (*a > 0.0) != (*b > 0.0)) {
+                assert_eq!(fmi2EnterEventMode(f.c), OK);
+                events(&f);
+            }
+            z = now;
+            if k % 20 == 19 {
+                record(&f);
+            }
+            if k == 99 {
+                saved = serialized(&f);
+            }
+        }
+        // Back to step 100 in this instance and in the copy; both continue identically.
+        assert_eq!(load(&f, &saved), (OK, OK));
+        assert_eq!(load(&g, &saved), (OK, OK));
+        for k in 100..120 {
+            for f in [&f, &g] {
+                let (_, x) = f.continuous_states();
+                let (_, dx) = f.derivatives();
+                assert_eq!(fmi2SetTime(f.c, (k + 1) as f64 * h), OK);
+                assert_eq!(
+                    f.set_continuous_states(&std::array::from_fn::<f64, NX, _>(|j| x[j] + h * dx[j])),
+                    OK
+                );
+            }
+            record(&f);
+            record(&g);
+        }
+        assert_eq!(
+            fmi2DoStep(f.c, 0.0, h, 1),
+            fmi2Status::fmi2Error,
+            "a Co-Simulation call"
+        );
+        assert_eq!(fmi2Reset(f.c), OK);
+        assert_eq!(fmi2Reset(g.c), OK);
+    }
+    trace
+}
+
+#[test]
+fn concurrent_model_exchange_and_co_simulation_runs_are_bit_identical_to_sequential_ones() {
+    let sequential: Vec<Vec<u64>> = (0..ME_RUNS).map(|i| me_scenario(i, None)).collect();
+    let co_simulation: Vec<Vec<u64>> = (0..CS_BESIDE).map(|i| scenario(i, None)).collect();
+    let barrier = Arc::new(Barrier::new(ME_RUNS + CS_BESIDE));
+    // Both interfaces at once: Model Exchange runs beside Co-Simulation ones.
+    let me: Vec<_> = (0..ME_RUNS)
+        .map(|i| {
+            let barrier = Arc::clone(&barrier);
+            std::thread::spawn(move || me_scenario(i, Some(&barrier)))
+        })
+        .collect();
+    let cs: Vec<_> = (0..CS_BESIDE)
+        .map(|i| {
+            let barrier = Arc::clone(&barrier);
+            std::thread::spawn(move || scenario(i, Some(&barrier)))
+        })
+        .collect();
+    for (i, h) in me.into_iter().enumerate() {
+        let concurrent = h.join().expect("no panic in a thread");
+        assert!(
+            concurrent == sequential[i],
+            "Model Exchange run {i} differs when run concurrently"
+        );
+    }
+    for (i, h) in cs.into_iter().enumerate() {
+        let concurrent = h.join().expect("no panic in a thread");
+        assert!(
+            concurrent == co_simulation[i],
+            "Co-Simulation run {i} differs beside Model Exchange runs"
+        );
+    }
+    assert_ne!(sequential[0], sequential[2]);
+    fresh_me_instance_works(SHAFT);
+    fresh_me_instance_works(BELT);
+}
+
 #[test]
 fn instantiate_and_free_race_without_corrupting_the_tables() {
     let barrier = Arc::new(Barrier::new(4));
@@ -111,7 +244,9 @@ fn instantiate_and_free_race_without_corrupting_the_tables() {
             std::thread::spawn(move || {
                 barrier.wait();
                 for k in 0..300 {
-                    let f = Fmu::named((t + k) % 2, "race");
+                    // Both interfaces, from every thread.
+                    let fmu_type = [fmi2CoSimulation, fmi2ModelExchange][(t + k / 2) % 2];
+                    let f = Fmu::instantiate((t + k) % 2, "race", fmu_type);
                     let mut s = null_mut();
                     // SAFETY: pointer to a local.
                     assert_eq!(unsafe { fmi2GetFMUstate(f.c, &mut s) }, OK);

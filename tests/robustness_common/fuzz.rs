@@ -1,10 +1,22 @@
-//! A driver that calls the C ABI in random order with random arguments, valid and invalid,
-//! and checks after every call what must always hold:
+//! A driver that calls the C ABI in random order with random arguments, valid and invalid, on
+//! Co-Simulation and Model Exchange instances (half each), and checks after every call what
+//! must always hold:
 //! - the status is one of fmi2OK, fmi2Warning, fmi2Discard, fmi2Error (never Fatal/Pending);
 //! - fmi2Discard and fmi2Error from a live instance come with a logged reason in logErrors,
 //!   fmi2Warning with one in logWarnings;
-//! - values read with fmi2OK are never NaN, and never infinite except bound_sup (docs/model.md §4);
-//!   after every successful fmi2DoStep every variable is read and checked.
+//! - values read with fmi2OK are never NaN, and never infinite except bound_sup (docs/model.md §4):
+//!   variables, continuous states, derivatives, event indicators (u − g ≤ u + g), nominals
+//!   (positive), directional derivatives; after every successful fmi2DoStep and
+//!   fmi2ExitInitializationMode every variable is read and checked; after a successful
+//!   fmi2SetContinuousStates the states read back bit for bit; fmi2NewDiscreteStates and
+//!   fmi2CompletedIntegratorStep ask for nothing (no discrete states, no time events).
+//!
+//! Model Exchange calls get random finite, extreme and non-finite arguments and random vector
+//! lengths; mostly they follow an explicit Euler integration, so that sequences reach
+//! Continuous-Time Mode with moving states. Times are kept within `FAR_TIME` of the start time
+//! unless [`Driver::far_times`] is set: fmi2SetTime accepts any finite time, and reading the
+//! bounds after a far one takes work proportional to the time (see
+//! `model_exchange_far_times_are_refused_or_answered_promptly` in tests/robustness_arguments.rs).
 //!
 //! A panic that unwinds out of an `extern "C"` function aborts the process, so "no panic
 //! escapes" and "no crash" are checked by the process surviving; panics caught inside are
@@ -72,6 +84,44 @@ const INTERESTING: [f64; 20] = [
     -5.0,
 ];
 
+/// How far from the start time Model Exchange times go unless [`Driver::far_times`]: far enough
+/// for the bounds to settle, near enough that bringing them to a time set backwards stays cheap.
+pub const FAR_TIME: f64 = 1e3;
+
+/// Ops (the numbers `one` dispatches on) added for Model Exchange.
+const ENTER_EVENT_MODE: u64 = 30;
+const NEW_DISCRETE_STATES: u64 = 31;
+const ENTER_CONTINUOUS_TIME_MODE: u64 = 32;
+const COMPLETED_INTEGRATOR_STEP: u64 = 33;
+const SET_TIME: u64 = 34;
+const SET_CONTINUOUS_STATES: u64 = 35;
+const GET_CONTINUOUS_STATES: u64 = 36;
+const GET_DERIVATIVES: u64 = 37;
+const GET_EVENT_INDICATORS: u64 = 38;
+const GET_NOMINALS: u64 = 39;
+const GET_DIRECTIONAL_DERIVATIVE: u64 = 40;
+const OPS: u64 = 41;
+
+/// The knowns and (some) unknowns of the exact Jacobian (docs/model.md §6).
+const JACOBIAN_KNOWNS: [&str; 6] = ["theta_m", "omega_m", "theta_L", "omega_L", "tau_m", "tau_L"];
+const JACOBIAN_UNKNOWNS: [&str; 8] = [
+    "der(theta_m)",
+    "der(omega_m)",
+    "der(theta_L)",
+    "der(omega_L)",
+    "theta_L",
+    "psi",
+    "bound",
+    "bound_paper",
+];
+
+/// The ops a Model Exchange instance gets at random (apart from any op, now and then): those of
+/// both interfaces and its own, twice as often.
+const ME_RANDOM_OPS: [u64; 43] = [
+    0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 20, 21, 22, 23, 24, 25, 26, 27, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39,
+    40, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40,
+];
+
 struct Slot {
     f: Fmu,
     /// Whether logErrors is on: fmi2SetDebugLogging(fmi2False) with no categories switches
@@ -79,16 +129,24 @@ struct Slot {
     errors_logged: bool,
     /// Our belief of the instance's time, for communication points that match it.
     time: f64,
-    /// Our belief of its state (0 Instantiated, 1 Initialization, 2 StepComplete, 3 other),
-    /// used to pick the call that moves it on more often than chance would.
+    /// Our belief of its state (0 Instantiated, 1 Initialization, 2 StepComplete or Event Mode,
+    /// 3 other, 4 Continuous-Time Mode), used to pick the call that moves it on more often than
+    /// chance would.
     phase: u8,
+    /// Our belief of its start time (Model Exchange: times are picked around it).
+    start: f64,
+    /// The continuous states and derivatives last read or set (Model Exchange), from which
+    /// the next states are stepped.
+    x: [f64; NX],
+    dx: [f64; NX],
 }
 
 pub struct Driver<S: Source> {
     src: S,
     slots: Vec<Slot>,
-    /// FMU state handles seen (live, freed or foreign) and the time they were taken at.
-    states: Vec<(fmi2FMUstate, f64)>,
+    /// FMU state handles seen (live, freed or foreign) and the time and start time they were
+    /// taken at.
+    states: Vec<(fmi2FMUstate, f64, f64)>,
     blobs: Vec<Vec<u8>>,
     stale: Vec<fmi2Component>,
     pub calls: u64,
@@ -96,6 +154,20 @@ pub struct Driver<S: Source> {
     /// Whether parameters may take extreme finite magnitudes (1e±300, f64::MAX). Off by
     /// default: some such plants make the physics hang (see tests/robustness_extremes.rs).
     pub extreme_parameters: bool,
+    /// Whether Model Exchange times may lie any distance from the start time (off by default:
+    /// see [`FAR_TIME`]).
+    pub far_times: bool,
+    /// Whether instances may be Model Exchange ones (half of them) and calls may cross
+    /// interfaces. Off, the driver makes exactly the Co-Simulation sequences it made before Model
+    /// Exchange existed, so that seeds found then replay unchanged.
+    pub model_exchange: bool,
+    /// Whether the current call moves its instance along the lifecycle: its arguments are then
+    /// mostly valid (the random calls get the wild ones), so that Model Exchange sequences stay
+    /// in Continuous-Time Mode for a while.
+    careful: bool,
+    pub me_calls: u64,
+    /// Successful fmi2SetContinuousStates calls.
+    pub ok_state_sets: u64,
 }
 
 impl<S: Source> Driver<S> {
@@ -109,6 +181,11 @@ impl<S: Source> Driver<S> {
             calls: 0,
             ok_steps: 0,
             extreme_parameters: false,
+            far_times: false,
+            model_exchange: true,
+            careful: false,
+            me_calls: 0,
+            ok_state_sets: 0,
         }
     }
 
@@ -132,6 +209,47 @@ impl<S: Source> Driver<S> {
         Some(match self.below(10)? {
             0 => self.real()?,
             _ => 1e-4 * (1 + self.below(500)?) as f64,
+        })
+    }
+
+    /// A time for fmi2SetTime or a start time: mostly a little after `now`, sometimes before it
+    /// or before the start, sometimes anything (within `FAR_TIME` of the start unless
+    /// `far_times`).
+    fn time_near(&mut self, now: f64, start: f64) -> Option<f64> {
+        if self.careful {
+            return Some(match self.below(20)? {
+                0..=17 => now + 1e-4 * (1 + self.below(100)?) as f64,
+                18 => now - 1e-5 * (1 + self.below(100)?) as f64,
+                _ => start,
+            });
+        }
+        let t = match self.below(20)? {
+            0..=11 => now + 1e-4 * (1 + self.below(500)?) as f64,
+            12 | 13 => now - 1e-4 * (1 + self.below(500)?) as f64,
+            14 => start,
+            15 => now,
+            16 => start + (self.below(1000)? as f64) * FAR_TIME / 1000.0,
+            _ => self.real()?,
+        };
+        Some(if !self.far_times && t.is_finite() && (t - start).abs() > FAR_TIME {
+            start + (t - start) % FAR_TIME
+        } else {
+            t
+        })
+    }
+
+    /// Whether to pass a NULL pointer (or another wild argument): `percent` in random calls, 1 %
+    /// in careful ones.
+    fn wild(&mut self, percent: u64) -> Option<bool> {
+        self.chance(if self.careful { 1 } else { percent })
+    }
+
+    /// A vector length: mostly `n`, sometimes anything up to 2n + 1.
+    fn length(&mut self, n: usize) -> Option<usize> {
+        Some(if !self.wild(15)? {
+            n
+        } else {
+            self.below(2 * n as u64 + 2)? as usize
         })
     }
 
@@ -163,17 +281,57 @@ impl<S: Source> Driver<S> {
         let i = self.below(self.slots.len() as u64)? as usize;
         // Half of the calls move the instance along the lifecycle (Reset from Error), so that
         // sequences reach stepping and FMU states; the other half are anything.
-        let op = if self.chance(50)? {
-            match self.slots[i].phase {
-                0 => 1,
-                1 => [2, 5][self.below(2)? as usize],
-                2 => [14, 14, 14, 20, 21, 24, 26, 8][self.below(8)? as usize],
+        let me = self.slots[i].f.model_exchange;
+        // Model Exchange needs more calls in a row to reach Continuous-Time Mode and stay.
+        self.careful = self.chance(if me { 75 } else { 50 })?;
+        let op = if self.careful {
+            match (self.slots[i].phase, me) {
+                (0, _) => 1,
+                (1, _) => [2, 5][self.below(2)? as usize],
+                (2, false) => [14, 14, 14, 20, 21, 24, 26, 8][self.below(8)? as usize],
+                (2, true) => [
+                    NEW_DISCRETE_STATES,
+                    ENTER_CONTINUOUS_TIME_MODE,
+                    ENTER_CONTINUOUS_TIME_MODE,
+                    SET_TIME,
+                    5,
+                    8,
+                    20,
+                    GET_DIRECTIONAL_DERIVATIVE,
+                ][self.below(8)? as usize],
+                (4, _) => [
+                    SET_TIME,
+                    SET_TIME,
+                    SET_CONTINUOUS_STATES,
+                    SET_CONTINUOUS_STATES,
+                    SET_CONTINUOUS_STATES,
+                    GET_DERIVATIVES,
+                    GET_DERIVATIVES,
+                    GET_CONTINUOUS_STATES,
+                    COMPLETED_INTEGRATOR_STEP,
+                    GET_EVENT_INDICATORS,
+                    ENTER_EVENT_MODE,
+                    GET_DIRECTIONAL_DERIVATIVE,
+                    GET_NOMINALS,
+                    5,
+                    8,
+                    20,
+                    24,
+                ][self.below(17)? as usize],
                 _ => 4,
             }
+        } else if self.model_exchange && self.chance(5)? {
+            // Any call, also those of the other interface.
+            self.below(OPS)?
+        } else if me {
+            ME_RANDOM_OPS[self.below(ME_RANDOM_OPS.len() as u64)? as usize]
         } else {
             self.below(30)?
         };
         self.calls += 1;
+        if op >= ENTER_EVENT_MODE {
+            self.me_calls += 1;
+        }
         let model = self.slots[i].f.model;
         let c = self.slots[i].f.c;
         let before = self.slots[i].f.log_len();
@@ -189,12 +347,19 @@ impl<S: Source> Driver<S> {
             return Some(());
         }
         let mut check_all = false;
+        // Model Exchange: whether to read every variable after the call, accepting a refusal
+        // with a reason (states or times may make a quantity overflow; the read says so).
+        let mut read_all = false;
         // SAFETY (whole match): every pointer passed is NULL with a length the FMU must refuse
         // or check, or points to a live local of at least the announced length.
         let status = unsafe {
             match op {
                 0 => {
-                    let start = if self.chance(80)? { 0.0 } else { self.real()? };
+                    let start = match (self.chance(80)?, me) {
+                        (true, _) => 0.0,
+                        (false, true) => self.time_near(0.0, 0.0)?,
+                        (false, false) => self.real()?,
+                    };
                     let stop = self.real()?;
                     let s = fmi2SetupExperiment(
                         c,
@@ -206,10 +371,18 @@ impl<S: Source> Driver<S> {
                     );
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = start;
+                        self.slots[i].start = start;
                     }
                     s
                 }
-                1 => fmi2EnterInitializationMode(c),
+                1 => {
+                    let s = fmi2EnterInitializationMode(c);
+                    // (Not in the Co-Simulation-only driver, whose sequences must not change.)
+                    if s == fmi2Status::fmi2OK && self.model_exchange {
+                        self.slots[i].time = self.slots[i].start;
+                    }
+                    s
+                }
                 2 => {
                     let s = fmi2ExitInitializationMode(c);
                     check_all = matches!(s, fmi2Status::fmi2OK | fmi2Status::fmi2Warning);
@@ -218,7 +391,10 @@ impl<S: Source> Driver<S> {
                 3 => fmi2Terminate(c),
                 4 => {
                     let s = fmi2Reset(c);
-                    self.slots[i].time = 0.0;
+                    if s == fmi2Status::fmi2OK {
+                        self.slots[i].time = 0.0;
+                        self.slots[i].start = 0.0;
+                    }
                     s
                 }
                 5..=7 => {
@@ -320,27 +496,32 @@ impl<S: Source> Driver<S> {
                 20 => {
                     let last = self.states.last().copied();
                     let mut s: fmi2FMUstate = match last {
-                        Some((h, _)) if self.chance(30)? => h,
+                        Some((h, ..)) if self.chance(30)? => h,
                         _ => null_mut(),
                     };
                     let status = fmi2GetFMUstate(c, &mut s);
                     if status == fmi2Status::fmi2OK {
-                        let t = self.slots[i].time;
-                        self.states.push((s, t));
+                        let (t, start) = (self.slots[i].time, self.slots[i].start);
+                        self.states.push((s, t, start));
                     }
                     status
                 }
                 21 | 22 => {
-                    let (h, t) = match self.states.len() {
-                        0 => (self.src.word()? as usize as fmi2FMUstate, f64::NAN),
+                    let (h, t, start) = match self.states.len() {
+                        0 => (self.src.word()? as usize as fmi2FMUstate, f64::NAN, f64::NAN),
                         n => {
                             let k = self.below(n as u64)? as usize;
                             self.states[k]
                         }
                     };
+                    if me && !self.far_times && (t - start).abs() > FAR_TIME {
+                        // A Model Exchange state far from its start time (see FAR_TIME).
+                        return Some(());
+                    }
                     let s = fmi2SetFMUstate(c, h);
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = t;
+                        self.slots[i].start = start;
                     }
                     s
                 }
@@ -410,8 +591,8 @@ impl<S: Source> Driver<S> {
                         assert!(!h.is_null());
                         // The time inside the bytes (documented format: after phase, flags, count).
                         let at = phase_offset(&bytes) + 4;
-                        let t = f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
-                        self.states.push((h, t));
+                        let time_at = |at: usize| f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+                        self.states.push((h, time_at(at), time_at(at + 8)));
                     }
                     s
                 }
@@ -431,6 +612,175 @@ impl<S: Source> Driver<S> {
                         3 => fmi2GetBooleanStatus(c, kind, &mut 0),
                         _ => fmi2GetStringStatus(c, kind, &mut null()),
                     }
+                }
+                ENTER_EVENT_MODE => fmi2EnterEventMode(c),
+                NEW_DISCRETE_STATES => {
+                    let mut info = event_info();
+                    let out = if self.wild(5)? { null_mut() } else { &mut info as *mut _ };
+                    let s = fmi2NewDiscreteStates(c, out);
+                    if s == fmi2Status::fmi2OK {
+                        let flags = [
+                            info.newDiscreteStatesNeeded,
+                            info.terminateSimulation,
+                            info.nominalsOfContinuousStatesChanged,
+                            info.valuesOfContinuousStatesChanged,
+                            info.nextEventTimeDefined,
+                        ];
+                        assert_eq!(
+                            flags, [fmi2False; 5],
+                            "fmi2NewDiscreteStates asks for something: {info:?}"
+                        );
+                    }
+                    s
+                }
+                ENTER_CONTINUOUS_TIME_MODE => fmi2EnterContinuousTimeMode(c),
+                COMPLETED_INTEGRATOR_STEP => {
+                    let (mut enter, mut terminate) = (7, 7);
+                    let enter_ptr = if self.wild(3)? {
+                        null_mut()
+                    } else {
+                        &mut enter as *mut _
+                    };
+                    let terminate_ptr = if self.wild(3)? {
+                        null_mut()
+                    } else {
+                        &mut terminate as *mut _
+                    };
+                    let s = fmi2CompletedIntegratorStep(c, self.below(2)? as i32, enter_ptr, terminate_ptr);
+                    if s == fmi2Status::fmi2OK {
+                        assert_eq!(
+                            (enter, terminate),
+                            (fmi2False, fmi2False),
+                            "fmi2CompletedIntegratorStep"
+                        );
+                    }
+                    s
+                }
+                SET_TIME => {
+                    let (now, start) = (self.slots[i].time, self.slots[i].start);
+                    let t = self.time_near(now, start)?;
+                    let s = fmi2SetTime(c, t);
+                    if s == fmi2Status::fmi2OK {
+                        self.slots[i].time = t;
+                        // Always after a far time: the bounds are brought to it when read.
+                        read_all = self.chance(20)? || (t - start).abs() > FAR_TIME;
+                    }
+                    s
+                }
+                SET_CONTINUOUS_STATES => {
+                    let n = self.length(NX)?;
+                    let (x, dx) = (self.slots[i].x, self.slots[i].dx);
+                    let mut values = Vec::with_capacity(n);
+                    let how = if self.careful { self.below(9)? } else { self.below(10)? };
+                    for k in 0..n {
+                        values.push(match how {
+                            // An explicit Euler step from the last states and derivatives.
+                            0..=5 => x[k % NX] + 1e-4 * (1 + self.below(100)?) as f64 * dx[k % NX],
+                            6 | 7 => x[k % NX] * (1.0 + (self.below(21)? as f64 - 10.0) / 100.0),
+                            _ => self.real()?,
+                        });
+                    }
+                    let ptr = if n > 0 && self.wild(3)? {
+                        null()
+                    } else {
+                        values.as_ptr()
+                    };
+                    let s = fmi2SetContinuousStates(c, ptr, n);
+                    if s == fmi2Status::fmi2OK {
+                        self.ok_state_sets += 1;
+                        read_all = self.chance(20)?;
+                        let x: [f64; NX] = values.as_slice().try_into().expect("only NX states are accepted");
+                        self.slots[i].x = x;
+                        // Read back bit for bit (legal in Continuous-Time Mode, where the set was).
+                        let (s, back) = self.slots[i].f.continuous_states();
+                        assert_eq!(s, fmi2Status::fmi2OK, "fmi2GetContinuousStates after a set");
+                        assert_eq!(
+                            back.map(f64::to_bits),
+                            x.map(f64::to_bits),
+                            "states set {x:?}, read {back:?}"
+                        );
+                    }
+                    s
+                }
+                GET_CONTINUOUS_STATES | GET_DERIVATIVES | GET_EVENT_INDICATORS | GET_NOMINALS => {
+                    let expected = if op == GET_EVENT_INDICATORS { NI } else { NX };
+                    let n = self.length(expected)?;
+                    let mut out = vec![f64::NAN; n];
+                    let ptr = if n > 0 && self.wild(3)? {
+                        null_mut()
+                    } else {
+                        out.as_mut_ptr()
+                    };
+                    let s = match op {
+                        GET_CONTINUOUS_STATES => fmi2GetContinuousStates(c, ptr, n),
+                        GET_DERIVATIVES => fmi2GetDerivatives(c, ptr, n),
+                        GET_EVENT_INDICATORS => fmi2GetEventIndicators(c, ptr, n),
+                        _ => fmi2GetNominalsOfContinuousStates(c, ptr, n),
+                    };
+                    if s == fmi2Status::fmi2OK {
+                        assert_eq!(n, expected, "op {op}: a vector of length {n} accepted");
+                        assert!(out.iter().all(|x| x.is_finite()), "op {op}: fmi2OK but {out:?}");
+                        match op {
+                            GET_CONTINUOUS_STATES => self.slots[i].x = out.as_slice().try_into().unwrap(),
+                            GET_DERIVATIVES => self.slots[i].dx = out.as_slice().try_into().unwrap(),
+                            GET_EVENT_INDICATORS => assert!(out[0] <= out[1], "indicators {out:?}"),
+                            _ => assert!(out.iter().all(|x| *x > 0.0), "nominals {out:?}"),
+                        }
+                    }
+                    s
+                }
+                GET_DIRECTIONAL_DERIVATIVE => {
+                    let (nu, nk) = (self.below(5)? as usize, self.below(5)? as usize);
+                    // Mostly unknowns and knowns of the Jacobian (docs/model.md §6), sometimes any
+                    // reference.
+                    let pick = |d: &mut Self, names: &[&str]| -> Option<u32> {
+                        Some(if !d.wild(25)? {
+                            model.vr(names[d.below(names.len() as u64)? as usize])
+                        } else {
+                            d.vr(model)?
+                        })
+                    };
+                    let mut unknowns = Vec::new();
+                    for _ in 0..nu {
+                        unknowns.push(pick(self, &JACOBIAN_UNKNOWNS)?);
+                    }
+                    let mut knowns = Vec::new();
+                    let mut seeds = Vec::new();
+                    for _ in 0..nk {
+                        knowns.push(pick(self, &JACOBIAN_KNOWNS)?);
+                        seeds.push(if !self.wild(30)? {
+                            self.below(201)? as f64 / 100.0 - 1.0
+                        } else {
+                            self.real()?
+                        });
+                    }
+                    let mut out = vec![f64::NAN; nu];
+                    let null_at = if self.wild(5)? { self.below(4)? } else { 4 };
+                    let s = fmi2GetDirectionalDerivative(
+                        c,
+                        if null_at == 0 && nu > 0 {
+                            null()
+                        } else {
+                            unknowns.as_ptr()
+                        },
+                        nu,
+                        if null_at == 1 && nk > 0 {
+                            null()
+                        } else {
+                            knowns.as_ptr()
+                        },
+                        nk,
+                        if null_at == 2 && nk > 0 { null() } else { seeds.as_ptr() },
+                        if null_at == 3 && nu > 0 {
+                            null_mut()
+                        } else {
+                            out.as_mut_ptr()
+                        },
+                    );
+                    if s == fmi2Status::fmi2OK {
+                        assert!(out.iter().all(|x| x.is_finite()), "directional derivative {out:?}");
+                    }
+                    s
                 }
                 _ => match self.below(4)? {
                     0 => {
@@ -458,16 +808,27 @@ impl<S: Source> Driver<S> {
             (2, fmi2Status::fmi2OK | fmi2Status::fmi2Warning) => 2,
             (4, fmi2Status::fmi2OK) => 0,
             (3, fmi2Status::fmi2OK) | (21 | 22, fmi2Status::fmi2OK) => 3,
+            (ENTER_EVENT_MODE, fmi2Status::fmi2OK) => 2,
+            (ENTER_CONTINUOUS_TIME_MODE, fmi2Status::fmi2OK) => 4,
             _ => self.slots[i].phase,
         };
         self.check(i, op, status, before, check_all);
+        if read_all {
+            self.read_all(i, op);
+        }
         Some(())
     }
 
     fn instantiate(&mut self) -> Option<()> {
         self.calls += 1;
         let model = self.below(2)? as usize;
-        let f = Fmu::named(model, if self.chance(50)? { "fuzz" } else { "a%s%n b" });
+        let name = if self.chance(50)? { "fuzz" } else { "a%s%n b" };
+        let fmu_type = if self.model_exchange && self.chance(50)? {
+            fmi2ModelExchange
+        } else {
+            fmi2CoSimulation
+        };
+        let f = Fmu::instantiate(model, name, fmu_type);
         if self.chance(30)? {
             // SAFETY: no categories.
             assert_eq!(unsafe { fmi2SetDebugLogging(f.c, 1, 0, null()) }, fmi2Status::fmi2OK);
@@ -477,8 +838,50 @@ impl<S: Source> Driver<S> {
             time: 0.0,
             phase: 0,
             errors_logged: true,
+            start: 0.0,
+            x: [0.0; NX],
+            dx: [0.0; NX],
         });
         Some(())
+    }
+
+    /// Reads every variable: fmi2OK with no NaN and nothing infinite but bound_sup, or a refusal
+    /// with a logged reason (then the instance is in state Error).
+    fn read_all(&mut self, i: usize, op: u64) {
+        let f = &self.slots[i].f;
+        let before = f.log_len();
+        let (s, values) = f.all_values();
+        let new = &f.entries()[before..];
+        let context = || {
+            format!(
+                "reading every variable after op {op}, call {}: {s:?}, log {new:?}",
+                self.calls
+            )
+        };
+        match s {
+            fmi2Status::fmi2OK => {
+                for (name, x) in values {
+                    let var = f.model.by_name(name).unwrap();
+                    assert!(!x.is_nan(), "{name} is NaN {}", context());
+                    assert!(
+                        x.is_finite() || var.causality == Causality::CalculatedParameter,
+                        "{name} = {x} {}",
+                        context()
+                    );
+                }
+            }
+            fmi2Status::fmi2Error => {
+                if self.slots[i].errors_logged {
+                    assert!(
+                        new.iter().any(|e| e.category == "logErrors" && !e.message.is_empty()),
+                        "no logged reason {}",
+                        context()
+                    );
+                }
+                self.slots[i].phase = 3;
+            }
+            _ => panic!("unexpected status {}", context()),
+        }
     }
 
     fn check(&self, i: usize, op: u64, status: fmi2Status, before: usize, check_all: bool) {
@@ -498,7 +901,7 @@ impl<S: Source> Driver<S> {
                 context()
             ),
             fmi2Status::fmi2Discard | fmi2Status::fmi2Error => {}
-            _ => panic!("status outside the FMI 2.0 Co-Simulation set: {}", context()),
+            _ => panic!("status outside the FMI 2.0 set: {}", context()),
         }
         if check_all {
             let (s, values) = f.all_values();

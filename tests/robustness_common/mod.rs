@@ -60,20 +60,54 @@ pub fn callbacks(log: *const Log) -> fmi2CallbackFunctions {
 pub const SHAFT: usize = 0;
 pub const BELT: usize = 1;
 
+/// Number of continuous states (z = [θ_m, ω_m, θ_L, ω_L]) and of event indicators ([u − g, u + g])
+/// of both models in Model Exchange.
+pub const NX: usize = 4;
+pub const NI: usize = 2;
+
+/// The state variables in the order of the continuous states.
+pub const STATE_NAMES: [&str; NX] = ["theta_m", "omega_m", "theta_L", "omega_L"];
+
+/// A fresh fmi2EventInfo with every flag set, so that a call that fills it is seen to.
+pub fn event_info() -> fmi2EventInfo {
+    fmi2EventInfo {
+        newDiscreteStatesNeeded: fmi2True,
+        terminateSimulation: fmi2True,
+        nominalsOfContinuousStatesChanged: fmi2True,
+        valuesOfContinuousStatesChanged: fmi2True,
+        nextEventTimeDefined: fmi2True,
+        nextEventTime: f64::NAN,
+    }
+}
+
 /// An instance with its own log; freed on drop.
 pub struct Fmu {
     pub c: fmi2Component,
     pub model: &'static ModelInfo,
     // Boxed: the logger environment pointer must not move.
     pub log: Box<Log>,
+    /// Instantiated as fmi2ModelExchange (else fmi2CoSimulation).
+    pub model_exchange: bool,
 }
 
 impl Fmu {
+    /// A Co-Simulation instance.
     pub fn new(model: usize) -> Fmu {
         Fmu::named(model, "robust")
     }
 
+    /// A Co-Simulation instance named `name`.
     pub fn named(model: usize, name: &str) -> Fmu {
+        Fmu::instantiate(model, name, fmi2CoSimulation)
+    }
+
+    /// A Model Exchange instance.
+    pub fn new_model_exchange(model: usize) -> Fmu {
+        Fmu::instantiate(model, "robust ME", fmi2ModelExchange)
+    }
+
+    /// An instance of `model` for `fmu_type` (fmi2ModelExchange or fmi2CoSimulation).
+    pub fn instantiate(model: usize, name: &str, fmu_type: fmi2Type) -> Fmu {
         let log: Box<Log> = Box::default();
         let info = &MODELS[model];
         let name = CString::new(name).unwrap();
@@ -83,7 +117,7 @@ impl Fmu {
         let c = unsafe {
             fmi2Instantiate(
                 name.as_ptr(),
-                fmi2CoSimulation,
+                fmu_type,
                 guid.as_ptr(),
                 c"file:///tmp/r".as_ptr(),
                 &cb,
@@ -92,7 +126,12 @@ impl Fmu {
             )
         };
         assert!(!c.is_null(), "instantiation of {} failed", info.identifier);
-        Fmu { c, model: info, log }
+        Fmu {
+            c,
+            model: info,
+            log,
+            model_exchange: fmu_type == fmi2ModelExchange,
+        }
     }
 
     /// Instantiated, experiment from 0 with the given stop time, initialized (StepComplete).
@@ -105,6 +144,69 @@ impl Fmu {
         assert_eq!(fmi2EnterInitializationMode(f.c), fmi2Status::fmi2OK);
         assert_eq!(fmi2ExitInitializationMode(f.c), fmi2Status::fmi2OK);
         f
+    }
+
+    /// A Model Exchange instance, experiment from 0 with the given stop time, initialized: in
+    /// Event Mode.
+    pub fn me_initialized(model: usize, stop: Option<f64>) -> Fmu {
+        let f = Fmu::new_model_exchange(model);
+        assert_eq!(
+            fmi2SetupExperiment(f.c, 0, 0.0, 0.0, stop.is_some() as i32, stop.unwrap_or(0.0)),
+            fmi2Status::fmi2OK
+        );
+        assert_eq!(fmi2EnterInitializationMode(f.c), fmi2Status::fmi2OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), fmi2Status::fmi2OK);
+        f
+    }
+
+    /// A Model Exchange instance initialized and in Continuous-Time Mode (after one
+    /// fmi2NewDiscreteStates that asks for nothing).
+    pub fn me_continuous(model: usize) -> Fmu {
+        let f = Fmu::me_initialized(model, None);
+        let mut info = event_info();
+        // SAFETY: pointer to a local.
+        assert_eq!(unsafe { fmi2NewDiscreteStates(f.c, &mut info) }, fmi2Status::fmi2OK);
+        assert_eq!(info.newDiscreteStatesNeeded, fmi2False);
+        assert_eq!(fmi2EnterContinuousTimeMode(f.c), fmi2Status::fmi2OK);
+        f
+    }
+
+    /// fmi2GetContinuousStates into a buffer of NX NaNs.
+    pub fn continuous_states(&self) -> (fmi2Status, [f64; NX]) {
+        let mut x = [f64::NAN; NX];
+        // SAFETY: room for NX values.
+        let s = unsafe { fmi2GetContinuousStates(self.c, x.as_mut_ptr(), NX) };
+        (s, x)
+    }
+
+    /// fmi2SetContinuousStates with all of `x` (its length is the nx passed).
+    pub fn set_continuous_states(&self, x: &[f64]) -> fmi2Status {
+        // SAFETY: x.len() readable values.
+        unsafe { fmi2SetContinuousStates(self.c, x.as_ptr(), x.len()) }
+    }
+
+    /// fmi2GetDerivatives into a buffer of NX NaNs.
+    pub fn derivatives(&self) -> (fmi2Status, [f64; NX]) {
+        let mut dx = [f64::NAN; NX];
+        // SAFETY: room for NX values.
+        let s = unsafe { fmi2GetDerivatives(self.c, dx.as_mut_ptr(), NX) };
+        (s, dx)
+    }
+
+    /// fmi2GetEventIndicators into a buffer of NI NaNs.
+    pub fn event_indicators(&self) -> (fmi2Status, [f64; NI]) {
+        let mut z = [f64::NAN; NI];
+        // SAFETY: room for NI values.
+        let s = unsafe { fmi2GetEventIndicators(self.c, z.as_mut_ptr(), NI) };
+        (s, z)
+    }
+
+    /// fmi2GetNominalsOfContinuousStates into a buffer of NX NaNs.
+    pub fn nominals(&self) -> (fmi2Status, [f64; NX]) {
+        let mut n = [f64::NAN; NX];
+        // SAFETY: room for NX values.
+        let s = unsafe { fmi2GetNominalsOfContinuousStates(self.c, n.as_mut_ptr(), NX) };
+        (s, n)
     }
 
     pub fn vr(&self, name: &str) -> u32 {
@@ -217,10 +319,15 @@ impl Fmu {
         status
     }
 
-    /// fmi2Reset, then the standard run: the instance must behave like a new one.
+    /// fmi2Reset, then the standard run (of its interface): the instance must behave like a
+    /// new one.
     pub fn reset_and_check(&self) {
         assert_eq!(fmi2Reset(self.c), fmi2Status::fmi2OK);
-        assert_eq!(standard_run_on(self), standard_run(self.model_index()));
+        if self.model_exchange {
+            assert_eq!(standard_me_run_on(self), standard_me_run(self.model_index()));
+        } else {
+            assert_eq!(standard_run_on(self), standard_run(self.model_index()));
+        }
     }
 
     pub fn model_index(&self) -> usize {
@@ -249,6 +356,12 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
     }
     f.assert_all_finite("standard run");
     let (_, values) = f.all_values();
+    assert_momentum_balance(f, &values, 20.0 * h);
+    values.into_iter().map(|(_, x)| x.to_bits()).collect()
+}
+
+/// The momentum balance of a run from rest at θ = 0 with τ_m = 2, τ_L = 0.5 for `t` seconds.
+pub fn assert_momentum_balance(f: &Fmu, values: &[(&'static str, f64)], t: f64) {
     let at = |name: &str| values.iter().find(|(n, _)| *n == name).map(|(_, x)| *x).unwrap();
     // docs/model.md §1: (J_m ω_m' + b_m ω_m − τ_m)/r_m + (J_L ω_L' + b_L ω_L − τ_L)/r_L = 0 in every
     // mode (ψ cancels), so from rest at θ = 0 the integral
@@ -258,7 +371,6 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
         "BacklashShaft" => (1.0, 1.0),
         _ => (at("R_1"), at("R_2") * at("R_g2") / at("R_g1")),
     };
-    let t = 20.0 * h;
     let motor = [at("J_m") * at("omega_m"), at("b_m") * at("theta_m"), -2.0 * t];
     let load = [at("J_L") * at("omega_L"), at("b_L") * at("theta_L"), -0.5 * t];
     let balance = motor.iter().sum::<f64>() / r_m + load.iter().sum::<f64>() / r_l;
@@ -268,7 +380,6 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
         "momentum balance violated: {balance:e} (scale {scale:e}) in {values:?}"
     );
     assert!(at("omega_m") > 0.0, "the motor did not move: {values:?}");
-    values.into_iter().map(|(_, x)| x.to_bits()).collect()
 }
 
 /// The standard run on a brand-new instance.
@@ -282,6 +393,101 @@ pub fn standard_run(model: usize) -> Vec<u64> {
 pub fn fresh_instance_works(model: usize) {
     let a = standard_run(model);
     let b = standard_run(model);
+    assert_eq!(a, b);
+}
+
+/// The standard run as a Model Exchange importer does it, on an instance just instantiated or
+/// reset: the same experiment and inputs, integrated over the same 0.1 s by classical
+/// Runge-Kutta (step 0.2/ω₀, ω₀ the contact frequency, read from the nominals: ω_m's nominal
+/// over θ_m's) through fmi2SetTime, fmi2SetContinuousStates, fmi2GetDerivatives and
+/// fmi2CompletedIntegratorStep, with an event iteration whenever an event indicator changes
+/// sign. Runge-Kutta keeps linear invariants, so the momentum balance holds as in the
+/// Co-Simulation run. Returns the bits of every variable at the end.
+pub fn standard_me_run_on(f: &Fmu) -> Vec<u64> {
+    assert!(f.model_exchange, "a Model Exchange instance");
+    const OK: fmi2Status = fmi2Status::fmi2OK;
+    let (s, nominal) = f.nominals();
+    assert_eq!(s, OK, "nominals in Instantiated");
+    assert!(nominal.iter().all(|x| x.is_finite() && *x > 0.0), "{nominal:?}");
+    assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), OK);
+    assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+    assert_eq!(f.set_real("tau_m", 2.0), OK);
+    assert_eq!(f.set_real("tau_L", 0.5), OK);
+    assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+    let event_iteration = || {
+        let mut info = event_info();
+        // SAFETY: pointer to a local.
+        assert_eq!(unsafe { fmi2NewDiscreteStates(f.c, &mut info) }, OK);
+        assert_eq!(
+            (
+                info.newDiscreteStatesNeeded,
+                info.terminateSimulation,
+                info.nominalsOfContinuousStatesChanged,
+                info.valuesOfContinuousStatesChanged,
+                info.nextEventTimeDefined
+            ),
+            (fmi2False, fmi2False, fmi2False, fmi2False, fmi2False)
+        );
+        assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+    };
+    event_iteration();
+    let omega0 = nominal[1] / nominal[0];
+    let end = 0.1;
+    let steps = (end * omega0 / 0.2).ceil().max(20.0) as usize;
+    let h = end / steps as f64;
+    let rates = |t: f64, x: &[f64; NX]| {
+        assert_eq!(fmi2SetTime(f.c, t), OK);
+        assert_eq!(f.set_continuous_states(x), OK);
+        let (s, dx) = f.derivatives();
+        assert_eq!(s, OK);
+        assert!(dx.iter().all(|d| d.is_finite()), "{dx:?}");
+        dx
+    };
+    let (s, mut x) = f.continuous_states();
+    assert_eq!(s, OK);
+    let (s, mut indicators) = f.event_indicators();
+    assert_eq!(s, OK);
+    for k in 0..steps {
+        let t = k as f64 * h;
+        let k1 = rates(t, &x);
+        let k2 = rates(t + h / 2.0, &std::array::from_fn(|i| x[i] + h / 2.0 * k1[i]));
+        let k3 = rates(t + h / 2.0, &std::array::from_fn(|i| x[i] + h / 2.0 * k2[i]));
+        let k4 = rates(t + h, &std::array::from_fn(|i| x[i] + h * k3[i]));
+        x = std::array::from_fn(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
+        assert_eq!(fmi2SetTime(f.c, (k + 1) as f64 * h), OK);
+        assert_eq!(f.set_continuous_states(&x), OK);
+        let (mut enter, mut terminate) = (fmi2True, fmi2True);
+        // SAFETY: pointers to locals.
+        assert_eq!(
+            unsafe { fmi2CompletedIntegratorStep(f.c, fmi2True, &mut enter, &mut terminate) },
+            OK
+        );
+        assert_eq!((enter, terminate), (fmi2False, fmi2False));
+        let (s, now) = f.event_indicators();
+        assert_eq!(s, OK);
+        if now.iter().zip(&indicators).any(|(a, b)| (*a > 0.0) != (*b > 0.0)) {
+            assert_eq!(fmi2EnterEventMode(f.c), OK);
+            event_iteration();
+        }
+        indicators = now;
+    }
+    f.assert_all_finite("standard Model Exchange run");
+    let (_, values) = f.all_values();
+    assert_momentum_balance(f, &values, end);
+    assert_eq!(fmi2Terminate(f.c), OK);
+    values.into_iter().map(|(_, x)| x.to_bits()).collect()
+}
+
+/// The standard Model Exchange run on a brand-new instance.
+pub fn standard_me_run(model: usize) -> Vec<u64> {
+    let f = Fmu::new_model_exchange(model);
+    standard_me_run_on(&f)
+}
+
+/// As [`fresh_instance_works`], for Model Exchange instances.
+pub fn fresh_me_instance_works(model: usize) {
+    let a = standard_me_run(model);
+    let b = standard_me_run(model);
     assert_eq!(a, b);
 }
 
