@@ -570,7 +570,8 @@ fn variables_that_cannot_be_set_now_are_refused() {
                 (Output, false, _) => in_step_complete(v.name, "output computed by the FMU"),
                 (Parameter, ..) => in_step_complete(v.name, "fixed parameter"),
                 (CalculatedParameter, ..) => in_step_complete(v.name, "calculatedParameter"),
-                (Local, ..) => in_step_complete(v.name, "state derivative"),
+                (Local, ..) if v.derivative_of.is_some() => in_step_complete(v.name, "state derivative"),
+                (Local, ..) => in_step_complete(v.name, "computed by the FMU from the state"),
             }
         }
         // Before initialization the calculated quantities are refused too.
@@ -1094,7 +1095,7 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
 
         // fmi2SetTime: non-finite times, and times before the start time.
         for t in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -1e-300, -1.0, -f64::MAX] {
-            let reason = format!("time {t} must be finite and >= the startTime 0");
+            let reason = format!("time {t} must be finite and >= the start time 0");
             refused_in_me(model, false, &reason, |c| fmi2SetTime(c, t));
             refused_in_me(model, true, &reason, |c| fmi2SetTime(c, t));
         }
@@ -1113,7 +1114,7 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
         );
         let just_before = f64::from_bits(1f64.to_bits() - 1);
         f.refuses(
-            &format!("time {just_before} must be finite and >= the startTime 1 set in fmi2SetupExperiment"),
+            &format!("time {just_before} must be finite and >= the start time 1 of the experiment"),
             |c| fmi2SetTime(c, just_before),
         );
         assert_eq!(observe(&f), before);

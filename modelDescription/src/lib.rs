@@ -200,7 +200,8 @@ pub const LOG_CATEGORIES: &[LogCategory] = &[
     LogCategory {
         variant: "Errors",
         name: "logErrors",
-        description: "Reasons for every fmi2Error and fmi2Discard: illegal calls, invalid arguments or values",
+        description:
+            "Reasons for every refused call (status Error or Discard): illegal calls, invalid arguments or values",
     },
     LogCategory {
         variant: "Calls",

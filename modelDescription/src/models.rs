@@ -262,8 +262,8 @@ fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
         ),
     };
     vec![
-        input("tau_m", "TauM", 1, "Motor torque, held constant over each communication step unless input derivatives are set"),
-        input("tau_L", "TauL", 2, "Load torque, held constant over each communication step unless input derivatives are set"),
+        input("tau_m", "TauM", 1, "Motor torque, held over each communication step, or along a line where input derivatives are set"),
+        input("tau_L", "TauL", 2, "Load torque, held over each communication step, or along a line where input derivatives are set"),
         state_output("theta_m", "ThetaM", 3, "rad", "Angle", nominals[0], "Motor angle; its start value is the initial state"),
         state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", nominals[1], "Motor speed; its start value is the initial state"),
         state_output("theta_L", "ThetaL", 5, "rad", "Angle", nominals[2], "Load angle; its start value is the initial state"),

@@ -6,7 +6,7 @@ use crate::common::{
     causality_name, derivative_dependencies, hash_name, initial_attribute, initial_dependencies, output_dependencies,
     variability_name, vr_of, write_type_attributes, write_units_categories_and_experiment,
 };
-use crate::{model, Causality, Initial, Model, Type};
+use crate::{model, Causality, Model, Type};
 
 /// `text` as XML (or HTML) attribute value or text (shared with the FMI 3.0 description).
 pub use crate::common::escape;
@@ -96,13 +96,7 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     }
     x.push_str("    </Derivatives>\n    <InitialUnknowns>\n");
     for (i, v) in model.variables.iter().enumerate() {
-        // Every calculated local is listed here, the event indicators u_minus_g and u_plus_g
-        // too, which FMI 2.0 §2.2.8 does not list (fmpy's validator reports it). Changing it
-        // changes this text and its guid; `common::is_initial_unknown` is the rule by the
-        // standard, which the FMI 3.0 description follows.
-        let listed = (matches!(v.causality, Causality::Output | Causality::Local) && v.initial == Initial::Calculated)
-            || v.causality == Causality::CalculatedParameter;
-        if !listed {
+        if !crate::common::is_initial_unknown(v) {
             continue;
         }
         match initial_dependencies(model, v) {

@@ -2,13 +2,15 @@
 //! slices and call the safe instance in [`crate::fmu`] through one guard ([`guard::guard`]).
 //! All `unsafe` of the crate lives here; every block states why it is sound.
 //!
-//! Both models are served by the same exports; fmi2Instantiate tells them apart by guid.
+//! Both models are served by the same exports; fmi2Instantiate tells them apart by guid. The
+//! FMI 3.0 functions ([`fmi3`]) serve the same instances through the FMI 3.0 archives.
 
 // Names and argument names follow the C headers, so that a generated header matches them.
 #![allow(non_camel_case_types, non_snake_case, non_upper_case_globals)]
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod cosim;
+pub mod fmi3;
 pub mod fmu_state;
 pub mod guard;
 pub mod lifecycle;

@@ -17,7 +17,9 @@ pub use instance::{CoSimulationOptions, EventInfo, Experiment, Instance, StatusK
 pub use logging::{Collected, LogCategory, LogSink};
 pub use snapshot::Snapshot;
 pub use state_machine::{Flavour, Function, Interface, Phase, Standard};
-pub use variables::{model_by_guid, model_by_identifier, ModelInfo, Symbol, Variable, MODELS};
+pub use variables::{
+    model_by_guid, model_by_identifier, model_by_instantiation_token, ModelInfo, Symbol, Variable, MODELS,
+};
 
 #[cfg(test)]
 mod tests;

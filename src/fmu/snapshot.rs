@@ -201,7 +201,10 @@ impl Snapshot {
             },
         };
         if !phase.belongs_to(flavour) {
-            return refuse(format!("phase {phase} is not a state of an {} instance", flavour.name()));
+            return refuse(format!(
+                "phase {phase} is not a state of an {} instance",
+                flavour.name()
+            ));
         }
         let count = u16::from_le_bytes([r.u8(), r.u8()]) as usize;
         if count != Symbol::COUNT {

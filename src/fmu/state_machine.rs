@@ -266,8 +266,13 @@ impl Function {
             GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates",
             GetOtherType(name) | SetOtherType(name) | NotProvided(name) => name,
             // FMI 2.0 only; never called through the FMI 3.0 functions.
-            SetRealInputDerivatives | CancelStep | GetStatus | GetRealStatus | GetIntegerStatus
-            | GetBooleanStatus | GetStringStatus => self.c_name(),
+            SetRealInputDerivatives
+            | CancelStep
+            | GetStatus
+            | GetRealStatus
+            | GetIntegerStatus
+            | GetBooleanStatus
+            | GetStringStatus => self.c_name(),
         }
     }
 
@@ -367,8 +372,12 @@ impl Function {
             GetEventIndicators | GetContinuousStates => both(M | V | N | T | E, 0),
             GetDerivatives => both(V | N | T | E, 0),
             GetNominalsOfContinuousStates => both(I | V | N | T | E, 0),
-            EnterStepMode | GetNumberOfEventIndicators | GetNumberOfContinuousStates | GetOtherType(_)
-            | SetOtherType(_) | NotProvided(_) => both(0, 0),
+            EnterStepMode
+            | GetNumberOfEventIndicators
+            | GetNumberOfContinuousStates
+            | GetOtherType(_)
+            | SetOtherType(_)
+            | NotProvided(_) => both(0, 0),
         }
     }
 
@@ -405,8 +414,13 @@ impl Function {
             GetEventIndicators | GetContinuousStates | GetDerivatives => both(M | V | N | T | E, 0),
             GetNominalsOfContinuousStates => both(I | M | V | N | T | E, 0),
             GetNumberOfEventIndicators | GetNumberOfContinuousStates => both(I | M | V | N | T | E, 0),
-            SetRealInputDerivatives | CancelStep | GetStatus | GetRealStatus | GetIntegerStatus
-            | GetBooleanStatus | GetStringStatus => both(0, 0),
+            SetRealInputDerivatives
+            | CancelStep
+            | GetStatus
+            | GetRealStatus
+            | GetIntegerStatus
+            | GetBooleanStatus
+            | GetStringStatus => both(0, 0),
         }
     }
 
@@ -511,7 +525,10 @@ mod tests {
         // A call legal in a state is legal only in states its interface can be in.
         for f in [GetReal, SetReal, Terminate, GetFmuState, SetTime, DoStep, GetStatus] {
             for flavour in [Flavour::FMI2_ME, Flavour::FMI2_CS, Flavour::FMI3_ME, Flavour::FMI3_CS] {
-                assert!(legal_in(flavour, f).iter().all(|p| p.belongs_to(flavour)), "{f:?} {flavour:?}");
+                assert!(
+                    legal_in(flavour, f).iter().all(|p| p.belongs_to(flavour)),
+                    "{f:?} {flavour:?}"
+                );
             }
         }
     }

@@ -356,3 +356,25 @@ fn model_exchange_states_do_not_cross_interfaces() {
         "{err}"
     );
 }
+
+/// A loop that never settles (no damping, no controller): a bound read far from the start is
+/// refused with the reason after a bounded amount of work, not computed for ever.
+#[test]
+fn model_exchange_bound_far_out_on_an_undamped_loop_is_refused_promptly() {
+    let mut inst = Instance::new_for(&MODELS[0], Interface::ModelExchange, None, false);
+    let (b_m, b_l) = (vr(&inst, "b_m"), vr(&inst, "b_L"));
+    inst.set_real(&[b_m, b_l], &[0.0, 0.0]).unwrap();
+    inst.setup_experiment(None, 0.0, None).unwrap();
+    inst.enter_initialization_mode().unwrap();
+    inst.exit_initialization_mode().unwrap_or_else(|e| panic!("{e}"));
+    inst.set_time(1e300).unwrap();
+    let started = std::time::Instant::now();
+    let mut out = [0.0];
+    let err = inst.get_real(&[vr(&inst, "bound")], &mut out).unwrap_err();
+    assert!(err.to_string().contains("out of reach"), "{err}");
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(20),
+        "{:?}",
+        started.elapsed()
+    );
+}

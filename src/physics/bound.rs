@@ -48,6 +48,8 @@ pub enum BoundError {
     AdvanceTooLong { h: f64, max_h: f64 },
     #[error("bound state is not finite or has negative time")]
     BadState,
+    #[error("the bounds at {elapsed:e} s after the start time are out of reach: the loop's response has not decayed by {reached:e} s, and following it further takes too long; read them at an earlier time")]
+    TooFar { elapsed: f64, reached: f64 },
     #[error("the bounds overflow: bound = {bound:e}, bound_paper = {bound_paper:e}")]
     Overflow { bound: f64, bound_paper: f64 },
 }

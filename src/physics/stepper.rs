@@ -275,7 +275,8 @@ impl Stepper {
         h: f64,
         on_switch: &mut dyn FnMut(SwitchEvent),
     ) -> Result<usize, StepError> {
-        self.step_until(state, inputs, h, on_switch, false).map(|end| end.switches)
+        self.step_until(state, inputs, h, on_switch, false)
+            .map(|end| end.switches)
     }
 
     /// As [`Stepper::step`], but stops at the first contact switch inside the step: `state` is
@@ -289,7 +290,8 @@ impl Stepper {
         h: f64,
         on_switch: &mut dyn FnMut(SwitchEvent),
     ) -> Result<Option<f64>, StepError> {
-        self.step_until(state, inputs, h, on_switch, true).map(|end| end.stopped_at)
+        self.step_until(state, inputs, h, on_switch, true)
+            .map(|end| end.stopped_at)
     }
 
     #[inline(always)]

@@ -1,4 +1,5 @@
-//! `cargo xtask abi`: checks the C ABI of the cdylib against the official FMI 2.0 headers.
+//! `cargo xtask abi`: checks the C ABI of the cdylib against the official FMI 2.0 and FMI 3.0
+//! headers.
 //!
 //! 1. cbindgen writes a header of the crate's exported functions (tests/abi/cbindgen.toml) that
 //!    takes every FMI type from the official fmi2Functions.h;
@@ -77,25 +78,42 @@ pub fn run(args: &[String]) -> Result<(), String> {
     check()
 }
 
-/// The three checks, on the library already built at [`fmu::library_path`].
+/// The checks, on the library already built at [`fmu::library_path`].
 pub fn check() -> Result<(), String> {
     let header_dirs = official_header_dirs()?;
     let generated = generate_header()?;
-    for dir in &header_dirs {
-        compile_check(dir, &generated)?;
+    let mut fmi3 = Vec::new();
+    for dirs in &header_dirs {
+        compile_check(dirs, &generated)?;
+        fmi3 = compile_check3(dirs, &generated)?;
     }
-    check_exports(&fmu::library_path())
+    check_exports(&fmu::library_path(), &fmi3)
+}
+
+/// Where one copy of the official headers is: FMI 2.0's and FMI 3.0's folders.
+struct HeaderDirs {
+    fmi2: PathBuf,
+    fmi3: PathBuf,
 }
 
 /// Every copy of the official headers that this machine has: the one in fmpy (in `.venv`) and
 /// the one in the `fmi-sys` crate used by the importer test. At least one must exist.
-fn official_header_dirs() -> Result<Vec<PathBuf>, String> {
+fn official_header_dirs() -> Result<Vec<HeaderDirs>, String> {
     let mut dirs = Vec::new();
     if let Some(dir) = python::fmpy_header_dir() {
-        dirs.push(dir);
+        dirs.push(HeaderDirs {
+            fmi3: dir.clone(),
+            fmi2: dir,
+        });
     }
     if let Some(dir) = fmi_sys_header_dir() {
-        dirs.push(dir);
+        let fmi3 = dir
+            .parent()
+            .and_then(Path::parent)
+            .map(|p| p.join("fmi-standard3").join("headers"));
+        if let Some(fmi3) = fmi3.filter(|d| d.join("fmi3Functions.h").is_file()) {
+            dirs.push(HeaderDirs { fmi2: dir, fmi3 });
+        }
     }
     if dirs.is_empty() {
         return Err(
@@ -199,22 +217,12 @@ fn compiler_rejects_a_wrong_prototype(official: &Path) -> Result<(), String> {
     Ok(())
 }
 
-fn compile_check(official: &Path, generated: &Path) -> Result<(), String> {
+fn compile_check(dirs: &HeaderDirs, generated: &Path) -> Result<(), String> {
+    let official = &dirs.fmi2;
     step(&format!("compiling tests/abi/check.c against {}", official.display()));
     compiler_rejects_a_wrong_prototype(official)?;
-    let compiler = compiler();
     let check_c = util::repo_root().join("tests").join("abi").join("check.c");
-    let generated_dir = generated.parent().expect("header is inside target/abi");
-    util::run(
-        Command::new(compiler)
-            .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"])
-            .arg("-I")
-            .arg(official)
-            .arg("-I")
-            .arg(generated_dir)
-            .arg(&check_c),
-    )
-    .map_err(|e| {
+    util::run(syntax_check(dirs, generated).arg(&check_c)).map_err(|e| {
         format!("{e}\nthe Rust signatures disagree with the official FMI 2.0 header (see the errors above)")
     })?;
     println!(
@@ -224,7 +232,62 @@ fn compile_check(official: &Path, generated: &Path) -> Result<(), String> {
     Ok(())
 }
 
-fn check_exports(library: &Path) -> Result<(), String> {
+/// `cc -fsyntax-only` with both official header folders and the generated header's.
+fn syntax_check(dirs: &HeaderDirs, generated: &Path) -> Command {
+    let generated_dir = generated.parent().expect("header is inside target/abi");
+    let mut cmd = Command::new(compiler());
+    cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"])
+        .arg("-I")
+        .arg(&dirs.fmi2)
+        .arg("-I")
+        .arg(&dirs.fmi3)
+        .arg("-I")
+        .arg(generated_dir);
+    cmd
+}
+
+/// The FMI 3.0 functions, read from the official fmi3FunctionTypes.h (every `fmi3XxxTYPE`), each
+/// assigned to a pointer of its standard type in a generated C file: a Rust signature that
+/// differs from the standard's is an incompatible-pointer error. Returns the names.
+fn compile_check3(dirs: &HeaderDirs, generated: &Path) -> Result<Vec<String>, String> {
+    let types = dirs.fmi3.join("fmi3FunctionTypes.h");
+    step(&format!("checking the FMI 3.0 functions against {}", types.display()));
+    let text = fs::read_to_string(&types).map_err(|e| format!("reading {}: {e}", types.display()))?;
+    let mut names: Vec<String> = text
+        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .filter_map(|word| word.strip_suffix("TYPE"))
+        .filter(|name| name.starts_with("fmi3"))
+        .map(str::to_string)
+        .collect();
+    names.sort();
+    names.dedup();
+    if names.len() < 70 {
+        return Err(format!(
+            "{} declares only {} fmi3 function types: not the official header?",
+            types.display(),
+            names.len()
+        ));
+    }
+    let mut c = String::from(
+        "/* Generated by `cargo xtask abi`: every FMI 3.0 function of backlash_fmu assigned to a pointer of its\n          * standard type, without a cast. */\n#include \"fmi3Functions.h\"\n#include \"backlash_fmu.h\"\n",
+    );
+    for name in &names {
+        c.push_str(&format!("{name}TYPE *const check_{name} = {name};\n"));
+    }
+    let file = util::target_dir().join("abi").join("check3.c");
+    fs::write(&file, c).map_err(|e| format!("writing {}: {e}", file.display()))?;
+    util::run(syntax_check(dirs, generated).arg(&file)).map_err(|e| {
+        format!("{e}\nthe Rust signatures disagree with the official FMI 3.0 header (see the errors above)")
+    })?;
+    println!(
+        "ok: all {} FMI 3.0 functions agree with {}",
+        names.len(),
+        types.display()
+    );
+    Ok(names)
+}
+
+fn check_exports(library: &Path, fmi3: &[String]) -> Result<(), String> {
     step(&format!("exported dynamic symbols of {}", util::shown(library)));
     let listing = util::output(Command::new("nm").args(["-D", "--defined-only"]).arg(library))?;
     let mut exported: Vec<String> = listing
@@ -233,33 +296,38 @@ fn check_exports(library: &Path) -> Result<(), String> {
             let mut fields = line.split_whitespace().rev();
             let name = fields.next()?;
             let kind = fields.next()?;
-            (name.starts_with("fmi2") && kind == "T").then(|| name.to_string())
+            ((name.starts_with("fmi2") || name.starts_with("fmi3")) && kind == "T").then(|| name.to_string())
         })
         .collect();
     exported.sort();
     for name in &exported {
         println!("  {name}");
     }
-    let missing: Vec<&str> = all_functions()
+    let mut required: Vec<&str> = all_functions().collect();
+    required.extend(fmi3.iter().map(String::as_str));
+    let missing: Vec<&str> = required
+        .iter()
+        .copied()
         .filter(|name| !exported.iter().any(|e| e == name))
         .collect();
     let unknown: Vec<&str> = exported
         .iter()
         .map(String::as_str)
-        .filter(|e| !all_functions().any(|name| name == *e))
+        .filter(|e| !required.contains(e))
         .collect();
     if !missing.is_empty() {
         return Err(format!("the library does not export: {}", missing.join(", ")));
     }
     if !unknown.is_empty() {
         return Err(format!(
-            "the library exports fmi2 names that FMI 2.0 does not define: {}",
+            "the library exports fmi2/fmi3 names that the standards do not define: {}",
             unknown.join(", ")
         ));
     }
     println!(
-        "ok: all {} FMI 2.0 functions (Model Exchange and Co-Simulation) are exported",
-        all_functions().count()
+        "ok: all {} FMI 2.0 functions (Model Exchange and Co-Simulation) and all {} FMI 3.0 functions are exported",
+        all_functions().count(),
+        fmi3.len()
     );
     Ok(())
 }

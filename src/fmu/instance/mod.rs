@@ -216,8 +216,9 @@ impl Instance {
 
     fn fail(&mut self, function: Function, e: &FmuError) {
         let status = e.status();
-        self.log
-            .emit(status, LogCategory::Errors, || format!("{}: {e}", function.name(self.flavour.standard)));
+        self.log.emit(status, LogCategory::Errors, || {
+            format!("{}: {e}", function.name(self.flavour.standard))
+        });
         self.log.emit(status, LogCategory::Calls, || {
             format!("{} -> {status:?}", function.name(self.flavour.standard))
         });

@@ -64,7 +64,11 @@ impl Instance {
 
     /// The number of continuous states (FMI 3.0 asks; FMI 2.0 descriptions say).
     pub(crate) fn continuous_state_count(&self) -> usize {
-        self.model.variables.iter().filter(|v| v.derivative_of.is_some()).count()
+        self.model
+            .variables
+            .iter()
+            .filter(|v| v.derivative_of.is_some())
+            .count()
     }
 
     /// The number of event indicators: u − g and u + g.
@@ -94,12 +98,14 @@ impl Instance {
         Ok((false, false))
     }
 
-    /// Any finite time from the start time on, forwards or backwards.
+    /// Any finite time from the start time on, forwards or backwards. A time past the stop time
+    /// is accepted: variable-step solvers evaluate the right-hand side beyond the end of the
+    /// interval they integrate (fmpy's CVode does), and the model is defined there.
     pub(crate) fn set_time_body(&mut self, time: f64) -> Result<Status, FmuError> {
         let start = self.experiment.start_time;
         if !(finite(time) && time >= start) {
             return Err(FmuError::InvalidArgument(format!(
-                "time {time} must be finite and >= the startTime {start} set in fmi2SetupExperiment"
+                "time {time} must be finite and >= the start time {start} of the experiment"
             )));
         }
         self.time = time;
@@ -244,8 +250,10 @@ impl Instance {
         let plant = sim.plant();
         let (jz, jtau) = plant.jacobian(&sim.state);
         let psi_rate = |dz: &[f64; STATES]| plant.force_rate(sim.state.mode, dz[0], dz[2]);
-        for (slot, row) in dv_unknown.iter_mut().zip(rows) {
-            *slot = match row {
+        // Computed in full before anything is written: a refusal leaves dvUnknown as it was.
+        let mut values = Vec::with_capacity(rows.len());
+        for row in rows {
+            let value = match row {
                 Source::Derivative(entry) => {
                     let i = entry.index();
                     (0..STATES).map(|j| jz[i][j] * dz[j]).sum::<f64>() + jtau[i][0] * dtau[0] + jtau[i][1] * dtau[1]
@@ -256,12 +264,14 @@ impl Instance {
                 // bound and bound_paper: functions of time alone.
                 _ => 0.0,
             };
-            if !slot.is_finite() {
+            if !value.is_finite() {
                 return Err(FmuError::Overflow(format!(
-                    "a directional derivative evaluates to {slot}"
+                    "a directional derivative evaluates to {value}"
                 )));
             }
+            values.push(value);
         }
+        dv_unknown.copy_from_slice(&values);
         Ok(Status::Ok)
     }
 }

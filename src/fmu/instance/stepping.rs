@@ -74,7 +74,10 @@ impl Instance {
                 // Stopped at a switch: the input lines and the time move to it.
                 adapter::store_inputs(
                     &mut self.values,
-                    [inputs.tau_m + offset * inputs.dtau_m, inputs.tau_l + offset * inputs.dtau_l],
+                    [
+                        inputs.tau_m + offset * inputs.dtau_m,
+                        inputs.tau_l + offset * inputs.dtau_l,
+                    ],
                 );
                 self.time = communication_point + offset;
                 return Ok(true);

@@ -5,11 +5,20 @@ use super::Instance;
 use crate::fmu::adapter::{self, Calculated, Source};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
-use crate::fmu::state_machine::Phase;
+use crate::fmu::state_machine::{Phase, Standard};
 use crate::fmu::variables::{Causality, VarType, Variable};
 use crate::physics::contact_indicator;
 
+/// The independent variable of the FMI 3.0 descriptions: the instance's time.
+use model_description::xml3::TIME;
+
 impl Instance {
+    /// Whether `vr` is FMI 3.0's independent variable `time` (FMI 2.0 has no such variable).
+    #[inline]
+    fn is_time(&self, vr: u32) -> bool {
+        vr == TIME.1 && self.flavour.standard == Standard::Fmi3
+    }
+
     fn variable(&self, vr: u32) -> Result<&'static Variable, FmuError> {
         self.model.by_vr(vr).ok_or(FmuError::UnknownValueReference {
             vr,
@@ -92,6 +101,10 @@ impl Instance {
     pub(crate) fn get_real_body(&mut self, vrs: &[u32], out: &mut [f64]) -> Result<Status, FmuError> {
         Self::same_length("fmi2GetReal values", out.len(), vrs.len())?;
         for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
+            if self.is_time(*vr) {
+                *slot = self.time;
+                continue;
+            }
             let v = self.typed_variable(*vr, VarType::Real)?;
             let x = self.real_value(v)?;
             // bound_sup is +∞ by definition when the loop is unstable (docs/model.md §4); nothing else
@@ -165,7 +178,8 @@ impl Instance {
         };
         match v.causality {
             Causality::CalculatedParameter => refuse("it is a calculatedParameter, computed by the FMU"),
-            Causality::Local => refuse("it is a state derivative, computed by the FMU"),
+            Causality::Local if v.derivative_of.is_some() => refuse("it is a state derivative, computed by the FMU"),
+            Causality::Local => refuse("it is computed by the FMU from the state"),
             Causality::Output if !v.is_initial_state() => refuse("it is an output computed by the FMU"),
             _ => match self.phase {
                 Phase::Instantiated | Phase::InitializationMode => Ok(()),
@@ -189,6 +203,13 @@ impl Instance {
         Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
         // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
+            if self.is_time(*vr) {
+                return Err(FmuError::NotSettable {
+                    name: TIME.0,
+                    phase: self.phase,
+                    reason: "it is the independent variable: fmi3DoStep and fmi3SetTime move it",
+                });
+            }
             let v = self.typed_variable(*vr, VarType::Real)?;
             self.check_settable(v)?;
             if !v.range.admits(*value) {
