@@ -331,7 +331,7 @@ fn me_table() -> Vec<MeCase> {
             case("fmi2SetupExperiment", |c| fmi2SetupExperiment(c, 1, 1e-6, 0.5, 1, 10.0), I, OK, Some(|f, _| {
                 assert_eq!(fmi2EnterInitializationMode(f.c), OK);
                 assert_eq!(fmi2ExitInitializationMode(f.c), OK);
-                f.refuses("startTime 0.5", |c| fmi2SetTime(c, 0.25));
+                f.refuses("start time 0.5", |c| fmi2SetTime(c, 0.25));
             })),
             case("fmi2EnterInitializationMode", |c| fmi2EnterInitializationMode(c), I, OK, Some(|f, _| {
                 assert_eq!(f.get_real("theta_m"), (OK, 0.0));
