@@ -1,7 +1,10 @@
-//! `cargo xtask fmu`: builds the cdylib once and packages one FMI 2.0 archive per model.
+//! `cargo xtask fmu`: builds the cdylib once per platform and packages one FMI 2.0 archive per
+//! model.
 //!
-//! Layout of each archive (FMI 2.0 §2.3): `modelDescription.xml`, `binaries/linux64/<id>.so`
-//! (the same library under each model's identifier), `documentation/index.html`.
+//! Layout of each archive (FMI 2.0 §2.3): `modelDescription.xml`, `binaries/<platform>/<id>.<ext>`
+//! (the same library under each model's identifier: `linux64/<id>.so`, and with
+//! `--all-platforms` also `win64/<id>.dll`), `documentation/index.html`. Platforms for which
+//! FMI 2.0 has no folder (aarch64-linux) are built and checked but not packed.
 
 use std::fs;
 use std::io::{Read, Write};
@@ -10,36 +13,88 @@ use std::path::{Path, PathBuf};
 use zip::write::SimpleFileOptions;
 use zip::CompressionMethod;
 
-use crate::documentation;
+use crate::platform::{self, Built, Platform};
 use crate::util::{self, step};
+use crate::{cross, documentation};
 
 /// Name of the cdylib that cargo writes for the `backlash_fmu` library.
-pub const LIBRARY_FILE: &str = "libbacklash_fmu.so";
-
-/// FMI 2.0 §2.3 platform folder for 64-bit Linux; the only platform this build produces.
-const PLATFORM: &str = "linux64";
+pub const LIBRARY_FILE: &str = platform::LINUX64.library_file;
 
 /// The release cdylib, as built by [`build_library`].
 pub fn library_path() -> PathBuf {
     util::target_dir().join("release").join(LIBRARY_FILE)
 }
 
+const USAGE: &str = "usage: cargo xtask fmu [--all-platforms]";
+
 pub fn run(args: &[String]) -> Result<(), String> {
-    if let Some(arg) = args.first() {
-        return Err(format!("`cargo xtask fmu` takes no arguments, got `{arg}`"));
-    }
-    package_all().map(|_| ())
+    let platforms = platforms_from_arguments(args, USAGE)?;
+    package(&platforms).map(|_| ())
 }
 
-/// Builds the library and writes every model's archive; returns the archive paths.
-pub fn package_all() -> Result<Vec<PathBuf>, String> {
-    if !(cfg!(target_os = "linux") && cfg!(target_arch = "x86_64")) {
-        return Err(format!(
-            "packaging produces binaries/{PLATFORM} only; build on x86_64 Linux"
-        ));
+/// `[]` → linux64 only; `[--all-platforms]` → every platform of [`platform::ALL`].
+pub fn platforms_from_arguments(args: &[String], usage: &str) -> Result<Vec<&'static Platform>, String> {
+    match args {
+        [] => Ok(vec![&platform::LINUX64]),
+        [flag] if flag == "--all-platforms" => Ok(platform::ALL.to_vec()),
+        [other, ..] => Err(format!("unexpected argument `{other}`\n{usage}")),
     }
-    build_library()?;
-    let library = fs::read(library_path()).map_err(|e| format!("reading {}: {e}", library_path().display()))?;
+}
+
+/// The linux64 archives, as `cargo xtask fmu` writes them.
+pub fn package_all() -> Result<Vec<PathBuf>, String> {
+    package(&[&platform::LINUX64])?;
+    Ok(archive_paths())
+}
+
+fn archive_paths() -> Vec<PathBuf> {
+    model_description::model_identifiers()
+        .iter()
+        .map(|id| util::fmu_dir().join(format!("{id}.fmu")))
+        .collect()
+}
+
+/// Builds the library for each of `platforms` (linux64 first; it must be among them) and
+/// writes every model's archive with the binaries FMI 2.0 has a folder for; returns every built
+/// library.
+pub fn package(platforms: &[&'static Platform]) -> Result<Vec<Built>, String> {
+    if !(cfg!(target_os = "linux") && cfg!(target_arch = "x86_64")) {
+        return Err("packaging builds on x86_64 Linux only (linux64 natively, the others cross)".into());
+    }
+    if platforms.first() != Some(&&platform::LINUX64) {
+        return Err("the linux64 library comes first in every archive's platform list".into());
+    }
+    // One line before any build when a tool is missing, rather than a linker's error later.
+    if platforms.iter().any(|p| !p.is_host()) {
+        if let Some(line) = cross::unavailable() {
+            return Err(line);
+        }
+    }
+    let mut built = Vec::new();
+    for &platform in platforms {
+        built.push(if platform.is_host() {
+            build_library()?;
+            Built {
+                platform,
+                path: library_path(),
+            }
+        } else {
+            cross::toolchain::build(platform)?
+        });
+    }
+    let mut libraries: Vec<(&Platform, Vec<u8>)> = Vec::new();
+    for b in &built {
+        let bytes = fs::read(&b.path).map_err(|e| format!("reading {}: {e}", b.path.display()))?;
+        if b.platform.fmi2_folder.is_none() {
+            println!(
+                "{}: {} is built; FMI 2.0 has no binaries folder for it (FMI 3.0: {})",
+                b.platform.name,
+                util::shown(&b.path),
+                b.platform.fmi3_folder
+            );
+        }
+        libraries.push((b.platform, bytes));
+    }
 
     let out_dir = util::fmu_dir();
     fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
@@ -49,8 +104,9 @@ pub fn package_all() -> Result<Vec<PathBuf>, String> {
         check_description(id, &xml)?;
         let html = documentation::render(id, &xml)?;
         let path = out_dir.join(format!("{id}.fmu"));
-        write_archive(&path, id, &xml, &library, &html)?;
-        verify_archive(&path, id)?;
+        let entries = binary_entries(id, &libraries, |p| p.fmi2_folder);
+        write_archive(&path, &xml, &entries, &html)?;
+        verify_archive(&path, id, &entries)?;
         println!(
             "wrote {} ({} bytes)",
             util::shown(&path),
@@ -61,7 +117,27 @@ pub fn package_all() -> Result<Vec<PathBuf>, String> {
     if written.is_empty() {
         return Err("the model-description crate lists no model identifiers".into());
     }
-    Ok(written)
+    Ok(built)
+}
+
+/// The entries `binaries/<folder>/<id>.<ext>` of `libraries`, in the folder `folder_of` gives
+/// each platform, skipping those it gives none (FMI 2.0: `fmi2_folder`; an FMI 3.0 archive would
+/// pass the platform tuple, `fmi3_folder`).
+fn binary_entries<'a>(
+    id: &str,
+    libraries: &'a [(&Platform, Vec<u8>)],
+    folder_of: fn(&Platform) -> Option<&'static str>,
+) -> Vec<(String, &'a [u8])> {
+    libraries
+        .iter()
+        .filter_map(|(platform, bytes)| {
+            let folder = folder_of(platform)?;
+            Some((
+                format!("binaries/{folder}/{}", platform.archive_file(id)),
+                bytes.as_slice(),
+            ))
+        })
+        .collect()
 }
 
 fn build_library() -> Result<(), String> {
@@ -94,7 +170,7 @@ fn check_description(id: &str, xml: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn write_archive(path: &Path, id: &str, xml: &str, library: &[u8], html: &str) -> Result<(), String> {
+fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], html: &str) -> Result<(), String> {
     // Write beside the target and rename, so that an interrupted run never leaves a truncated
     // archive where the tests look for one.
     let partial = path.with_extension("fmu.partial");
@@ -104,11 +180,10 @@ fn write_archive(path: &Path, id: &str, xml: &str, library: &[u8], html: &str) -
         .compression_method(CompressionMethod::Deflated)
         .unix_permissions(0o644);
     let binary = text.unix_permissions(0o755);
-    let entries: [(String, &[u8], SimpleFileOptions); 3] = [
-        ("modelDescription.xml".into(), xml.as_bytes(), text),
-        (format!("binaries/{PLATFORM}/{id}.so"), library, binary),
-        ("documentation/index.html".into(), html.as_bytes(), text),
-    ];
+    let mut entries: Vec<(String, &[u8], SimpleFileOptions)> =
+        vec![("modelDescription.xml".into(), xml.as_bytes(), text)];
+    entries.extend(binaries.iter().map(|(name, bytes)| (name.clone(), *bytes, binary)));
+    entries.push(("documentation/index.html".into(), html.as_bytes(), text));
     for (name, bytes, options) in entries {
         zip.start_file(name.as_str(), options)
             .and_then(|_| zip.write_all(bytes).map_err(Into::into))
@@ -120,7 +195,7 @@ fn write_archive(path: &Path, id: &str, xml: &str, library: &[u8], html: &str) -
 }
 
 /// Reopens the archive and checks it holds exactly the expected entries, with forward slashes.
-fn verify_archive(path: &Path, id: &str) -> Result<(), String> {
+fn verify_archive(path: &Path, id: &str, binaries: &[(String, &[u8])]) -> Result<(), String> {
     let file = fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut archive = zip::ZipArchive::new(file).map_err(|e| format!("{}: not a zip archive: {e}", path.display()))?;
     let mut names: Vec<String> = archive
@@ -129,11 +204,11 @@ fn verify_archive(path: &Path, id: &str) -> Result<(), String> {
         .collect::<Result<_, _>>()
         .map_err(|e| format!("{}: {e}", path.display()))?;
     names.sort();
-    let mut expected = vec![
-        format!("binaries/{PLATFORM}/{id}.so"),
+    let mut expected: Vec<String> = binaries.iter().map(|(name, _)| name.clone()).collect();
+    expected.extend([
         "documentation/index.html".to_string(),
         "modelDescription.xml".to_string(),
-    ];
+    ]);
     expected.sort();
     if names != expected {
         return Err(format!("{}: entries {names:?}, expected {expected:?}", path.display()));

@@ -3,6 +3,7 @@
 use std::process::Command;
 use std::time::Instant;
 
+use crate::platform::{self, Built};
 use crate::util::{self, step};
 use crate::{abi, fmu, python};
 
@@ -44,7 +45,10 @@ pub fn run(args: &[String]) -> Result<(), String> {
     // 4. The library's C ABI against the official headers, and its exported symbols.
     timed("ABI check", &|| {
         step("4/7 ABI check");
-        abi::check()
+        abi::check(&[Built {
+            platform: &platform::LINUX64,
+            path: fmu::library_path(),
+        }])
     })?;
     // 5. A Rust importer (the `fmi` crate) loads the packaged archive. --include-ignored runs
     //    the tests that a plain `cargo test` skips; they fail if an archive is missing.
