@@ -70,12 +70,13 @@ pub fn run(args: &[String]) -> Result<(), String> {
         util::run(util::cargo().args(["test", "--workspace", "--exclude", IMPORTER_PACKAGE]))
     })?;
     // 3. The archives in target/fmu/ (with the win64 DLL when step 8 runs).
-    timed("cargo xtask fmu", &|| {
-        step(if cross_enabled {
-            "3/8 cargo xtask fmu --all-platforms"
-        } else {
-            "3/8 cargo xtask fmu"
-        });
+    let fmu_command = if cross_enabled {
+        "cargo xtask fmu --all-platforms"
+    } else {
+        "cargo xtask fmu"
+    };
+    timed(fmu_command, &|| {
+        step(&format!("3/8 {fmu_command}"));
         *built.borrow_mut() = fmu::package(&platforms)?;
         Ok(())
     })?;

@@ -285,6 +285,14 @@ mod tests {
     }
 
     #[test]
+    #[cfg(all(target_os = "linux", target_arch = "x86_64", target_env = "gnu"))]
+    fn the_running_toolchain_has_its_own_target_and_no_made_up_one() {
+        // The toolchain that builds this test has the host's standard library in its sysroot.
+        assert!(running_toolchain_has(crate::platform::LINUX64.rust_target));
+        assert!(!running_toolchain_has("x86_64-nowhere-none"));
+    }
+
+    #[test]
     fn a_missing_tool_is_one_line_with_the_apt_command() {
         let missing = [
             Tool {
