@@ -356,12 +356,12 @@ fn misuse(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), String
                 })
                 .collect();
             return Err(format!(
-                "{}, misuse on {}: {} (and {} against {} cases)",
+                "{}, misuse on {} ({} cases, linux64 {}): {}",
                 model.id,
                 host.platform.name,
-                differ.join("; "),
                 cases.len(),
-                reference.len()
+                reference.len(),
+                differ.join("; ")
             ));
         }
         println!(
