@@ -5,13 +5,20 @@
 //!    takes every FMI type from the official fmi2Functions.h;
 //! 2. `cc -fsyntax-only -Werror` compiles tests/abi/check.c, which includes both headers: a Rust
 //!    signature that differs from the standard's is a "conflicting types" error;
-//! 3. `nm -D --defined-only` on the built library must list every FMI 2.0 function.
+//! 3. a generated C file assigns every FMI 3.0 function (the `fmi3XxxTYPE`s of the official
+//!    fmi3FunctionTypes.h) to a pointer of its standard type;
+//! 4. the built library must export every FMI 2.0 and FMI 3.0 function: `nm -D --defined-only`
+//!    of a shared object, the export table (`objdump -p`) of a DLL.
+//!
+//! With `--all-platforms` (and in `cargo xtask test` when the cross tools are present) step 2
+//! also runs with each platform's C compiler (LLP64 Windows, aarch64) and step 3 on each binary.
 
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::fmu;
+use crate::platform::{self, BinaryFormat, Built, Platform};
 use crate::python;
 use crate::util::{self, step};
 
@@ -70,35 +77,46 @@ pub const MODEL_EXCHANGE_FUNCTIONS: [&str; 10] = [
 ];
 
 pub fn run(args: &[String]) -> Result<(), String> {
-    if let Some(arg) = args.first() {
-        return Err(format!("`cargo xtask abi` takes no arguments, got `{arg}`"));
-    }
-    step("building the FMU library (release) for the ABI check");
-    util::run(util::cargo().args(["build", "--release", "--package", "backlash-fmu", "--lib"]))?;
-    check()
+    let platforms = fmu::platforms_from_arguments(args, "usage: cargo xtask abi [--all-platforms]")?;
+    let built = if platforms.len() == 1 {
+        step("building the FMU library (release) for the ABI check");
+        util::run(util::cargo().args(["build", "--release", "--package", "backlash-fmu", "--lib"]))?;
+        vec![Built {
+            platform: &platform::LINUX64,
+            path: fmu::library_path(),
+        }]
+    } else {
+        fmu::package(&platforms)?
+    };
+    check(&built)
 }
 
-/// The checks, on the library already built at [`fmu::library_path`].
-pub fn check() -> Result<(), String> {
+/// The checks, on libraries already built (the linux64 one at [`fmu::library_path`]).
+pub fn check(built: &[Built]) -> Result<(), String> {
     let header_dirs = official_header_dirs()?;
     let generated = generate_header()?;
     let mut fmi3 = Vec::new();
     for dirs in &header_dirs {
-        compile_check(dirs, &generated)?;
-        fmi3 = compile_check3(dirs, &generated)?;
+        for b in built {
+            compile_check(b.platform, dirs, &generated)?;
+            fmi3 = compile_check3(b.platform, dirs, &generated)?;
+        }
     }
-    check_exports(&fmu::library_path(), &fmi3)
+    for b in built {
+        check_exports(b.platform, &b.path, &fmi3)?;
+    }
+    Ok(())
 }
 
 /// Where one copy of the official headers is: FMI 2.0's and FMI 3.0's folders.
-struct HeaderDirs {
-    fmi2: PathBuf,
-    fmi3: PathBuf,
+pub struct HeaderDirs {
+    pub fmi2: PathBuf,
+    pub fmi3: PathBuf,
 }
 
 /// Every copy of the official headers that this machine has: the one in fmpy (in `.venv`) and
 /// the one in the `fmi-sys` crate used by the importer test. At least one must exist.
-fn official_header_dirs() -> Result<Vec<HeaderDirs>, String> {
+pub fn official_header_dirs() -> Result<Vec<HeaderDirs>, String> {
     let mut dirs = Vec::new();
     if let Some(dir) = python::fmpy_header_dir() {
         dirs.push(HeaderDirs {
@@ -189,40 +207,48 @@ fn declares(text: &str, name: &str) -> bool {
     })
 }
 
-fn compiler() -> String {
-    std::env::var("CC").unwrap_or_else(|_| "cc".into())
+/// The platform's C compiler; for linux64 `$CC` when set.
+fn compiler(platform: &Platform) -> String {
+    match std::env::var("CC") {
+        Ok(cc) if platform.is_host() => cc,
+        _ => platform.c_compiler.command.to_string(),
+    }
 }
 
 /// Proves that the check can fail with this compiler and these headers: a fmi2DoStep whose
 /// first time argument is `float` must be rejected.
-fn compiler_rejects_a_wrong_prototype(official: &Path) -> Result<(), String> {
+fn compiler_rejects_a_wrong_prototype(compiler: &str, official: &Path) -> Result<(), String> {
     let dir = util::target_dir().join("abi");
     let wrong = dir.join("wrong_prototype.c");
     let text = "#include \"fmi2Functions.h\"\n\
                 fmi2Status fmi2DoStep(fmi2Component c, float t, fmi2Real h, fmi2Boolean b);\n";
     fs::write(&wrong, text).map_err(|e| format!("writing {}: {e}", wrong.display()))?;
-    let out = Command::new(compiler())
+    let out = Command::new(compiler)
         .args(["-std=c99", "-Werror", "-fsyntax-only", "-I"])
         .arg(official)
         .arg(&wrong)
         .output()
-        .map_err(|e| format!("could not start {}: {e}", compiler()))?;
+        .map_err(|e| format!("could not start {compiler}: {e}"))?;
     if out.status.success() {
         return Err(format!(
-            "{} accepted a fmi2DoStep prototype that contradicts {}: the ABI check would prove nothing",
-            compiler(),
+            "{compiler} accepted a fmi2DoStep prototype that contradicts {}: the ABI check would prove nothing",
             official.join("fmi2Functions.h").display()
         ));
     }
     Ok(())
 }
 
-fn compile_check(dirs: &HeaderDirs, generated: &Path) -> Result<(), String> {
+fn compile_check(platform: &Platform, dirs: &HeaderDirs, generated: &Path) -> Result<(), String> {
     let official = &dirs.fmi2;
-    step(&format!("compiling tests/abi/check.c against {}", official.display()));
-    compiler_rejects_a_wrong_prototype(official)?;
+    let compiler = compiler(platform);
+    step(&format!(
+        "compiling tests/abi/check.c against {} ({}, {compiler})",
+        official.display(),
+        platform.name
+    ));
+    compiler_rejects_a_wrong_prototype(&compiler, official)?;
     let check_c = util::repo_root().join("tests").join("abi").join("check.c");
-    util::run(syntax_check(dirs, generated).arg(&check_c)).map_err(|e| {
+    util::run(syntax_check(&compiler, dirs, generated).arg(&check_c)).map_err(|e| {
         format!("{e}\nthe Rust signatures disagree with the official FMI 2.0 header (see the errors above)")
     })?;
     println!(
@@ -232,10 +258,10 @@ fn compile_check(dirs: &HeaderDirs, generated: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// `cc -fsyntax-only` with both official header folders and the generated header's.
-fn syntax_check(dirs: &HeaderDirs, generated: &Path) -> Command {
+/// `compiler -fsyntax-only` with both official header folders and the generated header's.
+fn syntax_check(compiler: &str, dirs: &HeaderDirs, generated: &Path) -> Command {
     let generated_dir = generated.parent().expect("header is inside target/abi");
-    let mut cmd = Command::new(compiler());
+    let mut cmd = Command::new(compiler);
     cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"])
         .arg("-I")
         .arg(&dirs.fmi2)
@@ -249,9 +275,14 @@ fn syntax_check(dirs: &HeaderDirs, generated: &Path) -> Command {
 /// The FMI 3.0 functions, read from the official fmi3FunctionTypes.h (every `fmi3XxxTYPE`), each
 /// assigned to a pointer of its standard type in a generated C file: a Rust signature that
 /// differs from the standard's is an incompatible-pointer error. Returns the names.
-fn compile_check3(dirs: &HeaderDirs, generated: &Path) -> Result<Vec<String>, String> {
+fn compile_check3(platform: &Platform, dirs: &HeaderDirs, generated: &Path) -> Result<Vec<String>, String> {
+    let compiler = compiler(platform);
     let types = dirs.fmi3.join("fmi3FunctionTypes.h");
-    step(&format!("checking the FMI 3.0 functions against {}", types.display()));
+    step(&format!(
+        "checking the FMI 3.0 functions against {} ({}, {compiler})",
+        types.display(),
+        platform.name
+    ));
     let text = fs::read_to_string(&types).map_err(|e| format!("reading {}: {e}", types.display()))?;
     let mut names: Vec<String> = text
         .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
@@ -269,14 +300,15 @@ fn compile_check3(dirs: &HeaderDirs, generated: &Path) -> Result<Vec<String>, St
         ));
     }
     let mut c = String::from(
-        "/* Generated by `cargo xtask abi`: every FMI 3.0 function of backlash_fmu assigned to a pointer of its\n          * standard type, without a cast. */\n#include \"fmi3Functions.h\"\n#include \"backlash_fmu.h\"\n",
+        "/* Generated by `cargo xtask abi`: every FMI 3.0 function of backlash_fmu assigned to a pointer of its\n \
+         * standard type, without a cast. */\n#include \"fmi3Functions.h\"\n#include \"backlash_fmu.h\"\n",
     );
     for name in &names {
         c.push_str(&format!("{name}TYPE *const check_{name} = {name};\n"));
     }
     let file = util::target_dir().join("abi").join("check3.c");
     fs::write(&file, c).map_err(|e| format!("writing {}: {e}", file.display()))?;
-    util::run(syntax_check(dirs, generated).arg(&file)).map_err(|e| {
+    util::run(syntax_check(&compiler, dirs, generated).arg(&file)).map_err(|e| {
         format!("{e}\nthe Rust signatures disagree with the official FMI 3.0 header (see the errors above)")
     })?;
     println!(
@@ -287,18 +319,13 @@ fn compile_check3(dirs: &HeaderDirs, generated: &Path) -> Result<Vec<String>, St
     Ok(names)
 }
 
-fn check_exports(library: &Path, fmi3: &[String]) -> Result<(), String> {
-    step(&format!("exported dynamic symbols of {}", util::shown(library)));
-    let listing = util::output(Command::new("nm").args(["-D", "--defined-only"]).arg(library))?;
-    let mut exported: Vec<String> = listing
-        .lines()
-        .filter_map(|line| {
-            let mut fields = line.split_whitespace().rev();
-            let name = fields.next()?;
-            let kind = fields.next()?;
-            ((name.starts_with("fmi2") || name.starts_with("fmi3")) && kind == "T").then(|| name.to_string())
-        })
-        .collect();
+fn check_exports(platform: &Platform, library: &Path, fmi3: &[String]) -> Result<(), String> {
+    step(&format!(
+        "exported functions of {} ({})",
+        util::shown(library),
+        platform.name
+    ));
+    let mut exported = exported_functions(platform, library)?;
     exported.sort();
     for name in &exported {
         println!("  {name}");
@@ -332,9 +359,74 @@ fn check_exports(library: &Path, fmi3: &[String]) -> Result<(), String> {
     Ok(())
 }
 
+/// The fmi2* and fmi3* functions `library` exports, read with the platform's binutils.
+fn exported_functions(platform: &Platform, library: &Path) -> Result<Vec<String>, String> {
+    Ok(match platform.format {
+        BinaryFormat::Elf => {
+            let nm = platform.binutil("nm");
+            dynamic_text_symbols(&util::output(
+                Command::new(nm).args(["-D", "--defined-only"]).arg(library),
+            )?)
+        }
+        BinaryFormat::Pe => {
+            let objdump = platform.binutil("objdump");
+            dll_export_names(&util::output(Command::new(objdump).arg("-p").arg(library))?)
+        }
+    }
+    .into_iter()
+    .filter(|name| name.starts_with("fmi2") || name.starts_with("fmi3"))
+    .collect())
+}
+
+/// Functions (type `T`) of `nm -D --defined-only`.
+fn dynamic_text_symbols(nm: &str) -> Vec<String> {
+    nm.lines()
+        .filter_map(|line| {
+            let mut fields = line.split_whitespace().rev();
+            let name = fields.next()?;
+            let kind = fields.next()?;
+            (kind == "T").then(|| name.to_string())
+        })
+        .collect()
+}
+
+/// Names of the "[Ordinal/Name Pointer] Table" of `objdump -p`: one `[ n] name` line per
+/// export, up to the next blank line.
+fn dll_export_names(objdump: &str) -> Vec<String> {
+    objdump
+        .lines()
+        .skip_while(|line| !line.starts_with("[Ordinal/Name Pointer] Table"))
+        .skip(1)
+        .take_while(|line| !line.trim().is_empty())
+        .filter_map(|line| {
+            let (_, name) = line.trim().split_once(']')?;
+            Some(name.trim().to_string())
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
-    use super::declares;
+    use super::{declares, dll_export_names, dynamic_text_symbols};
+
+    #[test]
+    fn exports_are_read_from_nm_and_from_the_dll_export_table() {
+        let nm = "0000000000023fa4 T fmi2DoStep\n                 U malloc\n0000000000001000 D fmi2Data\n";
+        assert_eq!(dynamic_text_symbols(nm), ["fmi2DoStep"]);
+        let objdump = "\
+Export Address Table -- Ordinal Base 1
+\t[   0] +base[   1] 31880 Export RVA
+
+[Ordinal/Name Pointer] Table
+\t[   0] fmi2CancelStep
+\t[   1] fmi2DoStep
+
+PE File Base Relocations
+\t[   2] not_an_export
+";
+        assert_eq!(dll_export_names(objdump), ["fmi2CancelStep", "fmi2DoStep"]);
+        assert!(dll_export_names("no export table").is_empty());
+    }
 
     #[test]
     fn a_declaration_is_a_name_followed_by_its_argument_list() {

@@ -1,10 +1,12 @@
-//! `cargo xtask fmu`: builds the cdylib once and packages one archive per model and standard
-//! (Model Exchange and Co-Simulation in one description, one binary): FMI 2.0 in `target/fmu/`,
+//! `cargo xtask fmu`: builds the cdylib once per platform and packages one archive per model and
+//! standard (Model Exchange and Co-Simulation in one description): FMI 2.0 in `target/fmu/`,
 //! FMI 3.0 in `target/fmu/fmi3/` ([`STANDARDS`]).
 //!
 //! Layout of each archive (FMI 2.0 §2.3, FMI 3.0 §2.5): `modelDescription.xml`,
-//! `binaries/<platform>/<id>.so` (the same library under each model's identifier; `linux64` in
-//! FMI 2.0, `x86_64-linux` in FMI 3.0), `documentation/index.html`.
+//! `binaries/<platform>/<id>.<ext>` (the same library under each model's identifier: FMI 2.0
+//! `linux64/<id>.so`, with `--all-platforms` also `win64/<id>.dll`; FMI 3.0 `x86_64-linux/<id>.so`,
+//! with `--all-platforms` also `x86_64-windows/<id>.dll` and `aarch64-linux/<id>.so`),
+//! `documentation/index.html`. FMI 2.0 has no folder for aarch64-linux.
 
 use std::fs;
 use std::io::{Read, Write};
@@ -13,11 +15,12 @@ use std::path::{Path, PathBuf};
 use zip::write::SimpleFileOptions;
 use zip::CompressionMethod;
 
-use crate::documentation;
+use crate::platform::{self, Built, Platform};
 use crate::util::{self, step};
+use crate::{cross, documentation};
 
 /// Name of the cdylib that cargo writes for the `backlash_fmu` library.
-pub const LIBRARY_FILE: &str = "libbacklash_fmu.so";
+pub const LIBRARY_FILE: &str = platform::LINUX64.library_file;
 
 /// What the archives of one FMI standard differ in.
 pub struct Standard {
@@ -25,9 +28,8 @@ pub struct Standard {
     pub fmi_version: &'static str,
     /// Its folder under `target/fmu/`; "" for FMI 2.0, whose archives the tests read there.
     pub subdir: &'static str,
-    /// Its folder under `binaries/` for 64-bit Linux on x86_64, the only platform this build
-    /// produces.
-    pub platform: &'static str,
+    /// A platform's folder under `binaries/`, if the standard has one for it.
+    pub folder_of: fn(&Platform) -> Option<&'static str>,
     /// The model description of a model identifier.
     pub description: fn(&str) -> String,
 }
@@ -39,19 +41,19 @@ impl Standard {
     }
 }
 
-/// FMI 2.0 (§2.3: platform folder `linux64`).
+/// FMI 2.0 (§2.3: `linux64`, `win64`).
 pub const FMI2: Standard = Standard {
     fmi_version: "2.0",
     subdir: "",
-    platform: "linux64",
+    folder_of: |p| p.fmi2_folder,
     description: model_description::xml::model_description,
 };
 
-/// FMI 3.0 (§2.5.1.4: platform tuple `x86_64-linux`), beside the FMI 2.0 archives.
+/// FMI 3.0 (§2.5.1.4: platform tuples), beside the FMI 2.0 archives.
 pub const FMI3: Standard = Standard {
     fmi_version: "3.0",
     subdir: "fmi3",
-    platform: "x86_64-linux",
+    folder_of: |p| Some(p.fmi3_folder),
     description: model_description::xml3::model_description,
 };
 
@@ -63,21 +65,81 @@ pub fn library_path() -> PathBuf {
     util::target_dir().join("release").join(LIBRARY_FILE)
 }
 
+const USAGE: &str = "usage: cargo xtask fmu [--all-platforms]";
+
 pub fn run(args: &[String]) -> Result<(), String> {
-    if let Some(arg) = args.first() {
-        return Err(format!("`cargo xtask fmu` takes no arguments, got `{arg}`"));
-    }
-    package_all().map(|_| ())
+    let platforms = platforms_from_arguments(args, USAGE)?;
+    package(&platforms).map(|_| ())
 }
 
-/// Builds the library and writes every model's archive of every standard; returns the archive
-/// paths, those of FMI 2.0 first.
-pub fn package_all() -> Result<Vec<PathBuf>, String> {
-    if !(cfg!(target_os = "linux") && cfg!(target_arch = "x86_64")) {
-        return Err("packaging produces x86_64 Linux binaries only; build on x86_64 Linux".into());
+/// `[]` → linux64 only; `[--all-platforms]` → every platform of [`platform::ALL`].
+pub fn platforms_from_arguments(args: &[String], usage: &str) -> Result<Vec<&'static Platform>, String> {
+    match args {
+        [] => Ok(vec![&platform::LINUX64]),
+        [flag] if flag == "--all-platforms" => Ok(platform::ALL.to_vec()),
+        [other, ..] => Err(format!("unexpected argument `{other}`\n{usage}")),
     }
-    build_library()?;
-    let library = fs::read(library_path()).map_err(|e| format!("reading {}: {e}", library_path().display()))?;
+}
+
+/// The linux64 archives, as `cargo xtask fmu` writes them; returns their paths, those of
+/// FMI 2.0 first.
+pub fn package_all() -> Result<Vec<PathBuf>, String> {
+    package(&[&platform::LINUX64])?;
+    Ok(archive_paths())
+}
+
+fn archive_paths() -> Vec<PathBuf> {
+    STANDARDS
+        .iter()
+        .flat_map(|standard| {
+            model_description::model_identifiers()
+                .iter()
+                .map(|id| standard.out_dir().join(format!("{id}.fmu")))
+        })
+        .collect()
+}
+
+/// Builds the library for each of `platforms` (linux64 first; it must be among them) and
+/// writes every model's archive of every standard with the binaries the standard has a folder
+/// for; returns every built library.
+pub fn package(platforms: &[&'static Platform]) -> Result<Vec<Built>, String> {
+    if !(cfg!(target_os = "linux") && cfg!(target_arch = "x86_64")) {
+        return Err("packaging builds on x86_64 Linux only (linux64 natively, the others cross)".into());
+    }
+    if platforms.first() != Some(&&platform::LINUX64) {
+        return Err("the linux64 library comes first in every archive's platform list".into());
+    }
+    // One line before any build when a tool is missing, rather than a linker's error later.
+    if platforms.iter().any(|p| !p.is_host()) {
+        if let Some(line) = cross::unavailable() {
+            return Err(line);
+        }
+    }
+    let mut built = Vec::new();
+    for &platform in platforms {
+        built.push(if platform.is_host() {
+            build_library()?;
+            Built {
+                platform,
+                path: library_path(),
+            }
+        } else {
+            cross::toolchain::build(platform)?
+        });
+    }
+    let mut libraries: Vec<(&Platform, Vec<u8>)> = Vec::new();
+    for b in &built {
+        let bytes = fs::read(&b.path).map_err(|e| format!("reading {}: {e}", b.path.display()))?;
+        if b.platform.fmi2_folder.is_none() {
+            println!(
+                "{}: {} is built; FMI 2.0 has no binaries folder for it (FMI 3.0: {})",
+                b.platform.name,
+                util::shown(&b.path),
+                b.platform.fmi3_folder
+            );
+        }
+        libraries.push((b.platform, bytes));
+    }
 
     let mut written = Vec::new();
     for standard in STANDARDS {
@@ -88,9 +150,9 @@ pub fn package_all() -> Result<Vec<PathBuf>, String> {
             check_description(standard, id, &xml)?;
             let html = documentation::render(id, &xml)?;
             let path = out_dir.join(format!("{id}.fmu"));
-            let binaries = [(format!("binaries/{}/{id}.so", standard.platform), library.as_slice())];
-            write_archive(&path, &xml, &binaries, &html)?;
-            verify_archive(&path, standard, id, &binaries)?;
+            let entries = binary_entries(id, &libraries, standard.folder_of);
+            write_archive(&path, &xml, &entries, &html)?;
+            verify_archive(&path, standard, id, &entries)?;
             println!(
                 "wrote {} ({} bytes)",
                 util::shown(&path),
@@ -102,7 +164,26 @@ pub fn package_all() -> Result<Vec<PathBuf>, String> {
     if written.is_empty() {
         return Err("the model-description crate lists no model identifiers".into());
     }
-    Ok(written)
+    Ok(built)
+}
+
+/// The entries `binaries/<folder>/<id>.<ext>` of `libraries`, in the folder `folder_of` gives
+/// each platform, skipping those it gives none (FMI 2.0 has no aarch64-linux folder).
+fn binary_entries<'a>(
+    id: &str,
+    libraries: &'a [(&Platform, Vec<u8>)],
+    folder_of: fn(&Platform) -> Option<&'static str>,
+) -> Vec<(String, &'a [u8])> {
+    libraries
+        .iter()
+        .filter_map(|(platform, bytes)| {
+            let folder = folder_of(platform)?;
+            Some((
+                format!("binaries/{folder}/{}", platform.archive_file(id)),
+                bytes.as_slice(),
+            ))
+        })
+        .collect()
 }
 
 fn build_library() -> Result<(), String> {

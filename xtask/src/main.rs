@@ -2,10 +2,12 @@
 
 mod abi;
 mod bench;
+mod cross;
 mod demo;
 mod design;
 mod documentation;
 mod fmu;
+mod platform;
 mod python;
 mod sweep;
 mod test;
@@ -15,11 +17,17 @@ const USAGE: &str = "\
 usage: cargo xtask <command> [args]
 
 commands:
-  fmu       build the cdylib (release) and write target/fmu/<model>.fmu for every model
-  test      run every check in order: cargo test --workspace, fmu, Python venv, ABI check,
-            importer test (fmi crate), pytest, the README's fmpy example;
-            stops at the first failure
+  fmu       build the cdylib (release) and write target/fmu/<model>.fmu for every model;
+            --all-platforms: also build win64 (packed) and aarch64-linux
+  test      run every check in order: Python venv, cargo test --workspace, fmu, ABI check,
+            importer test (fmi crate), pytest, the README's fmpy example, and the
+            cross-platform test when the cross tools are present (--cross: required,
+            --no-cross: skipped); stops at the first failure
   abi       check the cdylib's C ABI against the official FMI 2.0 headers and list its exports
+            (--all-platforms: every platform's library)
+  cross-test
+            build every platform, then run the win64 DLL under Wine and the aarch64-linux
+            library under qemu against linux64
   pytest    the Python part alone: .venv, pytest on target/fmu/*.fmu, the README's fmpy example
   demo      the main demonstration (see `cargo xtask demo --help`)
   design    the design study (see `cargo xtask design --help`)
@@ -40,6 +48,7 @@ fn main() {
         "fmu" => fmu::run(rest),
         "test" => test::run(rest),
         "abi" => abi::run(rest),
+        "cross-test" => cross::run(rest),
         "pytest" => python::run(rest),
         "demo" => demo::run(rest),
         "design" => design::run(rest),

@@ -1,20 +1,53 @@
 //! `cargo xtask test`: every check of the project, in order, stopping at the first failure.
 
+use std::cell::RefCell;
 use std::process::Command;
 use std::time::Instant;
 
+use crate::platform::{self, Built};
 use crate::util::{self, step};
-use crate::{abi, fmu, python};
+use crate::{abi, cross, fmu, python};
 
 /// The package of tests/importer, and its integration test that loads the archives with the
 /// `fmi` crate.
 const IMPORTER_PACKAGE: &str = "importer-test";
 const IMPORTER_TEST: &str = "fmi_crate";
 
+const USAGE: &str = "usage: cargo xtask test [--cross | --no-cross]";
+
+/// Whether step 8 (the win64 and aarch64-linux builds and their test) runs.
+#[derive(Clone, Copy, PartialEq)]
+enum Cross {
+    /// When this machine has the tools (the default).
+    IfAvailable,
+    /// Always: a missing tool is an error (CI).
+    Required,
+    Skipped,
+}
+
 pub fn run(args: &[String]) -> Result<(), String> {
-    if let Some(arg) = args.first() {
-        return Err(format!("`cargo xtask test` takes no arguments, got `{arg}`"));
-    }
+    let cross_mode = match args {
+        [] => Cross::IfAvailable,
+        [flag] if flag == "--cross" => Cross::Required,
+        [flag] if flag == "--no-cross" => Cross::Skipped,
+        [other, ..] => return Err(format!("unexpected argument `{other}`\n{USAGE}")),
+    };
+    // Decided up front, so that step 3 builds every platform when step 8 will test them.
+    let cross_enabled = match (cross_mode, cross::unavailable()) {
+        (Cross::Skipped, _) => false,
+        (_, None) => true,
+        (Cross::Required, Some(line)) => return Err(format!("--cross: {line}")),
+        (Cross::IfAvailable, Some(line)) => {
+            println!("step 8 (win64, aarch64-linux) will be skipped: {line}");
+            false
+        }
+    };
+    let platforms = if cross_enabled {
+        platform::ALL.to_vec()
+    } else {
+        vec![&platform::LINUX64]
+    };
+    let built: RefCell<Vec<Built>> = RefCell::new(Vec::new());
     let started = Instant::now();
     let mut timings: Vec<(&str, f64)> = Vec::new();
     let mut timed = |name: &'static str, work: &dyn Fn() -> Result<(), String>| {
@@ -27,29 +60,35 @@ pub fn run(args: &[String]) -> Result<(), String> {
     // 1. The venv first: it carries the libclang that step 5 builds with, and fmpy's copy of
     //    the official FMI headers for step 4.
     timed("python venv", &|| {
-        step("1/7 Python venv");
+        step("1/8 Python venv");
         python::ensure_venv()
     })?;
     // 2. Unit and integration tests of every crate but the importer test, which needs the
     //    archives that step 3 writes and runs in step 5.
     timed("cargo test --workspace", &|| {
-        step("2/7 cargo test --workspace");
+        step("2/8 cargo test --workspace");
         util::run(util::cargo().args(["test", "--workspace", "--exclude", IMPORTER_PACKAGE]))
     })?;
-    // 3. The archives in target/fmu/.
-    timed("cargo xtask fmu", &|| {
-        step("3/7 cargo xtask fmu");
-        fmu::package_all().map(|_| ())
+    // 3. The archives in target/fmu/ (with the win64 DLL when step 8 runs).
+    let fmu_command = if cross_enabled {
+        "cargo xtask fmu --all-platforms"
+    } else {
+        "cargo xtask fmu"
+    };
+    timed(fmu_command, &|| {
+        step(&format!("3/8 {fmu_command}"));
+        *built.borrow_mut() = fmu::package(&platforms)?;
+        Ok(())
     })?;
-    // 4. The library's C ABI against the official headers, and its exported symbols.
+    // 4. The libraries' C ABI against the official headers, and their exported symbols.
     timed("ABI check", &|| {
-        step("4/7 ABI check");
-        abi::check()
+        step("4/8 ABI check");
+        abi::check(&built.borrow())
     })?;
     // 5. A Rust importer (the `fmi` crate) loads the packaged archive. --include-ignored runs
     //    the tests that a plain `cargo test` skips; they fail if an archive is missing.
     timed("importer test", &|| {
-        step("5/7 importer test (fmi crate on target/fmu/*.fmu)");
+        step("5/8 importer test (fmi crate on target/fmu/*.fmu)");
         let mut test = util::cargo();
         bindgen_environment(&mut test)?;
         util::run(test.env("BACKLASH_FMU_DIR", util::fmu_dir()).args([
@@ -64,14 +103,23 @@ pub fn run(args: &[String]) -> Result<(), String> {
     })?;
     // 6. The pytest suite drives the packaged FMUs through fmpy.
     timed("pytest", &|| {
-        step("6/7 pytest");
+        step("6/8 pytest");
         python::run_pytest()
     })?;
     // 7. The usage example of README.md, so that what a new user copies works.
     timed("README example", &|| {
-        step("7/7 README.md fmpy example");
+        step("7/8 README.md fmpy example");
         python::run_readme_example()
     })?;
+    // 8. The win64 DLL under Wine and the aarch64 library under qemu against linux64.
+    if cross_enabled {
+        timed("cross-platform test", &|| {
+            step("8/8 win64 and aarch64-linux against linux64 (cargo xtask cross-test)");
+            cross::test(&built.borrow())
+        })?;
+    } else {
+        step("8/8 cross-platform test skipped");
+    }
 
     step("cargo xtask test: every step succeeded");
     for (name, seconds) in &timings {

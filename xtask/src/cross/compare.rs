@@ -1,0 +1,212 @@
+//! Reads what the cross test's host printed (tests/cross/host.c) and compares two platforms.
+
+/// The Real outputs of a sample line, in the host's order.
+pub const OUTPUTS: [&str; 7] = [
+    "theta_m",
+    "omega_m",
+    "theta_L",
+    "omega_L",
+    "psi",
+    "bound",
+    "bound_paper",
+];
+
+/// Largest relative difference two platforms may show in any output.
+pub const TOLERANCE: f64 = 1e-12;
+
+/// The outputs after step `k`, the contact mode, and the contact switches counted so far.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sample {
+    pub k: u64,
+    pub contact: i32,
+    pub switches: u64,
+    pub values: [f64; 7],
+}
+
+/// The host's `@ <kind> ...` lines of one kind, as fields (Windows' programs end lines in \r\n).
+fn records<'a>(output: &'a str, kind: &str) -> Vec<Vec<&'a str>> {
+    output
+        .lines()
+        .filter_map(|line| {
+            let mut fields = line.trim_end_matches('\r').split_whitespace();
+            (fields.next() == Some("@") && fields.next() == Some(kind)).then(|| fields.collect())
+        })
+        .collect()
+}
+
+pub fn samples(output: &str) -> Result<Vec<Sample>, String> {
+    let samples = records(output, "sample")
+        .into_iter()
+        .map(|fields| {
+            let bad = || format!("malformed sample line: @ sample {}", fields.join(" "));
+            if fields.len() != 3 + OUTPUTS.len() {
+                return Err(bad());
+            }
+            let mut values = [0.0; 7];
+            for (value, hex) in values.iter_mut().zip(&fields[3..]) {
+                *value = f64::from_bits(u64::from_str_radix(hex, 16).map_err(|_| bad())?);
+            }
+            Ok(Sample {
+                k: fields[0].parse().map_err(|_| bad())?,
+                contact: fields[1].parse().map_err(|_| bad())?,
+                switches: fields[2].parse().map_err(|_| bad())?,
+                values,
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    if samples.is_empty() {
+        return Err("the host printed no sample".into());
+    }
+    Ok(samples)
+}
+
+/// `(case, status, messages logged)` of each misuse line.
+pub fn misuse(output: &str) -> Result<Vec<(String, String, String)>, String> {
+    let cases: Vec<_> = records(output, "misuse")
+        .into_iter()
+        .map(|f| match f.as_slice() {
+            [case, status, logged] => Ok((case.to_string(), status.to_string(), logged.to_string())),
+            _ => Err(format!("malformed misuse line: @ misuse {}", f.join(" "))),
+        })
+        .collect::<Result<_, _>>()?;
+    if cases.is_empty() {
+        return Err("the host printed no misuse case".into());
+    }
+    Ok(cases)
+}
+
+/// |a − b| relative to the larger magnitude; 0 when both are the same number (0 and −0 too).
+pub fn relative_difference(a: f64, b: f64) -> f64 {
+    if a == b {
+        0.0
+    } else if a.is_nan() || b.is_nan() {
+        f64::INFINITY
+    } else {
+        (a - b).abs() / a.abs().max(b.abs())
+    }
+}
+
+/// How far one platform's samples are from the reference platform's.
+#[derive(Debug, PartialEq)]
+pub struct Agreement {
+    pub samples: usize,
+    /// Samples whose every output has the same bits on both platforms.
+    pub bit_identical: usize,
+    pub max_relative: f64,
+    /// Output and step of the largest difference.
+    pub worst: Option<(&'static str, u64)>,
+}
+
+/// Same steps, same contact modes and switch counts, and every output within [`TOLERANCE`].
+pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String> {
+    if reference.len() != other.len() {
+        return Err(format!(
+            "{} samples against {} of the reference",
+            other.len(),
+            reference.len()
+        ));
+    }
+    let mut agreement = Agreement {
+        samples: reference.len(),
+        bit_identical: 0,
+        max_relative: 0.0,
+        worst: None,
+    };
+    for (r, o) in reference.iter().zip(other) {
+        if r.k != o.k {
+            return Err(format!(
+                "sample after step {} where the reference has step {}",
+                o.k, r.k
+            ));
+        }
+        if (r.contact, r.switches) != (o.contact, o.switches) {
+            return Err(format!(
+                "after step {}: contact {} after {} switches, the reference contact {} after {}",
+                r.k, o.contact, o.switches, r.contact, r.switches
+            ));
+        }
+        if r.values.iter().zip(&o.values).all(|(a, b)| a.to_bits() == b.to_bits()) {
+            agreement.bit_identical += 1;
+        }
+        for (name, (a, b)) in OUTPUTS.iter().zip(r.values.iter().zip(&o.values)) {
+            let d = relative_difference(*a, *b);
+            if d > agreement.max_relative {
+                agreement.max_relative = d;
+                agreement.worst = Some((name, r.k));
+            }
+        }
+    }
+    if agreement.max_relative > TOLERANCE {
+        let (name, k) = agreement.worst.expect("a difference names its output");
+        return Err(format!(
+            "{name} after step {k} differs by {:e} (relative) from the reference, over {TOLERANCE:e}",
+            agreement.max_relative
+        ));
+    }
+    Ok(agreement)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(k: u64, contact: i32, switches: u64, values: [f64; 7]) -> String {
+        let hex: Vec<String> = values.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
+        format!("@ sample {k} {contact} {switches} {}\r\n", hex.join(" "))
+    }
+
+    #[test]
+    fn samples_are_read_bit_for_bit_from_either_line_ending() {
+        let values = [0.1, -2.5, 1e-300, f64::MIN_POSITIVE, -0.0, 3.0, 1.0 / 3.0];
+        let text = format!("noise\n{}@ misuse x 3 1\n", line(100, -1, 4, values));
+        let parsed = samples(&text).unwrap();
+        assert_eq!(parsed.len(), 1);
+        assert_eq!((parsed[0].k, parsed[0].contact, parsed[0].switches), (100, -1, 4));
+        for (a, b) in parsed[0].values.iter().zip(&values) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+        assert!(samples("@ sample 1 0 0 3ff0000000000000\n").is_err());
+        assert!(samples("nothing here\n").is_err());
+        assert_eq!(misuse(&text).unwrap(), [("x".into(), "3".into(), "1".into())]);
+    }
+
+    #[test]
+    fn platforms_disagree_beyond_the_tolerance_or_in_a_contact_switch() {
+        let base = Sample {
+            k: 10,
+            contact: 1,
+            switches: 2,
+            values: [1.0; 7],
+        };
+        let reference = std::slice::from_ref(&base);
+        let same = agree(reference, reference).unwrap();
+        assert_eq!((same.bit_identical, same.max_relative), (1, 0.0));
+
+        let mut close = base.clone();
+        close.values[3] = 1.0 + 4.0 * f64::EPSILON;
+        let near = agree(reference, &[close]).unwrap();
+        assert_eq!(near.bit_identical, 0);
+        assert_eq!(near.worst, Some(("omega_L", 10)));
+        assert!(near.max_relative > 0.0 && near.max_relative <= TOLERANCE);
+
+        let mut far = base.clone();
+        far.values[5] = 1.0 + 1e-9;
+        assert!(agree(reference, &[far]).unwrap_err().contains("bound after step 10"));
+
+        let mut nan = base.clone();
+        nan.values[0] = f64::NAN;
+        assert!(agree(reference, &[nan]).is_err());
+
+        let mut switched = base.clone();
+        switched.switches = 3;
+        assert!(agree(reference, &[switched]).is_err());
+        assert!(agree(reference, &[]).is_err());
+    }
+
+    #[test]
+    fn relative_difference_of_equal_numbers_and_of_signed_zeros_is_zero() {
+        assert_eq!(relative_difference(0.0, -0.0), 0.0);
+        assert_eq!(relative_difference(2.0, 1.0), 0.5);
+        assert!(relative_difference(0.0, 1e-300) == 1.0);
+    }
+}

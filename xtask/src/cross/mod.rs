@@ -1,0 +1,435 @@
+//! `cargo xtask cross-test`: the libraries built for the other platforms, run on this machine
+//! (win64 under Wine, aarch64-linux under qemu-user) by the same C host as the linux64 library,
+//! and compared with it.
+//!
+//! For each model: a closed PI loop and an open-loop torque schedule, both with contact
+//! switches, sampled along the way (every output within 1e-12 relative of linux64, the same
+//! contact modes and switch counts); misuse of the C API (the same fmi2Status and number of
+//! logged messages as on linux64); an FMU state serialized on each platform, restored on every
+//! platform and continued as the saving platform continued it. The Windows DLL in each archive
+//! must import only DLLs of a stock Windows 10.
+
+mod compare;
+mod host;
+pub mod imports;
+pub mod toolchain;
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use crate::platform::{self, BinaryFormat, Built, Platform, Tool};
+use crate::util::{self, step};
+use crate::{abi, fmu, python};
+use compare::{Agreement, Sample};
+use host::Host;
+
+/// The drives of tests/python/rigs.py (SHAFT, BELT: the paper's inertias and damping) with the
+/// PI gains chosen there to damp each closed loop (SHAFT_GAINS, BELT_GAINS); the host's loop uses
+/// Kp and Ki as its gains.
+const PAPER: [(&str, f64); 4] = [("J_m", 2.28), ("J_L", 2.55), ("b_m", 0.05), ("b_L", 0.05)];
+const RIGS: [(&str, &[(&str, f64)]); 2] = [
+    (
+        "BacklashShaft",
+        &[("k", 200.0), ("Delta", 5.38e-3 / 2.0), ("Kp", 42.0), ("Ki", 180.0)],
+    ),
+    (
+        "BacklashBelt",
+        &[
+            ("K_b", 2.0e4),
+            ("R_1", 0.1),
+            ("R_2", 0.08),
+            ("R_g1", 0.05),
+            ("R_g2", 0.075),
+            ("Delta", 2.0e-3),
+            ("Kp", 38.0),
+            ("Ki", 200.0),
+        ],
+    ),
+];
+
+/// Steps and sampling interval of the scenarios (h = 1 ms in the host).
+const CLOSED_LOOP: (u32, u32) = (10_000, 100);
+const OPEN_LOOP: (u32, u32) = (4_000, 50);
+
+/// A scenario that switches contact fewer times than this would not test the switching.
+const MIN_SWITCHES: u64 = 4;
+
+/// The variables the host drives and reads, by name (tests/cross/host.c).
+const HOST_VARIABLES: [&str; 12] = [
+    "tau_m",
+    "tau_L",
+    "theta_m",
+    "omega_m",
+    "theta_L",
+    "omega_L",
+    "psi",
+    "bound",
+    "bound_paper",
+    "contact",
+    "Kp",
+    "Ki",
+];
+
+pub fn run(args: &[String]) -> Result<(), String> {
+    if let Some(arg) = args.first() {
+        return Err(format!("`cargo xtask cross-test` takes no arguments, got `{arg}`"));
+    }
+    if let Some(line) = unavailable() {
+        return Err(line);
+    }
+    python::ensure_venv()?;
+    let built = fmu::package(&platform::ALL)?;
+    abi::check(&built)?;
+    test(&built)
+}
+
+/// None when this machine can build and run every platform; otherwise one line saying what to
+/// install.
+pub fn unavailable() -> Option<String> {
+    let mut missing: Vec<Tool> = Vec::new();
+    for platform in platform::cross() {
+        for tool in toolchain::missing_tools(&platform.tools()) {
+            if !missing.contains(&tool) {
+                missing.push(tool);
+            }
+        }
+    }
+    let mut problems = Vec::new();
+    if !missing.is_empty() {
+        problems.push(toolchain::install_line("win64 and aarch64-linux", &missing));
+    }
+    let platforms: Vec<&Platform> = platform::cross().collect();
+    if let Err(line) = toolchain::standard_libraries(&platforms) {
+        problems.push(line);
+    }
+    (!problems.is_empty()).then(|| problems.join("; "))
+}
+
+/// The cross-platform test on archives already in target/fmu and the libraries in `built`.
+pub fn test(built: &[Built]) -> Result<(), String> {
+    let started = Instant::now();
+    let headers = abi::official_header_dirs()?.remove(0).fmi2;
+    let dir = util::target_dir().join("cross-test");
+    step("compiling the test host for every platform (tests/cross/host.c)");
+    let hosts = platform::ALL
+        .into_iter()
+        .map(|p| host::compile(p, &headers, &dir))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut timer = Timer::default();
+    for &id in model_description::model_identifiers() {
+        step(&format!("{id}: every platform against linux64"));
+        let model = Model::unpack(id, &dir.join("models").join(id), built)?;
+        for host in &hosts {
+            if host.platform.format == BinaryFormat::Pe {
+                let library = model.library(host.platform)?;
+                let imports = imports::check(host.platform, library)?;
+                println!(
+                    "{}: imports only stock Windows DLLs: {}",
+                    util::shown(library),
+                    imports.join(", ")
+                );
+            }
+        }
+        scenario(&model, &hosts, &mut timer, "closed", CLOSED_LOOP)?;
+        scenario(&model, &hosts, &mut timer, "open", OPEN_LOOP)?;
+        misuse(&model, &hosts, &mut timer)?;
+        fmu_state(&model, &hosts, &mut timer)?;
+    }
+    println!("\nhost run time per platform (all scenarios, both models):");
+    for (name, time) in &timer.per_platform {
+        println!("  {:>6.1} s  {name}", time.as_secs_f64());
+    }
+    println!(
+        "cross-platform test passed in {:.1} s: every platform agrees with linux64",
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+#[derive(Default)]
+struct Timer {
+    per_platform: BTreeMap<&'static str, Duration>,
+}
+
+impl Timer {
+    fn run(&mut self, model: &Model, host: &Host, scenario: &[String]) -> Result<String, String> {
+        let t0 = Instant::now();
+        let output = host.run(&model.arguments(host, scenario)?);
+        *self.per_platform.entry(host.platform.name).or_default() += t0.elapsed();
+        output.map_err(|e| format!("{}, {}: {e}", model.id, scenario.join(" ")))
+    }
+}
+
+/// One model's libraries (from its archive where FMI 2.0 has a folder for the platform), its
+/// guid and the value references of the host's variables.
+struct Model {
+    id: &'static str,
+    dir: PathBuf,
+    libraries: Vec<(&'static Platform, PathBuf)>,
+    guid: String,
+    variables: String,
+    parameters: String,
+}
+
+impl Model {
+    fn unpack(id: &'static str, dir: &Path, built: &[Built]) -> Result<Model, String> {
+        if dir.exists() {
+            fs::remove_dir_all(dir).map_err(|e| format!("removing {}: {e}", dir.display()))?;
+        }
+        fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+        let archive = util::fmu_dir().join(format!("{id}.fmu"));
+        let xml = String::from_utf8(read_entry(&archive, "modelDescription.xml")?)
+            .map_err(|_| format!("{}: modelDescription.xml is not UTF-8", archive.display()))?;
+        let mut libraries = Vec::new();
+        for platform in platform::ALL {
+            let file = platform.archive_file(id);
+            let bytes = match platform.fmi2_folder {
+                Some(folder) => read_entry(&archive, &format!("binaries/{folder}/{file}"))?,
+                None => {
+                    let built = built
+                        .iter()
+                        .find(|b| b.platform == platform)
+                        .ok_or_else(|| format!("the {} library was not built", platform.name))?;
+                    fs::read(&built.path).map_err(|e| format!("reading {}: {e}", built.path.display()))?
+                }
+            };
+            let path = dir.join(platform.fmi3_folder).join(file);
+            fs::create_dir_all(path.parent().expect("a file in a folder"))
+                .and_then(|()| fs::write(&path, bytes))
+                .map_err(|e| format!("writing {}: {e}", path.display()))?;
+            libraries.push((platform, path));
+        }
+        let (guid, variables, parameters) = host_arguments(id, &xml).map_err(|e| format!("{id}: {e}"))?;
+        Ok(Model {
+            id,
+            dir: dir.to_path_buf(),
+            libraries,
+            guid,
+            variables,
+            parameters,
+        })
+    }
+
+    fn library(&self, platform: &Platform) -> Result<&Path, String> {
+        self.libraries
+            .iter()
+            .find(|(p, _)| *p == platform)
+            .map(|(_, path)| path.as_path())
+            .ok_or_else(|| format!("{}: no {} library", self.id, platform.name))
+    }
+
+    fn arguments(&self, host: &Host, scenario: &[String]) -> Result<Vec<String>, String> {
+        let mut args = vec![
+            host.path_argument(self.library(host.platform)?),
+            self.guid.clone(),
+            self.variables.clone(),
+            self.parameters.clone(),
+        ];
+        args.extend(scenario.iter().cloned());
+        Ok(args)
+    }
+}
+
+fn read_entry(archive: &Path, name: &str) -> Result<Vec<u8>, String> {
+    let file = fs::File::open(archive)
+        .map_err(|e| format!("{}: {e} (run `cargo xtask fmu --all-platforms`)", archive.display()))?;
+    let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{}: {e}", archive.display()))?;
+    let mut bytes = Vec::new();
+    zip.by_name(name)
+        .map_err(|e| format!("{}: {name}: {e} (built without --all-platforms?)", archive.display()))?
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("{}: {name}: {e}", archive.display()))?;
+    Ok(bytes)
+}
+
+/// From a model description: the guid, `name=vr,...` of the host's variables, and the rig's
+/// parameters as `vr=bits,...` (the exact f64 of each value, as hexadecimal IEEE-754 bits).
+fn host_arguments(id: &str, xml: &str) -> Result<(String, String, String), String> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
+    let guid = doc
+        .root_element()
+        .attribute("guid")
+        .ok_or("modelDescription.xml has no guid")?;
+    let value_reference = |name: &str| {
+        doc.descendants()
+            .find(|n| n.has_tag_name("ScalarVariable") && n.attribute("name") == Some(name))
+            .and_then(|n| n.attribute("valueReference"))
+            .ok_or_else(|| format!("modelDescription.xml has no variable {name}"))
+    };
+    let variables = HOST_VARIABLES
+        .iter()
+        .map(|name| value_reference(name).map(|vr| format!("{name}={vr}")))
+        .collect::<Result<Vec<_>, _>>()?;
+    let rig = RIGS
+        .iter()
+        .find(|(model, _)| *model == id)
+        .map(|(_, rig)| PAPER.iter().chain(rig.iter()))
+        .ok_or_else(|| format!("no test rig for {id} in xtask/src/cross/mod.rs (RIGS)"))?;
+    let parameters = rig
+        .map(|(name, value)| value_reference(name).map(|vr| format!("{vr}={:016x}", value.to_bits())))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((guid.to_string(), variables.join(","), parameters.join(",")))
+}
+
+fn strings(words: &[&str]) -> Vec<String> {
+    words.iter().map(|w| w.to_string()).collect()
+}
+
+fn report(model: &Model, what: &str, platform: &Platform, agreement: &Agreement) {
+    println!(
+        "  {:<13} {what:<34} {:<13} {:>3}/{} samples bit-identical, max relative difference {:e}",
+        model.id, platform.name, agreement.bit_identical, agreement.samples, agreement.max_relative
+    );
+}
+
+/// The reference platform's samples must switch contact, and every other platform must agree.
+fn scenario(
+    model: &Model,
+    hosts: &[Host],
+    timer: &mut Timer,
+    name: &str,
+    (steps, every): (u32, u32),
+) -> Result<(), String> {
+    let args = strings(&[name, &steps.to_string(), &every.to_string()]);
+    let mut reference: Option<Vec<Sample>> = None;
+    for host in hosts {
+        let samples = compare::samples(&timer.run(model, host, &args)?)
+            .map_err(|e| format!("{}, {name}, {}: {e}", model.id, host.platform.name))?;
+        let Some(reference) = &reference else {
+            let switches = samples.last().map_or(0, |s| s.switches);
+            if switches < MIN_SWITCHES {
+                return Err(format!(
+                    "{}, {name}: {switches} contact switches, fewer than {MIN_SWITCHES}",
+                    model.id
+                ));
+            }
+            println!(
+                "  {:<13} {name} loop: {steps} steps, {switches} contact switches on linux64",
+                model.id
+            );
+            reference = Some(samples);
+            continue;
+        };
+        let agreement = compare::agree(reference, &samples)
+            .map_err(|e| format!("{}, {name} loop, {} against linux64: {e}", model.id, host.platform.name))?;
+        report(model, &format!("{name} loop"), host.platform, &agreement);
+    }
+    Ok(())
+}
+
+/// Calls FMI 2.0 forbids: refused (fmi2Discard or fmi2Error) on linux64, and answered the same
+/// way, with as many logged messages, on every platform.
+fn misuse(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), String> {
+    let mut reference = None;
+    for host in hosts {
+        let cases = compare::misuse(&timer.run(model, host, &strings(&["misuse"]))?)?;
+        let Some(reference) = &reference else {
+            for (case, status, _) in &cases {
+                let expected_ok = match case.as_str() {
+                    "instantiate_wrong_guid" => status == "null",
+                    "fresh_instance_steps" => status == "0",
+                    _ => status == "2" || status == "3",
+                };
+                if !expected_ok {
+                    return Err(format!(
+                        "{}, misuse {case}: answered with {status} on linux64",
+                        model.id
+                    ));
+                }
+            }
+            reference = Some(cases);
+            continue;
+        };
+        if &cases != reference {
+            let differ: Vec<String> = cases
+                .iter()
+                .zip(reference)
+                .filter(|(c, r)| c != r)
+                .map(|(c, r)| {
+                    format!(
+                        "{} gives {} ({} logged), linux64 {} ({} logged)",
+                        c.0, c.1, c.2, r.1, r.2
+                    )
+                })
+                .collect();
+            return Err(format!(
+                "{}, misuse on {} ({} cases, linux64 {}): {}",
+                model.id,
+                host.platform.name,
+                cases.len(),
+                reference.len(),
+                differ.join("; ")
+            ));
+        }
+        println!(
+            "  {:<13} {:<34} {:<13} the same {} answers as linux64",
+            model.id,
+            "misuse",
+            host.platform.name,
+            cases.len()
+        );
+    }
+    Ok(())
+}
+
+/// Each platform serializes its state half-way through the open loop and continues; every
+/// platform restores each of these states into a fresh instance, and its continuation must
+/// agree with the saving platform's own.
+fn fmu_state(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), String> {
+    let (steps, every) = OPEN_LOOP;
+    let (steps, every) = (steps.to_string(), every.to_string());
+    let mut saved: Vec<(&Platform, PathBuf, Vec<Sample>)> = Vec::new();
+    for host in hosts {
+        let file = model.dir.join(format!("state-{}.bin", host.platform.name));
+        let args = vec!["save".into(), steps.clone(), every.clone(), host.path_argument(&file)];
+        let continuation = compare::samples(&timer.run(model, host, &args)?)?;
+        if continuation.last().map_or(0, |s| s.switches) < MIN_SWITCHES {
+            return Err(format!(
+                "{}: fewer than {MIN_SWITCHES} contact switches after the saved state",
+                model.id
+            ));
+        }
+        saved.push((host.platform, file, continuation));
+    }
+    let reference_bytes = fs::read(&saved[0].1).map_err(|e| format!("{}: {e}", saved[0].1.display()))?;
+    for (platform, file, continuation) in &saved[1..] {
+        let bytes = fs::read(file).map_err(|e| format!("{}: {e}", file.display()))?;
+        let agreement = compare::agree(&saved[0].2, continuation)
+            .map_err(|e| format!("{}, continuation after saving on {}: {e}", model.id, platform.name))?;
+        println!(
+            "  {:<13} {:<34} {:<13} serialized state ({} bytes) {} linux64's",
+            model.id,
+            "FMU state",
+            platform.name,
+            bytes.len(),
+            if bytes == reference_bytes {
+                "byte-identical to"
+            } else {
+                "differs from"
+            }
+        );
+        report(model, "continuation after saving", platform, &agreement);
+    }
+    for host in hosts {
+        for (saver, file, continuation) in &saved {
+            let args = vec!["restore".into(), steps.clone(), every.clone(), host.path_argument(file)];
+            let restored = compare::samples(&timer.run(model, host, &args)?)?;
+            let agreement = compare::agree(continuation, &restored).map_err(|e| {
+                format!(
+                    "{}, state saved on {} and restored on {}, against its continuation on {}: {e}",
+                    model.id, saver.name, host.platform.name, saver.name
+                )
+            })?;
+            report(
+                model,
+                &format!("state from {} restored", saver.name),
+                host.platform,
+                &agreement,
+            );
+        }
+    }
+    Ok(())
+}
