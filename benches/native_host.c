@@ -24,6 +24,7 @@
 #include <time.h>
 
 #include "fmi2Functions.h"
+#include "fmi3Functions.h"
 #include "bench_vr.h"
 
 #define H 1e-3 /* communication step [s] */
@@ -49,6 +50,13 @@ typedef struct {
     fmi2SetContinuousStatesTYPE *set_continuous_states;
     fmi2GetDerivativesTYPE *get_derivatives;
     fmi2GetEventIndicatorsTYPE *get_event_indicators;
+    /* FMI 3.0 Co-Simulation, for the FMI 3.0 step */
+    fmi3InstantiateCoSimulationTYPE *instantiate3;
+    fmi3EnterInitializationModeTYPE *enter_init3;
+    fmi3ExitInitializationModeTYPE *exit_init3;
+    fmi3SetFloat64TYPE *set_float64;
+    fmi3DoStepTYPE *do_step3;
+    fmi3FreeInstanceTYPE *free_instance3;
 } Api;
 
 static Api api;
@@ -90,6 +98,16 @@ static void load(const char *path) {
     api.set_continuous_states = (fmi2SetContinuousStatesTYPE *)symbol(lib, "fmi2SetContinuousStates");
     api.get_derivatives = (fmi2GetDerivativesTYPE *)symbol(lib, "fmi2GetDerivatives");
     api.get_event_indicators = (fmi2GetEventIndicatorsTYPE *)symbol(lib, "fmi2GetEventIndicators");
+    api.instantiate3 = (fmi3InstantiateCoSimulationTYPE *)symbol(lib, "fmi3InstantiateCoSimulation");
+    api.enter_init3 = (fmi3EnterInitializationModeTYPE *)symbol(lib, "fmi3EnterInitializationMode");
+    api.exit_init3 = (fmi3ExitInitializationModeTYPE *)symbol(lib, "fmi3ExitInitializationMode");
+    api.set_float64 = (fmi3SetFloat64TYPE *)symbol(lib, "fmi3SetFloat64");
+    api.do_step3 = (fmi3DoStepTYPE *)symbol(lib, "fmi3DoStep");
+    api.free_instance3 = (fmi3FreeInstanceTYPE *)symbol(lib, "fmi3FreeInstance");
+}
+
+static void check3(fmi3Status s, const char *what) {
+    if (s != fmi3OK) die("%s returned status %d", what, (int)s);
 }
 
 /* Contact-switch messages seen by the logger (category logContactEvents); other messages are
@@ -228,6 +246,20 @@ static fmi2Component make_model_exchange(const char *name) {
     check(api.enter_continuous_time_mode(c), "fmi2EnterContinuousTimeMode");
     return c;
 }
+
+/* The pressed schedule as an FMI 3.0 Co-Simulation instance without early return or Event
+ * Mode: fmi3DoStep is then the FMI 2.0 step (docs/model.md §7). */
+static fmi3Instance make_pressed3(void) {
+    fmi3Instance c = api.instantiate3("fmi3-step", INSTANTIATION_TOKEN, NULL, fmi3False, fmi3False, fmi3False,
+                                      fmi3False, NULL, 0, NULL, NULL, NULL);
+    if (!c) die("fmi3InstantiateCoSimulation failed");
+    const fmi3ValueReference vr[] = {VR_Kp, VR_Ki, VR_theta_m, VR_tau_m};
+    const fmi3Float64 value[] = {KP, KI, DELTA_DEFAULT + 0.0055, TAU_PRESS};
+    check3(api.set_float64(c, vr, 4, value, 4), "fmi3SetFloat64(parameters)");
+    check3(api.enter_init3(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), "fmi3EnterInitializationMode");
+    check3(api.exit_init3(c), "fmi3ExitInitializationMode");
+    return c;
+}
 static fmi2Component make_pressed(const char *name, int log_contacts) {
     const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_theta_m};
     const fmi2Real value[] = {KP, KI, DELTA_DEFAULT + 0.0055};
@@ -300,12 +332,13 @@ enum {
     DERIVATIVES,
     INDICATORS,
     STATES_DERIVATIVES,
+    STEP3,
     BLOCKS
 };
 static const char *const block_key[BLOCKS] = {
     "matvec_4x4",     "copy_set2_step_get1", "ours_set2_get1",         "ours_step_event_free",
     "ours_set2_step", "ours_set2_step_get1", "ours_set2_step_get_all", "ours_set2_step_switching",
-    "me_get_derivatives", "me_get_event_indicators", "me_set_states_get_derivatives",
+    "me_get_derivatives", "me_get_event_indicators", "me_set_states_get_derivatives", "ours3_step_event_free",
 };
 
 /* One batch of the floor y = M x, fed back (see `suite`); a function of its own so that its
@@ -399,6 +432,8 @@ static void suite(int batches, long steps) {
     double tau[2] = {TAU_PRESS, 0.0}, w = 0.0;
     long k_step = 0, k_set_step = 0, k_pattern = 0, k_all = 0, k_swinging = 0;
     fmi2Component me = make_model_exchange("model-exchange");
+    fmi3Instance step3 = make_pressed3();
+    long k_step3 = 0;
     double dx[4] = {0}, z[2] = {0}, x_me[4] = {DELTA_DEFAULT + 0.0055, 0.0, 0.0, 0.0};
     double me_sink = 0.0;
 
@@ -478,7 +513,17 @@ static void suite(int batches, long steps) {
             me_sink += dx[1];
         }
         toc(t0, floor_items, t[STATES_DERIVATIVES], tw[STATES_DERIVATIVES], b);
+
+        /* The FMI 3.0 event-free step, beside the FMI 2.0 one (STEP) in the same round. */
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_step3++) {
+            fmi3Boolean event, terminate, early;
+            fmi3Float64 last;
+            check3(api.do_step3(step3, k_step3 * H, H, fmi3True, &event, &terminate, &early, &last), "fmi3DoStep");
+        }
+        toc(t0, steps, t[STEP3], tw[STEP3], b);
     }
+    api.free_instance3(step3);
     /* In contact at the pressed state: der(omega_m) = (tau - r psi)/J_m, independent of the host. */
     printf("@ me_pressed_derivatives %.17g %.17g %.17g %.17g %.6g\n", dx[0], dx[1], dx[2], dx[3], me_sink);
     api.free_instance(me);

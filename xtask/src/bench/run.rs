@@ -164,7 +164,18 @@ impl Runner {
     pub(super) fn prepare(work: &Path) -> Result<Runner, String> {
         let unpacked = work.join(MODEL);
         let xml = unpack(&util::fmu_dir().join(format!("{MODEL}.fmu")), &unpacked)?;
-        let (guid, vr_header) = guid_and_vr_header(&xml)?;
+        let (guid, mut vr_header) = guid_and_vr_header(&xml)?;
+        // The FMI 3.0 archive's token, for the FMI 3.0 step of the suite (same library).
+        let xml3 = unpack(
+            &util::fmu_dir().join("fmi3").join(format!("{MODEL}.fmu")),
+            &work.join(format!("{MODEL}-fmi3")),
+        )?;
+        let doc3 = roxmltree::Document::parse(&xml3).map_err(|e| format!("FMI 3.0 modelDescription.xml: {e}"))?;
+        let token = doc3
+            .root_element()
+            .attribute("instantiationToken")
+            .ok_or("the FMI 3.0 description has no instantiationToken")?;
+        vr_header.push_str(&format!("#define INSTANTIATION_TOKEN \"{token}\"\n"));
         fs::write(work.join("bench_vr.h"), vr_header).map_err(|e| format!("writing bench_vr.h: {e}"))?;
         let headers = python::fmpy_header_dir().ok_or("no fmi2Functions.h in .venv (fmpy's c-code)")?;
         let host = work.join("native_host");
