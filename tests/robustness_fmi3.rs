@@ -1,0 +1,469 @@
+//! The FMI 3.0 state machines through the C ABI, against tables written out here independently
+//! of `src/fmu/state_machine.rs` from the FMI 3.0 standard (§3.2 Model Exchange, §4.2
+//! Co-Simulation with eventModeUsed): every listed function in every state. An illegal call must
+//! return fmi3Error and log why ("not allowed in state", or "belongs to FMI for" for a function
+//! of the other interface); a legal one must return fmi3OK.
+//!
+//! Then a short seeded fuzz of the FMI 3.0 functions over both instance kinds: random order,
+//! random finite/NaN/huge arguments, NULL pointers with positive lengths, wrong lengths. After
+//! every call: no crash, the status is never fmi3Fatal, an fmi3Error comes with a logged
+//! message, and after an accepted call every Float64 variable reads non-NaN (infinite only for
+//! bound_sup) or the read is refused with a reason. FMI3_FUZZ_SECONDS=60 lengthens it.
+#![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
+
+use backlash_fmu::ffi::fmi3::*;
+use backlash_fmu::fmu::variables::VarType;
+use backlash_fmu::fmu::MODELS;
+use std::ffi::{c_void, CStr, CString};
+use std::ptr::{null, null_mut};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+const OK: fmi3Status = fmi3Status::fmi3OK;
+const ERROR: fmi3Status = fmi3Status::fmi3Error;
+const NX: usize = 4;
+const NI: usize = 2;
+
+type Log3 = Mutex<Vec<String>>;
+
+unsafe extern "C" fn log3(env: fmi3InstanceEnvironment, _s: fmi3Status, _c: fmi3String, message: fmi3String) {
+    // SAFETY: `env` is the &Log3 given at instantiation; the message is NUL-terminated.
+    unsafe {
+        let log = &*(env as *const Log3);
+        log.lock().unwrap().push(CStr::from_ptr(message).to_string_lossy().into_owned());
+    }
+}
+
+struct Inst {
+    c: fmi3Instance,
+    model: usize,
+    me: bool,
+    log: Box<Log3>,
+}
+
+impl Inst {
+    fn new(model: usize, me: bool, event_mode_used: bool) -> Inst {
+        let log: Box<Log3> = Box::default();
+        let token = CString::new(MODELS[model].instantiation_token).unwrap();
+        let env = &*log as *const Log3 as *mut c_void;
+        // SAFETY: NUL-terminated strings; the log outlives the instance (freed in Drop).
+        let c = unsafe {
+            if me {
+                fmi3InstantiateModelExchange(c"me".as_ptr(), token.as_ptr(), null(), false, true, env, Some(log3))
+            } else {
+                fmi3InstantiateCoSimulation(
+                    c"cs".as_ptr(),
+                    token.as_ptr(),
+                    null(),
+                    false,
+                    true,
+                    event_mode_used,
+                    false,
+                    null(),
+                    0,
+                    env,
+                    Some(log3),
+                    None,
+                )
+            }
+        };
+        assert!(!c.is_null(), "{:?}", log.lock().unwrap());
+        Inst { c, model, me, log }
+    }
+    fn log_len(&self) -> usize {
+        self.log.lock().unwrap().len()
+    }
+    fn since(&self, n: usize) -> Vec<String> {
+        self.log.lock().unwrap()[n..].to_vec()
+    }
+    fn vr(&self, name: &str) -> u32 {
+        MODELS[self.model].vr(name)
+    }
+}
+
+impl Drop for Inst {
+    fn drop(&mut self) {
+        fmi3FreeInstance(self.c);
+    }
+}
+
+const CS_STATES: [&str; 6] = ["Instantiated", "InitializationMode", "EventMode", "StepMode", "Terminated", "Error"];
+const ME_STATES: [&str; 6] = [
+    "Instantiated",
+    "InitializationMode",
+    "EventMode",
+    "ContinuousTimeMode",
+    "Terminated",
+    "Error",
+];
+
+fn init(f: &Inst) {
+    assert_eq!(fmi3EnterInitializationMode(f.c, false, 0.0, 0.0, false, 0.0), OK);
+}
+
+/// An instance in state `index` of CS_STATES / ME_STATES (Co-Simulation with eventModeUsed).
+fn in_state(me: bool, index: usize) -> Inst {
+    let f = Inst::new(0, me, true);
+    if index >= 1 {
+        init(&f);
+    }
+    if index >= 2 {
+        assert_eq!(fmi3ExitInitializationMode(f.c), OK); // Event Mode, both kinds
+    }
+    if index >= 3 {
+        let s = if me { fmi3EnterContinuousTimeMode(f.c) } else { fmi3EnterStepMode(f.c) };
+        assert_eq!(s, OK);
+    }
+    if index == 4 {
+        assert_eq!(fmi3Terminate(f.c), OK);
+    }
+    if index == 5 {
+        // From Step / Continuous-Time Mode, so that values are there to be read.
+        assert_eq!(fmi3EnterInitializationMode(f.c, false, 0.0, 0.0, false, 0.0), ERROR);
+    }
+    f
+}
+
+type Call = fn(&Inst) -> fmi3Status;
+
+/// (function, call with valid arguments, legal in Co-Simulation states, legal in Model Exchange
+/// states); `None`: the function belongs to the other interface.
+#[rustfmt::skip]
+fn table() -> Vec<(&'static str, Call, Option<[bool; 6]>, Option<[bool; 6]>)> {
+    const ALL: Option<[bool; 6]> = Some([true; 6]);
+    //                  I      M      V      C/N    T      E
+    let only = |i: usize| { let mut m = [false; 6]; m[i] = true; Some(m) };
+    // SAFETY (every entry): pointers to locals of the announced lengths.
+    unsafe {
+        vec![
+            ("fmi3EnterInitializationMode", |f| fmi3EnterInitializationMode(f.c, false, 0.0, 0.0, false, 0.0), only(0), only(0)),
+            ("fmi3ExitInitializationMode", |f| fmi3ExitInitializationMode(f.c), only(1), only(1)),
+            ("fmi3EnterEventMode", |f| fmi3EnterEventMode(f.c), only(3), only(3)),
+            ("fmi3EnterStepMode", |f| fmi3EnterStepMode(f.c), only(2), None),
+            ("fmi3UpdateDiscreteStates", |f| {
+                let (mut a, mut b, mut c, mut d, mut e, mut t) = (false, false, false, false, false, 0.0);
+                fmi3UpdateDiscreteStates(f.c, &mut a, &mut b, &mut c, &mut d, &mut e, &mut t)
+            }, only(2), only(2)),
+            ("fmi3EnterContinuousTimeMode", |f| fmi3EnterContinuousTimeMode(f.c), None, only(2)),
+            ("fmi3DoStep", |f| {
+                let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
+                fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t)
+            }, only(3), None),
+            ("fmi3SetTime", |f| fmi3SetTime(f.c, 0.0), None, Some([false, false, true, true, false, false])),
+            ("fmi3SetContinuousStates", |f| {
+                let mut x = [0.0; NX];
+                // Read in the same state; the values only matter where the set is legal.
+                fmi3GetContinuousStates(f.c, x.as_mut_ptr(), NX);
+                fmi3SetContinuousStates(f.c, x.as_ptr(), NX)
+            }, None, only(3)),
+            ("fmi3GetContinuousStateDerivatives", |f| fmi3GetContinuousStateDerivatives(f.c, [0.0; NX].as_mut_ptr(), NX),
+                None, Some([false, true, true, true, true, true])),
+            ("fmi3GetEventIndicators", |f| fmi3GetEventIndicators(f.c, [0.0; NI].as_mut_ptr(), NI),
+                None, Some([false, true, true, true, true, true])),
+            ("fmi3CompletedIntegratorStep", |f| fmi3CompletedIntegratorStep(f.c, true, &mut false, &mut false), None, only(3)),
+            ("fmi3Terminate", |f| fmi3Terminate(f.c), Some([false, false, true, true, false, false]), Some([false, false, true, true, false, false])),
+            ("fmi3Reset", |f| fmi3Reset(f.c), ALL, ALL),
+            ("fmi3GetFloat64", |f| fmi3GetFloat64(f.c, [f.vr("theta_m")].as_ptr(), 1, [0.0].as_mut_ptr(), 1),
+                Some([false, true, true, true, true, true]), Some([false, true, true, true, true, true])),
+            ("fmi3SetFloat64", |f| fmi3SetFloat64(f.c, [f.vr("tau_m")].as_ptr(), 1, [0.5].as_ptr(), 1),
+                Some([true, true, true, true, false, false]), Some([true, true, true, true, false, false])),
+            ("fmi3GetFMUState", |f| {
+                let mut s = null_mut();
+                let status = fmi3GetFMUState(f.c, &mut s);
+                fmi3FreeFMUState(f.c, &mut s);
+                status
+            }, ALL, ALL),
+        ]
+    }
+}
+
+#[test]
+fn every_call_in_every_fmi3_state_follows_the_standard_table() {
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for (name, call, cs, me) in table() {
+        for is_me in [false, true] {
+            let (legal, states, other) = if is_me {
+                (me, ME_STATES, "belongs to FMI for Co-Simulation")
+            } else {
+                (cs, CS_STATES, "belongs to FMI for Model Exchange")
+            };
+            for (i, state) in states.iter().enumerate() {
+                checked += 1;
+                let f = in_state(is_me, i);
+                let before = f.log_len();
+                let status = call(&f);
+                let log = f.since(before);
+                let kind = if is_me { "ME" } else { "CS" };
+                match legal {
+                    Some(m) if m[i] => {
+                        if status != OK {
+                            failures.push(format!("{kind} {name} in {state}: legal, got {status:?} {log:?}"));
+                        }
+                    }
+                    _ => {
+                        let reason = if legal.is_none() { other.to_string() } else { "not allowed in state".to_string() };
+                        if status != ERROR || !log.iter().any(|m| m.contains(&reason)) {
+                            failures.push(format!(
+                                "{kind} {name} in {state}: illegal (\"{reason}\"), got {status:?} {log:?}"
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    println!("{checked} (function, state) cases checked");
+    assert_eq!(checked, 17 * 12);
+    assert!(failures.is_empty(), "{} disagreements:\n{}", failures.len(), failures.join("\n"));
+}
+
+#[test]
+fn co_simulation_without_event_mode_refuses_event_mode_with_the_reason() {
+    let f = Inst::new(0, false, false);
+    init(&f);
+    assert_eq!(fmi3ExitInitializationMode(f.c), OK, "straight to Step Mode");
+    let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
+    // SAFETY: pointers to locals.
+    assert_eq!(unsafe { fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t) }, OK);
+    let before = f.log_len();
+    assert_eq!(fmi3EnterEventMode(f.c), ERROR);
+    assert!(f.since(before).iter().any(|m| m.contains("eventModeUsed")), "{:?}", f.since(before));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fuzz
+// ---------------------------------------------------------------------------------------------
+
+struct Prng(u64);
+
+impl Prng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545F4914F6CDD1D)
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+    fn chance(&mut self, percent: u64) -> bool {
+        self.below(100) < percent
+    }
+    fn real(&mut self) -> f64 {
+        const WILD: [f64; 12] =
+            [0.0, -0.0, 1e-3, 1.0, -1.0, 1e300, -1e300, f64::MAX, 5e-324, f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+        if self.chance(70) {
+            (self.below(2001) as f64 - 1000.0) / 100.0
+        } else {
+            WILD[self.below(WILD.len() as u64) as usize]
+        }
+    }
+    fn length(&mut self, n: usize) -> usize {
+        if self.chance(80) {
+            n
+        } else {
+            [0, n.saturating_sub(1), n + 1, 1000][self.below(4) as usize]
+        }
+    }
+}
+
+struct Slot {
+    f: Inst,
+    /// Still in Instantiated as far as we know (reads are illegal there: skip the check).
+    fresh: bool,
+    time: f64,
+}
+
+struct Fuzz {
+    rng: Prng,
+    slots: Vec<Slot>,
+    calls: u64,
+    accepted: u64,
+    ok_steps: u64,
+}
+
+impl Fuzz {
+    fn slot(&mut self) -> usize {
+        if self.slots.is_empty() || self.slots.len() < 4 && self.rng.chance(3) {
+            let me = self.rng.chance(50);
+            let model = self.rng.below(MODELS.len().min(2) as u64) as usize;
+            let event_mode_used = self.rng.chance(50);
+            self.slots.push(Slot { f: Inst::new(model, me, event_mode_used), fresh: true, time: 0.0 });
+        }
+        if self.slots.len() > 1 && self.rng.chance(1) {
+            let i = self.rng.below(self.slots.len() as u64) as usize;
+            self.slots.swap_remove(i);
+        }
+        self.rng.below(self.slots.len() as u64) as usize
+    }
+
+    /// An array pointer: NULL now and then (with whatever length was chosen).
+    fn ptr<T>(&mut self, v: &mut [T]) -> *mut T {
+        if self.rng.chance(5) {
+            null_mut()
+        } else {
+            v.as_mut_ptr()
+        }
+    }
+
+    fn one(&mut self) {
+        let i = self.slot();
+        let c = self.slots[i].f.c;
+        let model = self.slots[i].f.model;
+        let before = self.slots[i].f.log_len();
+        let op = self.rng.below(20);
+        let r = &mut self.rng;
+        let t = if r.chance(80) { self.slots[i].time } else { r.real() };
+        let h = if r.chance(80) { [1e-4, 1e-3, 1e-2][r.below(3) as usize] } else { r.real() };
+        let x = r.real();
+        let n_x = r.length(NX);
+        let n_i = r.length(NI);
+        let mut buf = vec![x; 1001];
+        let mut vrs: Vec<u32> = MODELS[model].variables.iter().map(|v| v.vr).collect();
+        vrs.push(9999);
+        let pick = |r: &mut Prng| vrs[r.below(vrs.len() as u64) as usize];
+        let vr1 = [pick(&mut self.rng), pick(&mut self.rng)];
+        let n_vr = self.rng.length(1);
+        let bp = self.ptr(&mut buf);
+        let vp = if self.rng.chance(5) { null() } else { vr1.as_ptr() };
+        let (mut a, mut b, mut cc, mut d, mut e, mut tt) = (false, false, false, false, false, 0.0);
+        let null_out = self.rng.chance(5);
+        macro_rules! out {
+            ($v:expr) => {
+                if null_out {
+                    null_mut()
+                } else {
+                    &mut $v
+                }
+            };
+        }
+        // SAFETY: every pointer is NULL or valid for the largest length passed (1001 values).
+        let status = unsafe {
+            match op {
+                0 => fmi3EnterInitializationMode(c, self.rng.chance(50), h, t, self.rng.chance(50), t + 10.0),
+                1 => fmi3ExitInitializationMode(c),
+                2 => fmi3EnterEventMode(c),
+                3 => fmi3EnterStepMode(c),
+                4 => fmi3UpdateDiscreteStates(c, out!(a), &mut b, &mut cc, &mut d, &mut e, &mut tt),
+                5 => fmi3EnterContinuousTimeMode(c),
+                6 => fmi3DoStep(c, t, h, true, out!(a), &mut b, &mut cc, &mut tt),
+                7 => fmi3SetTime(c, t + h.abs().min(1.0)),
+                8 => {
+                    let mut xs = [0.0; NX];
+                    fmi3GetContinuousStates(c, xs.as_mut_ptr(), NX);
+                    for v in xs.iter_mut() {
+                        *v += if self.rng.chance(80) { 1e-3 * x.clamp(-1.0, 1.0) } else { x };
+                    }
+                    let p = if self.rng.chance(5) { null() } else { xs.as_ptr() };
+                    fmi3SetContinuousStates(c, p, n_x.min(NX + 1).min(if p.is_null() { 1000 } else { NX }))
+                }
+                9 => fmi3GetContinuousStateDerivatives(c, bp, n_x),
+                10 => fmi3GetEventIndicators(c, bp, n_i),
+                11 => fmi3CompletedIntegratorStep(c, true, out!(a), &mut b),
+                12 => fmi3Terminate(c),
+                13 => fmi3Reset(c),
+                14 => fmi3GetFloat64(c, vp, n_vr, bp, self.rng.length(n_vr)),
+                15 | 16 => {
+                    // Mostly the input, sometimes any variable.
+                    let vr = if self.rng.chance(70) { [MODELS[model].vr("tau_m"), vr1[1]] } else { vr1 };
+                    let vp = if vp.is_null() { null() } else { vr.as_ptr() };
+                    fmi3SetFloat64(c, vp, n_vr, bp, self.rng.length(n_vr))
+                }
+                17 => {
+                    let mut s = null_mut();
+                    let p = if null_out { null_mut() } else { &mut s };
+                    let status = fmi3GetFMUState(c, p);
+                    if !s.is_null() {
+                        fmi3FreeFMUState(c, &mut s);
+                    }
+                    status
+                }
+                18 => fmi3GetContinuousStates(c, bp, n_x),
+                _ => fmi3GetNominalsOfContinuousStates(c, bp, n_x),
+            }
+        };
+        self.calls += 1;
+        let slot = &mut self.slots[i];
+        let log = slot.f.since(before);
+        let context = format!("call {} op {op} ({}) on {}", self.calls, if slot.f.me { "ME" } else { "CS" }, model);
+        assert!(status != fmi3Status::fmi3Fatal, "{context}: Fatal {log:?}");
+        if status == ERROR {
+            assert!(!log.is_empty(), "{context}: fmi3Error without a logged reason");
+            return;
+        }
+        self.accepted += 1;
+        match op {
+            0 => slot.fresh = false,
+            13 => {
+                slot.fresh = true;
+                slot.time = 0.0;
+            }
+            6 if status == OK => {
+                slot.time = tt;
+                self.ok_steps += 1;
+            }
+            7 => slot.time = t + h.abs().min(1.0),
+            _ => {}
+        }
+        if op == 0 {
+            slot.time = t;
+        }
+        if !slot.fresh {
+            check_all_values(&slot.f, &context);
+        }
+    }
+}
+
+/// Every Float64 variable reads non-NaN (infinite only for bound_sup), or the read is refused
+/// with a reason.
+fn check_all_values(f: &Inst, context: &str) {
+    let vars: Vec<_> = MODELS[f.model].variables.iter().filter(|v| v.ty == VarType::Real).collect();
+    let vrs: Vec<u32> = vars.iter().map(|v| v.vr).collect();
+    let mut out = vec![0.0; vrs.len()];
+    let before = f.log_len();
+    // SAFETY: arrays of the announced lengths.
+    let s = unsafe { fmi3GetFloat64(f.c, vrs.as_ptr(), vrs.len(), out.as_mut_ptr(), out.len()) };
+    match s {
+        OK | fmi3Status::fmi3Warning => {
+            for (v, x) in vars.iter().zip(&out) {
+                assert!(!x.is_nan() && (x.is_finite() || v.name == "bound_sup"), "{context}: {} = {x}", v.name);
+            }
+        }
+        _ => assert!(
+            s != fmi3Status::fmi3Fatal && f.log_len() > before,
+            "{context}: read refused ({s:?}) without a reason"
+        ),
+    }
+}
+
+#[test]
+fn fmi3_fuzz_keeps_the_invariants() {
+    let budget = std::env::var("FMI3_FUZZ_SECONDS").ok().and_then(|s| s.parse::<u64>().ok());
+    let start = Instant::now();
+    let (mut calls, mut accepted, mut steps, mut seeds) = (0, 0, 0, 0);
+    let mut seed = 1u64;
+    loop {
+        let mut fuzz = Fuzz { rng: Prng(seed.wrapping_mul(0x9E3779B97F4A7C15) | 1), slots: Vec::new(), calls: 0, accepted: 0, ok_steps: 0 };
+        for _ in 0..400 {
+            fuzz.one();
+        }
+        calls += fuzz.calls;
+        accepted += fuzz.accepted;
+        steps += fuzz.ok_steps;
+        seeds += 1;
+        seed += 1;
+        let done = match budget {
+            Some(s) => start.elapsed() > Duration::from_secs(s),
+            None => seeds >= 10,
+        };
+        if done {
+            break;
+        }
+    }
+    println!(
+        "{seeds} seeds, {calls} calls ({accepted} accepted, {steps} fmi3DoStep OK) in {:.2?}",
+        start.elapsed()
+    );
+    assert!(accepted > calls / 10, "the sequences must get somewhere");
+}
