@@ -38,6 +38,7 @@ struct Inst {
     c: fmi3Instance,
     model: usize,
     me: bool,
+    event_mode_used: bool,
     log: Box<Log3>,
 }
 
@@ -68,7 +69,7 @@ impl Inst {
             }
         };
         assert!(!c.is_null(), "{:?}", log.lock().unwrap());
-        Inst { c, model, me, log }
+        Inst { c, model, me, event_mode_used, log }
     }
     fn log_len(&self) -> usize {
         self.log.lock().unwrap().len()
@@ -273,6 +274,9 @@ struct Slot {
     /// Still in Instantiated as far as we know (reads are illegal there: skip the check).
     fresh: bool,
     time: f64,
+    /// Our belief of its state (index into CS_STATES / ME_STATES), to pick the call that moves
+    /// it on more often than chance would.
+    phase: usize,
 }
 
 struct Fuzz {
@@ -289,7 +293,7 @@ impl Fuzz {
             let me = self.rng.chance(50);
             let model = self.rng.below(MODELS.len().min(2) as u64) as usize;
             let event_mode_used = self.rng.chance(50);
-            self.slots.push(Slot { f: Inst::new(model, me, event_mode_used), fresh: true, time: 0.0 });
+            self.slots.push(Slot { f: Inst::new(model, me, event_mode_used), fresh: true, time: 0.0, phase: 0 });
         }
         if self.slots.len() > 1 && self.rng.chance(1) {
             let i = self.rng.below(self.slots.len() as u64) as usize;
@@ -312,11 +316,25 @@ impl Fuzz {
         let c = self.slots[i].f.c;
         let model = self.slots[i].f.model;
         let before = self.slots[i].f.log_len();
-        let op = self.rng.below(20);
+        let me = self.slots[i].f.me;
+        let careful = self.rng.chance(60);
+        let op = if careful {
+            match (self.slots[i].phase, me) {
+                (0, _) => 0,
+                (1, _) => 1,
+                (2, false) => 3,
+                (2, true) => 5,
+                (3, false) => [6, 6, 6, 15, 14][self.rng.below(5) as usize],
+                (3, true) => [7, 8, 11, 9, 15][self.rng.below(5) as usize],
+                _ => 13,
+            }
+        } else {
+            self.rng.below(20)
+        };
         let r = &mut self.rng;
-        let t = if r.chance(80) { self.slots[i].time } else { r.real() };
-        let h = if r.chance(80) { [1e-4, 1e-3, 1e-2][r.below(3) as usize] } else { r.real() };
-        let x = r.real();
+        let t = if careful || r.chance(80) { self.slots[i].time } else { r.real() };
+        let h = if careful || r.chance(80) { [1e-4, 1e-3, 1e-2][r.below(3) as usize] } else { r.real() };
+        let x = if careful { r.below(11) as f64 - 5.0 } else { r.real() };
         let n_x = r.length(NX);
         let n_i = r.length(NI);
         let mut buf = vec![x; 1001];
@@ -325,10 +343,11 @@ impl Fuzz {
         let pick = |r: &mut Prng| vrs[r.below(vrs.len() as u64) as usize];
         let vr1 = [pick(&mut self.rng), pick(&mut self.rng)];
         let n_vr = self.rng.length(1);
-        let bp = self.ptr(&mut buf);
-        let vp = if self.rng.chance(5) { null() } else { vr1.as_ptr() };
+        let (n_x, n_i, n_vr) = if careful { (NX, NI, 1) } else { (n_x, n_i, n_vr) };
+        let bp = if careful { buf.as_mut_ptr() } else { self.ptr(&mut buf) };
+        let vp = if !careful && self.rng.chance(5) { null() } else { vr1.as_ptr() };
         let (mut a, mut b, mut cc, mut d, mut e, mut tt) = (false, false, false, false, false, 0.0);
-        let null_out = self.rng.chance(5);
+        let null_out = !careful && self.rng.chance(5);
         macro_rules! out {
             ($v:expr) => {
                 if null_out {
@@ -353,9 +372,9 @@ impl Fuzz {
                     let mut xs = [0.0; NX];
                     fmi3GetContinuousStates(c, xs.as_mut_ptr(), NX);
                     for v in xs.iter_mut() {
-                        *v += if self.rng.chance(80) { 1e-3 * x.clamp(-1.0, 1.0) } else { x };
+                        *v += if careful || self.rng.chance(80) { 1e-3 * x.clamp(-1.0, 1.0) } else { x };
                     }
-                    let p = if self.rng.chance(5) { null() } else { xs.as_ptr() };
+                    let p = if !careful && self.rng.chance(5) { null() } else { xs.as_ptr() };
                     fmi3SetContinuousStates(c, p, n_x.min(NX + 1).min(if p.is_null() { 1000 } else { NX }))
                 }
                 9 => fmi3GetContinuousStateDerivatives(c, bp, n_x),
@@ -363,12 +382,16 @@ impl Fuzz {
                 11 => fmi3CompletedIntegratorStep(c, true, out!(a), &mut b),
                 12 => fmi3Terminate(c),
                 13 => fmi3Reset(c),
-                14 => fmi3GetFloat64(c, vp, n_vr, bp, self.rng.length(n_vr)),
+                14 => {
+                    let n = if careful { n_vr } else { self.rng.length(n_vr) };
+                    fmi3GetFloat64(c, vp, n_vr, bp, n)
+                }
                 15 | 16 => {
                     // Mostly the input, sometimes any variable.
                     let vr = if self.rng.chance(70) { [MODELS[model].vr("tau_m"), vr1[1]] } else { vr1 };
                     let vp = if vp.is_null() { null() } else { vr.as_ptr() };
-                    fmi3SetFloat64(c, vp, n_vr, bp, self.rng.length(n_vr))
+                    let n = if careful { n_vr } else { self.rng.length(n_vr) };
+                    fmi3SetFloat64(c, vp, n_vr, bp, n)
                 }
                 17 => {
                     let mut s = null_mut();
@@ -390,9 +413,19 @@ impl Fuzz {
         assert!(status != fmi3Status::fmi3Fatal, "{context}: Fatal {log:?}");
         if status == ERROR {
             assert!(!log.is_empty(), "{context}: fmi3Error without a logged reason");
+            slot.phase = 5;
             return;
         }
         self.accepted += 1;
+        match (op, slot.phase) {
+            (0, _) => slot.phase = 1,
+            (1, _) => slot.phase = if me || slot.f.event_mode_used { 2 } else { 3 },
+            (3 | 5, 2) => slot.phase = 3,
+            (2, 3) => slot.phase = 2,
+            (12, _) => slot.phase = 4,
+            (13, _) => slot.phase = 0,
+            _ => {}
+        }
         match op {
             0 => slot.fresh = false,
             13 => {
