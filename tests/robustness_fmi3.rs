@@ -30,7 +30,9 @@ unsafe extern "C" fn log3(env: fmi3InstanceEnvironment, _s: fmi3Status, _c: fmi3
     // SAFETY: `env` is the &Log3 given at instantiation; the message is NUL-terminated.
     unsafe {
         let log = &*(env as *const Log3);
-        log.lock().unwrap().push(CStr::from_ptr(message).to_string_lossy().into_owned());
+        log.lock()
+            .unwrap()
+            .push(CStr::from_ptr(message).to_string_lossy().into_owned());
     }
 }
 
@@ -69,7 +71,13 @@ impl Inst {
             }
         };
         assert!(!c.is_null(), "{:?}", log.lock().unwrap());
-        Inst { c, model, me, event_mode_used, log }
+        Inst {
+            c,
+            model,
+            me,
+            event_mode_used,
+            log,
+        }
     }
     fn log_len(&self) -> usize {
         self.log.lock().unwrap().len()
@@ -88,7 +96,14 @@ impl Drop for Inst {
     }
 }
 
-const CS_STATES: [&str; 6] = ["Instantiated", "InitializationMode", "EventMode", "StepMode", "Terminated", "Error"];
+const CS_STATES: [&str; 6] = [
+    "Instantiated",
+    "InitializationMode",
+    "EventMode",
+    "StepMode",
+    "Terminated",
+    "Error",
+];
 const ME_STATES: [&str; 6] = [
     "Instantiated",
     "InitializationMode",
@@ -112,7 +127,11 @@ fn in_state(me: bool, index: usize) -> Inst {
         assert_eq!(fmi3ExitInitializationMode(f.c), OK); // Event Mode, both kinds
     }
     if index >= 3 {
-        let s = if me { fmi3EnterContinuousTimeMode(f.c) } else { fmi3EnterStepMode(f.c) };
+        let s = if me {
+            fmi3EnterContinuousTimeMode(f.c)
+        } else {
+            fmi3EnterStepMode(f.c)
+        };
         assert_eq!(s, OK);
     }
     if index == 4 {
@@ -203,7 +222,11 @@ fn every_call_in_every_fmi3_state_follows_the_standard_table() {
                         }
                     }
                     _ => {
-                        let reason = if legal.is_none() { other.to_string() } else { "not allowed in state".to_string() };
+                        let reason = if legal.is_none() {
+                            other.to_string()
+                        } else {
+                            "not allowed in state".to_string()
+                        };
                         if status != ERROR || !log.iter().any(|m| m.contains(&reason)) {
                             failures.push(format!(
                                 "{kind} {name} in {state}: illegal (\"{reason}\"), got {status:?} {log:?}"
@@ -216,7 +239,12 @@ fn every_call_in_every_fmi3_state_follows_the_standard_table() {
     }
     println!("{checked} (function, state) cases checked");
     assert_eq!(checked, 17 * 12);
-    assert!(failures.is_empty(), "{} disagreements:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} disagreements:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -226,10 +254,17 @@ fn co_simulation_without_event_mode_refuses_event_mode_with_the_reason() {
     assert_eq!(fmi3ExitInitializationMode(f.c), OK, "straight to Step Mode");
     let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
     // SAFETY: pointers to locals.
-    assert_eq!(unsafe { fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t) }, OK);
+    assert_eq!(
+        unsafe { fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t) },
+        OK
+    );
     let before = f.log_len();
     assert_eq!(fmi3EnterEventMode(f.c), ERROR);
-    assert!(f.since(before).iter().any(|m| m.contains("eventModeUsed")), "{:?}", f.since(before));
+    assert!(
+        f.since(before).iter().any(|m| m.contains("eventModeUsed")),
+        "{:?}",
+        f.since(before)
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -252,8 +287,20 @@ impl Prng {
         self.below(100) < percent
     }
     fn real(&mut self) -> f64 {
-        const WILD: [f64; 12] =
-            [0.0, -0.0, 1e-3, 1.0, -1.0, 1e300, -1e300, f64::MAX, 5e-324, f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+        const WILD: [f64; 12] = [
+            0.0,
+            -0.0,
+            1e-3,
+            1.0,
+            -1.0,
+            1e300,
+            -1e300,
+            f64::MAX,
+            5e-324,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
         if self.chance(70) {
             (self.below(2001) as f64 - 1000.0) / 100.0
         } else {
@@ -293,7 +340,12 @@ impl Fuzz {
             let me = self.rng.chance(50);
             let model = self.rng.below(MODELS.len().min(2) as u64) as usize;
             let event_mode_used = self.rng.chance(50);
-            self.slots.push(Slot { f: Inst::new(model, me, event_mode_used), fresh: true, time: 0.0, phase: 0 });
+            self.slots.push(Slot {
+                f: Inst::new(model, me, event_mode_used),
+                fresh: true,
+                time: 0.0,
+                phase: 0,
+            });
         }
         if self.slots.len() > 1 && self.rng.chance(1) {
             let i = self.rng.below(self.slots.len() as u64) as usize;
@@ -332,8 +384,16 @@ impl Fuzz {
             self.rng.below(20)
         };
         let r = &mut self.rng;
-        let t = if careful || r.chance(80) { self.slots[i].time } else { r.real() };
-        let h = if careful || r.chance(80) { [1e-4, 1e-3, 1e-2][r.below(3) as usize] } else { r.real() };
+        let t = if careful || r.chance(80) {
+            self.slots[i].time
+        } else {
+            r.real()
+        };
+        let h = if careful || r.chance(80) {
+            [1e-4, 1e-3, 1e-2][r.below(3) as usize]
+        } else {
+            r.real()
+        };
         let x = if careful { r.below(11) as f64 - 5.0 } else { r.real() };
         let n_x = r.length(NX);
         let n_i = r.length(NI);
@@ -345,7 +405,11 @@ impl Fuzz {
         let n_vr = self.rng.length(1);
         let (n_x, n_i, n_vr) = if careful { (NX, NI, 1) } else { (n_x, n_i, n_vr) };
         let bp = if careful { buf.as_mut_ptr() } else { self.ptr(&mut buf) };
-        let vp = if !careful && self.rng.chance(5) { null() } else { vr1.as_ptr() };
+        let vp = if !careful && self.rng.chance(5) {
+            null()
+        } else {
+            vr1.as_ptr()
+        };
         let (mut a, mut b, mut cc, mut d, mut e, mut tt) = (false, false, false, false, false, 0.0);
         let null_out = !careful && self.rng.chance(5);
         macro_rules! out {
@@ -372,9 +436,17 @@ impl Fuzz {
                     let mut xs = [0.0; NX];
                     fmi3GetContinuousStates(c, xs.as_mut_ptr(), NX);
                     for v in xs.iter_mut() {
-                        *v += if careful || self.rng.chance(80) { 1e-3 * x.clamp(-1.0, 1.0) } else { x };
+                        *v += if careful || self.rng.chance(80) {
+                            1e-3 * x.clamp(-1.0, 1.0)
+                        } else {
+                            x
+                        };
                     }
-                    let p = if !careful && self.rng.chance(5) { null() } else { xs.as_ptr() };
+                    let p = if !careful && self.rng.chance(5) {
+                        null()
+                    } else {
+                        xs.as_ptr()
+                    };
                     fmi3SetContinuousStates(c, p, n_x.min(NX + 1).min(if p.is_null() { 1000 } else { NX }))
                 }
                 9 => fmi3GetContinuousStateDerivatives(c, bp, n_x),
@@ -388,7 +460,11 @@ impl Fuzz {
                 }
                 15 | 16 => {
                     // Mostly the input, sometimes any variable.
-                    let vr = if self.rng.chance(70) { [MODELS[model].vr("tau_m"), vr1[1]] } else { vr1 };
+                    let vr = if self.rng.chance(70) {
+                        [MODELS[model].vr("tau_m"), vr1[1]]
+                    } else {
+                        vr1
+                    };
                     let vp = if vp.is_null() { null() } else { vr.as_ptr() };
                     let n = if careful { n_vr } else { self.rng.length(n_vr) };
                     fmi3SetFloat64(c, vp, n_vr, bp, n)
@@ -409,7 +485,12 @@ impl Fuzz {
         self.calls += 1;
         let slot = &mut self.slots[i];
         let log = slot.f.since(before);
-        let context = format!("call {} op {op} ({}) on {}", self.calls, if slot.f.me { "ME" } else { "CS" }, model);
+        let context = format!(
+            "call {} op {op} ({}) on {}",
+            self.calls,
+            if slot.f.me { "ME" } else { "CS" },
+            model
+        );
         assert!(status != fmi3Status::fmi3Fatal, "{context}: Fatal {log:?}");
         if status == ERROR {
             assert!(!log.is_empty(), "{context}: fmi3Error without a logged reason");
@@ -451,7 +532,11 @@ impl Fuzz {
 /// Every Float64 variable reads non-NaN (infinite only for bound_sup), or the read is refused
 /// with a reason.
 fn check_all_values(f: &Inst, context: &str) {
-    let vars: Vec<_> = MODELS[f.model].variables.iter().filter(|v| v.ty == VarType::Real).collect();
+    let vars: Vec<_> = MODELS[f.model]
+        .variables
+        .iter()
+        .filter(|v| v.ty == VarType::Real)
+        .collect();
     let vrs: Vec<u32> = vars.iter().map(|v| v.vr).collect();
     let mut out = vec![0.0; vrs.len()];
     let before = f.log_len();
@@ -460,7 +545,11 @@ fn check_all_values(f: &Inst, context: &str) {
     match s {
         OK | fmi3Status::fmi3Warning => {
             for (v, x) in vars.iter().zip(&out) {
-                assert!(!x.is_nan() && (x.is_finite() || v.name == "bound_sup"), "{context}: {} = {x}", v.name);
+                assert!(
+                    !x.is_nan() && (x.is_finite() || v.name == "bound_sup"),
+                    "{context}: {} = {x}",
+                    v.name
+                );
             }
         }
         _ => assert!(
@@ -472,12 +561,20 @@ fn check_all_values(f: &Inst, context: &str) {
 
 #[test]
 fn fmi3_fuzz_keeps_the_invariants() {
-    let budget = std::env::var("FMI3_FUZZ_SECONDS").ok().and_then(|s| s.parse::<u64>().ok());
+    let budget = std::env::var("FMI3_FUZZ_SECONDS")
+        .ok()
+        .and_then(|s| s.parse::<u64>().ok());
     let start = Instant::now();
     let (mut calls, mut accepted, mut steps, mut seeds) = (0, 0, 0, 0);
     let mut seed = 1u64;
     loop {
-        let mut fuzz = Fuzz { rng: Prng(seed.wrapping_mul(0x9E3779B97F4A7C15) | 1), slots: Vec::new(), calls: 0, accepted: 0, ok_steps: 0 };
+        let mut fuzz = Fuzz {
+            rng: Prng(seed.wrapping_mul(0x9E3779B97F4A7C15) | 1),
+            slots: Vec::new(),
+            calls: 0,
+            accepted: 0,
+            ok_steps: 0,
+        };
         for _ in 0..400 {
             fuzz.one();
         }
