@@ -1,28 +1,19 @@
-//! FMU states of FMI 3.0 (§2.3.6), kept in the same table as FMI 2.0's (handles looked up,
-//! never dereferenced). A state records the standard and interface of its instance, so a state
-//! of an FMI 2.0 instance is refused by an FMI 3.0 one with the reason, not misread.
+//! FMU states of FMI 3.0 (§2.3.6), kept in the same table as FMI 2.0's and served by the same
+//! code (`fmu_state`). A state records the standard and interface of its instance, so a state of
+//! an FMI 2.0 instance is refused by an FMI 3.0 one with the reason, not misread.
 
-use super::super::fmu_state::{lookup, replace, states, store, unknown};
-use super::super::guard::{input_array, output_array, output_pointer};
+use super::super::fmu_state::{deserialize, free_state, get_state, lookup, serialize, serialized_size};
 use super::guard3;
 use super::types::*;
-use crate::fmu::{FmuError, Function, Snapshot, Status};
+use crate::fmu::Function;
 
 /// # Safety
 /// `FMUState` NULL or a pointer to the importer's fmi3FMUState variable.
 #[no_mangle]
 pub unsafe extern "C" fn fmi3GetFMUState(instance: fmi3Instance, FMUState: *mut fmi3FMUState) -> fmi3Status {
-    guard3(instance, Function::GetFmuState, |inst| {
-        // SAFETY: FMI 3.0 passes a pointer to the importer's fmi3FMUState variable.
-        let slot = unsafe { output_pointer(FMUState, "FMUState") }?;
-        let snapshot = inst.snapshot();
-        if slot.is_null() {
-            *slot = store(instance, snapshot);
-        } else {
-            // A non-NULL handle is a state returned before: overwrite it.
-            replace(*slot, snapshot)?;
-        }
-        Ok(Status::Ok)
+    // SAFETY: FMI 3.0 passes a pointer to the importer's fmi3FMUState variable.
+    guard3(instance, Function::GetFmuState, |inst| unsafe {
+        get_state(instance, inst, FMUState)
     })
 }
 
@@ -38,16 +29,8 @@ pub extern "C" fn fmi3SetFMUState(instance: fmi3Instance, FMUState: fmi3FMUState
 /// As [`fmi3GetFMUState`].
 #[no_mangle]
 pub unsafe extern "C" fn fmi3FreeFMUState(instance: fmi3Instance, FMUState: *mut fmi3FMUState) -> fmi3Status {
-    guard3(instance, Function::FreeFmuState, |_| {
-        // SAFETY: as in fmi3GetFMUState.
-        let slot = unsafe { output_pointer(FMUState, "FMUState") }?;
-        if slot.is_null() {
-            return Ok(Status::Ok);
-        }
-        states().remove(&(*slot as usize)).ok_or_else(|| unknown(*slot))?;
-        *slot = std::ptr::null_mut();
-        Ok(Status::Ok)
-    })
+    // SAFETY: as in fmi3GetFMUState.
+    guard3(instance, Function::FreeFmuState, |_| unsafe { free_state(FMUState) })
 }
 
 /// # Safety
@@ -58,11 +41,9 @@ pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
     FMUState: fmi3FMUState,
     size: *mut usize,
 ) -> fmi3Status {
-    guard3(instance, Function::SerializedFmuStateSize, |_| {
-        // SAFETY: FMI 3.0 passes a pointer to the importer's size_t.
-        let size = unsafe { output_pointer(size, "size") }?;
-        *size = lookup(FMUState)?.serialized_len();
-        Ok(Status::Ok)
+    // SAFETY: FMI 3.0 passes a pointer to the importer's size_t.
+    guard3(instance, Function::SerializedFmuStateSize, |_| unsafe {
+        serialized_size(FMUState, size)
     })
 }
 
@@ -76,17 +57,8 @@ pub unsafe extern "C" fn fmi3SerializeFMUState(
     size: usize,
 ) -> fmi3Status {
     guard3(instance, Function::SerializeFmuState, |_| {
-        let bytes = lookup(FMUState)?.to_bytes();
-        if size < bytes.len() {
-            return Err(FmuError::InvalidArgument(format!(
-                "size {size} is less than the {} bytes from fmi3SerializedFMUStateSize",
-                bytes.len()
-            )));
-        }
-        // SAFETY: FMI 3.0 passes a buffer of `size` bytes; we write the first bytes.len().
-        let out = unsafe { output_array(serializedState, bytes.len(), "serializedState") }?;
-        out.copy_from_slice(&bytes);
-        Ok(Status::Ok)
+        // SAFETY: FMI 3.0 passes a buffer of `size` bytes.
+        unsafe { serialize(FMUState, serializedState, size, "fmi3SerializedFMUStateSize") }
     })
 }
 
@@ -100,16 +72,7 @@ pub unsafe extern "C" fn fmi3DeserializeFMUState(
     FMUState: *mut fmi3FMUState,
 ) -> fmi3Status {
     guard3(instance, Function::DeSerializeFmuState, |inst| {
-        // SAFETY: FMI 3.0 passes `size` bytes.
-        let bytes = unsafe { input_array(serializedState, size, "serializedState") }?;
-        // SAFETY: as in fmi3GetFMUState.
-        let slot = unsafe { output_pointer(FMUState, "FMUState") }?;
-        let snapshot = Snapshot::from_bytes(inst.model(), bytes)?;
-        if lookup(*slot).is_ok() {
-            replace(*slot, snapshot)?;
-        } else {
-            *slot = store(instance, snapshot);
-        }
-        Ok(Status::Ok)
+        // SAFETY: FMI 3.0 passes `size` bytes and a pointer to the importer's handle variable.
+        unsafe { deserialize(instance, inst, serializedState, size, FMUState) }
     })
 }
