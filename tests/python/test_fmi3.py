@@ -60,15 +60,6 @@ def _rig(model: str) -> dict:
     return {**params, **gains}
 
 
-def _held_table(tau_m, tau_L, h: float) -> np.ndarray:
-    """Held torques as an fmpy input table: every switching time twice (value before, after)."""
-    edges = np.arange(len(tau_m) + 1) * h
-    rows = [
-        row for k in range(len(tau_m)) for row in ((edges[k], tau_m[k], tau_L[k]), (edges[k + 1], tau_m[k], tau_L[k]))
-    ]
-    return np.array(rows, dtype=[("time", np.double), ("tau_m", np.double), ("tau_L", np.double)])
-
-
 # --- 1. fmpy loads, validates and simulates the archives -------------------------------------------
 
 SIM_H, SIM_N, SIM_OUT = 0.1, 40, 0.02
@@ -93,7 +84,7 @@ def test_fmpy_validates_and_simulates_the_fmi3_archive(model):
             start_time=0.0,
             stop_time=SIM_N * SIM_H,
             output_interval=SIM_OUT,
-            input=_held_table(tau_m, tau_L, SIM_H),
+            input=me_driver.held_table(tau_m, tau_L, SIM_H),
             start_values=_rig(model),
             output=outputs,
             **kw,
@@ -434,12 +425,6 @@ def test_pi_loop_updated_at_every_early_return(model):
 
 # --- 5. Model Exchange -----------------------------------------------------------------------------
 
-CVODE_RTOL = 1e-9
-CVODE_TOL = 2000 * CVODE_RTOL
-
-
-def _state_with_u(plant, u: float, theta_m=0.2, omega_m=0.5, omega_L=-0.4) -> np.ndarray:
-    return np.array([theta_m, omega_m, (plant.r_m * theta_m - u) / plant.r_L, omega_L])
 
 
 def test_simulate_fmu_model_exchange_with_cvode(model):
@@ -454,40 +439,7 @@ def test_simulate_fmu_model_exchange_with_cvode(model):
     Every switch is reported as a state event (a repeated output time off the input edges),
     each within the shift that error makes at the crossing speed, 2e-6 max|u| / |u'|."""
     params = RIGS[model][0]
-    plant = plant_of(model, params)
-    h, n = 0.1, 40
-    tau_m, tau_L = reversing_torques(n, h, 1.5, 0.6)
-    edges = np.arange(n + 1) * h
-    z0 = _state_with_u(plant, 0.5 * plant.g, 0.01, 1.0, -0.5)
-    result = simulate_fmu(
-        str(f3.fmi3_path(model)),
-        fmi_type="ModelExchange",
-        solver="CVode",
-        relative_tolerance=CVODE_RTOL,
-        start_time=0.0,
-        stop_time=n * h,
-        output_interval=0.01,
-        input=_held_table(tau_m, tau_L, h),
-        start_values={**params, **dict(zip(STATES, z0))},
-        output=[*STATES, "psi", "contact"],
-    )
-    t = result["time"]
-    assert t[0] == 0.0 and t[-1] == n * h and np.all(np.diff(t) >= 0.0)
-    exact = rc.solve(plant, rc.open_loop_holds(tau_m, tau_L, h), t, z0=z0)
-    errors = {name: rel_err(result[name], exact.z[:, j]) for j, name in enumerate(STATES)}
-    errors["u"] = rel_err(plant.r_m * result["theta_m"] - plant.r_L * result["theta_L"], exact.u)
-    errors["psi"] = rel_err(result["psi"], [plant.K * plant.dead_zone(x) for x in exact.u])
-    assert max(errors.values()) <= CVODE_TOL, errors
-
-    repeated = t[1:][np.diff(t) == 0.0]
-    state_events = [x for x in repeated if np.min(np.abs(x - edges)) > 1e-12]
-    assert len(exact.switches) >= 20 and len(state_events) == len(exact.switches)
-    u_max = np.max(np.abs(exact.u))
-    for t_cv, (t_ref, _, _), rate in zip(state_events, exact.switches, exact.switch_rates):
-        assert abs(t_cv - t_ref) <= CVODE_TOL * u_max / abs(rate), (t_cv, t_ref, rate)
-    clear = np.abs(np.abs(exact.u) - plant.g) > CVODE_TOL * u_max
-    side = np.where(exact.u > plant.g, PLUS, np.where(exact.u < -plant.g, MINUS, FREE))
-    assert np.array_equal(result["contact"][clear], side[clear])
+    me_driver.check_cvode_against_exact(str(f3.fmi3_path(model)), params, plant_of(model, params))
 
 
 def test_model_exchange_equals_fmi2_model_exchange(model):
@@ -513,7 +465,7 @@ def test_model_exchange_equals_fmi2_model_exchange(model):
         cases = []
         for i in range(60):
             u = rng.uniform(-3.0, 3.0) * plant.g if i >= 6 else (plant.g if i % 2 else -plant.g)
-            z = _state_with_u(plant, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
+            z = me_driver.state_with_u(plant, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
             if i < 6:  # on a flank to round-off: theta_L = 0, theta_m = +-g / r_m
                 z[0], z[2] = u / plant.r_m, 0.0
             cases.append((float(rng.uniform(0.0, 3.0)), z, rng.uniform(-3, 3, 2)))

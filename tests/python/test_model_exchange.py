@@ -20,7 +20,6 @@ import math
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
@@ -76,11 +75,6 @@ def fmu_loop(model: str, delta: float | None = None):
     finally:
         inst.free()
     return run, out
-
-
-def _state_with_u(plant, u: float, theta_m=0.2, omega_m=0.5, omega_L=-0.4) -> np.ndarray:
-    """[theta_m, omega_m, theta_L, omega_L] with transmission coordinate u (docs/model.md §1)."""
-    return np.array([theta_m, omega_m, (plant.r_m * theta_m - u) / plant.r_L, omega_L])
 
 
 # --- the exact reference itself (no FMU) -----------------------------------------------------
@@ -258,7 +252,7 @@ def test_indicators_psi_contact_and_derivatives_follow_the_state(fmu):
     try:
         for _ in range(200):
             u = rng.uniform(-3.0, 3.0) * p.g
-            z = _state_with_u(p, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
+            z = me_driver.state_with_u(p, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
             tau = rng.uniform(-3, 3, 2)
             u_scale = abs(p.r_m * z[0]) + abs(p.r_L * z[2]) + p.g
             slack = 8 * EPS * u_scale
@@ -294,7 +288,7 @@ def test_directional_derivatives(fmu, mode):
     params = RIGS[fmu.model][0]
     p = plant_of(fmu.model, params)
     u = {FREE: 0.3 * p.g, PLUS: 1.7 * p.g, MINUS: -1.7 * p.g}[mode]
-    z, tau = _state_with_u(p, u), np.array([0.4, -0.3])
+    z, tau = me_driver.state_with_u(p, u), np.array([0.4, -0.3])
     knowns = [*STATES, "tau_m", "tau_L"]
     unknowns = [*DERIVATIVES, *STATES, "psi"]
     vr = fmu.vr
@@ -347,8 +341,6 @@ def _free_jacobian(p) -> np.ndarray:
 
 # --- integration through fmpy's own Model Exchange simulator --------------------------------------
 
-CVODE_RTOL = 1e-9
-CVODE_TOL = 2000 * CVODE_RTOL  # relative, see the test
 
 
 def test_simulate_fmu_with_cvode_matches_the_exact_solution(fmu):
@@ -369,43 +361,7 @@ def test_simulate_fmu_with_cvode_matches_the_exact_solution(fmu):
     its time within the shift that error makes at the crossing speed, 2e-6 max|u| / |u'|
     (measured: within 0.28 of that, 5e-8 s)."""
     params = RIGS[fmu.model][0]
-    plant = plant_of(fmu.model, params)
-    h, n = 0.1, 40
-    tau_m, tau_L = reversing_torques(n, h, 1.5, 0.6)
-    edges = np.arange(n + 1) * h
-    rows = [row for k in range(n) for row in ((edges[k], tau_m[k], tau_L[k]), (edges[k + 1], tau_m[k], tau_L[k]))]
-    signals = np.array(rows, dtype=[("time", np.double), ("tau_m", np.double), ("tau_L", np.double)])
-    z0 = _state_with_u(plant, 0.5 * plant.g, 0.01, 1.0, -0.5)
-    result = simulate_fmu(
-        str(fmu.path),
-        fmi_type="ModelExchange",
-        solver="CVode",
-        relative_tolerance=CVODE_RTOL,
-        start_time=0.0,
-        stop_time=n * h,
-        output_interval=0.01,
-        input=signals,
-        start_values={**params, **dict(zip(STATES, z0))},
-        output=[*STATES, "psi", "contact"],
-    )
-    t = result["time"]  # the 401 output points and, twice each, the events (record_events)
-    assert t[0] == 0.0 and t[-1] == n * h and np.all(np.diff(t) >= 0.0)
-    assert np.all(np.min(np.abs(t[None, :] - np.linspace(0.0, n * h, 401)[:, None]), axis=1) <= 1e-12)
-    exact = rc.solve(plant, rc.open_loop_holds(tau_m, tau_L, h), t, z0=z0)
-    errors = {name: rel_err(result[name], exact.z[:, j]) for j, name in enumerate(STATES)}
-    errors["u"] = rel_err(plant.r_m * result["theta_m"] - plant.r_L * result["theta_L"], exact.u)
-    errors["psi"] = rel_err(result["psi"], [plant.K * plant.dead_zone(x) for x in exact.u])
-    assert max(errors.values()) <= CVODE_TOL, errors
-
-    repeated = t[1:][np.diff(t) == 0.0]
-    state_events = [x for x in repeated if np.min(np.abs(x - edges)) > 1e-12]
-    assert len(exact.switches) >= 20 and len(state_events) == len(exact.switches)
-    u_max = np.max(np.abs(exact.u))
-    for t_cv, (t_ref, _, _), rate in zip(state_events, exact.switches, exact.switch_rates):
-        assert abs(t_cv - t_ref) <= CVODE_TOL * u_max / abs(rate), (t_cv, t_ref, rate)
-    clear = np.abs(np.abs(exact.u) - plant.g) > CVODE_TOL * u_max
-    side = np.where(exact.u > plant.g, PLUS, np.where(exact.u < -plant.g, MINUS, FREE))
-    assert np.array_equal(result["contact"][clear], side[clear])
+    me_driver.check_cvode_against_exact(str(fmu.path), params, plant_of(fmu.model, params))
 
 
 # --- the continuous-time PI loop closed by the test -----------------------------------------------
@@ -531,7 +487,7 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
     can be set in Event Mode."""
     params = RIGS[fmu.model][0]
     plant = plant_of(fmu.model, params)
-    z = _state_with_u(plant, 1.5 * plant.g)
+    z = me_driver.state_with_u(plant, 1.5 * plant.g)
 
     def fresh():
         inst = ModelInstance(fmu, "misuse", params)
