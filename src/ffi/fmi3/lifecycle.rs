@@ -49,8 +49,13 @@ struct Request {
     options: CoSimulationOptions,
 }
 
-/// Creates the instance, or NULL after logging the reason (when a logger was given).
+/// Creates the instance, or NULL after logging the reason (when a logger was given); never
+/// unwinds into C.
 fn instantiate(request: Request) -> fmi3Instance {
+    catch_unwind(AssertUnwindSafe(|| try_instantiate(request))).unwrap_or(std::ptr::null_mut())
+}
+
+fn try_instantiate(request: Request) -> fmi3Instance {
     let logger = request.log_message.map(|log_message| CLogger3 {
         log_message,
         environment: request.environment,
@@ -121,18 +126,15 @@ pub unsafe extern "C" fn fmi3InstantiateModelExchange(
 ) -> fmi3Instance {
     // Resources are not needed, and the FMU has no window.
     let _ = (resourcePath, visible);
-    catch_unwind(AssertUnwindSafe(|| {
-        instantiate(Request {
-            name: instanceName,
-            token: instantiationToken,
-            logging_on: loggingOn,
-            environment: instanceEnvironment,
-            log_message: logMessage,
-            flavour: Flavour::FMI3_ME,
-            options: CoSimulationOptions::default(),
-        })
-    }))
-    .unwrap_or(std::ptr::null_mut())
+    instantiate(Request {
+        name: instanceName,
+        token: instantiationToken,
+        logging_on: loggingOn,
+        environment: instanceEnvironment,
+        log_message: logMessage,
+        flavour: Flavour::FMI3_ME,
+        options: CoSimulationOptions::default(),
+    })
 }
 
 /// # Safety
@@ -162,21 +164,18 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
         nRequiredIntermediateVariables,
         intermediateUpdate,
     );
-    catch_unwind(AssertUnwindSafe(|| {
-        instantiate(Request {
-            name: instanceName,
-            token: instantiationToken,
-            logging_on: loggingOn,
-            environment: instanceEnvironment,
-            log_message: logMessage,
-            flavour: Flavour::FMI3_CS,
-            options: CoSimulationOptions {
-                event_mode_used: eventModeUsed,
-                early_return_allowed: earlyReturnAllowed,
-            },
-        })
-    }))
-    .unwrap_or(std::ptr::null_mut())
+    instantiate(Request {
+        name: instanceName,
+        token: instantiationToken,
+        logging_on: loggingOn,
+        environment: instanceEnvironment,
+        log_message: logMessage,
+        flavour: Flavour::FMI3_CS,
+        options: CoSimulationOptions {
+            event_mode_used: eventModeUsed,
+            early_return_allowed: earlyReturnAllowed,
+        },
+    })
 }
 
 /// Scheduled Execution is not offered (no `<ScheduledExecution>` in the description): NULL, and
