@@ -9,7 +9,8 @@
 //!     FUZZ_SEED=12345 cargo test --test robustness_fuzz   # replay one seed
 //!     FUZZ_SEED=12345 FUZZ_CO_SIMULATION_ONLY=1 cargo test --test robustness_fuzz   # one of SLOW_SEEDS
 //!
-//! Every run first replays `SLOW_SEEDS`, seeds that once hung a call.
+//! Every run first replays `SLOW_SEEDS` and `SLOW_MODEL_EXCHANGE_SEEDS`, seeds that once hung
+//! a call.
 //!
 //! FUZZ_EXTREME=1 also gives parameters extreme finite magnitudes (1e±300, f64::MAX), which
 //! the plant refuses by scale (tests/robustness_extremes.rs); off by default to keep most calls
@@ -91,6 +92,13 @@ const SLOW_SEEDS: [u64; 4] = [
     4355302118784622655,
 ];
 
+/// Seeds of the Model Exchange driver with extreme parameters that once made a call run for
+/// minutes: a bound read after fmi2SetTime advanced a loop whose pieces last 3e-45 s through a
+/// million pieces, its sign-change searches giving up one by one on an h hovering at zero
+/// (fixed by capping the searches' budget, `roots::work_budget`, and the advances one read may
+/// make). Replayed on every run.
+const SLOW_MODEL_EXCHANGE_SEEDS: [u64; 1] = [16743667580223936308];
+
 /// What one seed did.
 #[derive(Default)]
 struct Counts {
@@ -158,6 +166,9 @@ fn random_call_sequences_keep_every_invariant() {
     if replay.is_none() {
         for seed in SLOW_SEEDS {
             run_seed(seed, true, far_times, false);
+        }
+        for seed in SLOW_MODEL_EXCHANGE_SEEDS {
+            run_seed(seed, true, far_times, true);
         }
     }
     let seeds: Box<dyn Iterator<Item = u64>> = match (replay.clone(), budget) {

@@ -113,20 +113,14 @@ impl Simulation {
     /// the bound being a function of elapsed time alone. Once the loop's response has decayed
     /// (settled) an advance of any length is one step; before, advances are cut to the longest
     /// the bound accepts, a bounded number of them per call, so that a time far out on a loop
-    /// that never settles is refused rather than computed for ever. On error the
-    /// bound is left at some time between its old one and `elapsed`.
+    /// that never settles (or settles only after a very long time) is refused rather than
+    /// computed for ever. On error the bound is left at some time between its old one and
+    /// `elapsed`.
     pub fn bound_at(&mut self, elapsed: f64) -> Result<(), BoundError> {
         if elapsed < self.bound.elapsed() {
             self.bound.reset();
         }
-        // A loop whose response decays settles after a few of the longest advances; one that
-        // never settles (bound_sup is +∞) is followed only a few of them before it is refused.
-        let limit = if self.bound_sup.is_ok() {
-            MAX_BOUND_ADVANCES
-        } else {
-            MAX_BOUND_ADVANCES_UNSETTLED
-        };
-        for _ in 0..limit {
+        for _ in 0..MAX_BOUND_ADVANCES {
             let now = self.bound.elapsed();
             let left = elapsed - now;
             if left <= 0.0 || left.is_nan() {
@@ -168,11 +162,12 @@ fn rates_overflow(rates: [f64; 4], tau_m: f64, tau_l: f64, what: std::fmt::Argum
 }
 
 /// Advances of the longest length (the bound's `MAX_PIECES` pieces) allowed in one
-/// [`Simulation::bound_at`] when the loop's response decays, and when it does not. An advance
-/// locates every sign change of h in it: on an undamped loop about 0.4 s of work (shaft rig,
-/// release build), on a decaying one far less once h is small.
-pub const MAX_BOUND_ADVANCES: usize = 256;
-pub const MAX_BOUND_ADVANCES_UNSETTLED: usize = 4;
+/// [`Simulation::bound_at`]. An advance locates every sign change of h in it: on an undamped
+/// loop about 0.4 s of work (shaft rig, release build), on a decaying one far less once h is
+/// small, and at most about 2 s where h hovers at zero through every piece (extreme
+/// parameters; the searches' budget is capped, `roots::work_budget`). The rigs' loops settle
+/// within the first; after that an advance of any length is one step.
+pub const MAX_BOUND_ADVANCES: usize = 4;
 
 /// How many parameter sets keep their built physics.
 const TEMPLATE_CACHE: usize = 8;

@@ -486,7 +486,7 @@ impl SpeedErrorBound {
         let mut pieces = 0;
         // One budget for all searches: where h hovers at 0 they give up, and the sum takes
         // upper bounds of ∫|h| there (counted in the slack) rather than searching on.
-        let mut budget = roots::work_budget(SUP_SEARCH_PIECES);
+        let mut budget = roots::work_budget(roots::SEARCH_PIECES);
         let mut excess = 0.0;
         loop {
             let rest = tail.of(&self.state.response);
@@ -515,5 +515,3 @@ const SETTLED: f64 = 1.0 / (1u64 << 60) as f64;
 const SUP_TOLERANCE: f64 = 1e-13;
 const SUP_CHECK_PIECES: usize = 256;
 const SUP_MAX_PIECES: usize = 1 << 21;
-/// The sign-change searches of the whole sup computation get the budget of this many pieces.
-const SUP_SEARCH_PIECES: usize = 1 << 12;

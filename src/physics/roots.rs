@@ -158,11 +158,18 @@ const MAX_INTERVALS: usize = 512;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Undecided;
 
+/// Pieces whose searches get an allowance in [`work_budget`]; a step, advance or supremum of
+/// more pieces gets no more. An interval costs about a microsecond (extreme parameters), so
+/// the whole budget is a fraction of a second however many pieces there are.
+pub const SEARCH_PIECES: usize = 1 << 12;
+
 /// The intervals all searches of one step or advance of `pieces` pieces may examine together:
 /// plenty for the few crossings per piece a real motion has, and a cap on the work when the
-/// signal hovers at its threshold through a long step (each piece then gives up early).
+/// signal hovers at its threshold through a long step (each piece then gives up early). The
+/// allowance stops growing at `SEARCH_PIECES` pieces: a signal hovering through a million
+/// pieces would otherwise search for minutes.
 pub fn work_budget(pieces: usize) -> usize {
-    4 * MAX_INTERVALS + 64 * pieces
+    4 * MAX_INTERVALS + 64 * pieces.min(SEARCH_PIECES)
 }
 
 /// First σ in [0, w] at which `side.value(p(σ))` leaves [−tol, ∞), located as the root of
