@@ -137,6 +137,45 @@ def test_stiffness_is_not_monotone_and_the_report_says_so(design):
     assert reference_sup(1.01 * k_max, delta, kp, ki) > EPS > reference_sup(0.99 * k_max, delta, kp, ki)
 
 
+BELT_EPS = 2.5  # required load-speed accuracy [rad/s] for the belt form
+
+
+@pytest.fixture(scope="module")
+def belt_design() -> dict:
+    """The design answer in belt form, from BacklashBelt.fmu's default parameters."""
+    out = run_design("--model", "belt", "--accuracy", repr(BELT_EPS), "--json")
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+def belt_reference_sup(params: dict, kp: float, ki: float) -> float:
+    return BoundReference(Plant.belt(**params), kp, ki).sup()
+
+
+def test_belt_design_starts_from_the_belt_fmu_and_meets_the_accuracy(belt_design):
+    """Defaults are the FMU's parameter start values; delta_max, k_min and k_max are where the
+    independent quadrature's bound_sup reaches the accuracy, and so is the FMU's own."""
+    belt = fmu_driver.require("BacklashBelt")
+    names = ("J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta")
+    defaults = {n: float(belt.variables[n].start) for n in names}
+    d = belt_design
+    assert d["plant"] == {"form": "belt", **defaults}
+    kp, ki = d["Kp"], d["Ki"]
+    at_max = {**defaults, "Delta": d["delta_max"]}
+    assert belt_reference_sup(at_max, kp, ki) == pytest.approx(BELT_EPS, rel=1e-6)
+    inst = belt.instance("sup", {**at_max, "Kp": kp, "Ki": ki})
+    try:
+        assert inst.get("bound_sup")[0] == pytest.approx(BELT_EPS, rel=1e-6)
+    finally:
+        inst.free()
+    # The stiffness window around the nominal K_b: its edges reach the accuracy, outside is worse.
+    assert d["k_min"] < defaults["K_b"] < d["k_max"]
+    for edge, outward in ((d["k_min"], 0.99), (d["k_max"], 1.01)):
+        assert belt_reference_sup({**defaults, "K_b": edge}, kp, ki) == pytest.approx(BELT_EPS, rel=1e-6)
+        assert belt_reference_sup({**defaults, "K_b": outward * edge}, kp, ki) > BELT_EPS
+        assert belt_reference_sup({**defaults, "K_b": (2 - outward) * edge}, kp, ki) < BELT_EPS
+
+
 def closed_loop_eigenvalues(kp: float, ki: float) -> np.ndarray:
     """docs/model.md §3 A_cl (5 states), written out here; its extra eigenvalue 0 is the rigid
     rotation of the whole train, which the bound never sees, and is dropped."""
@@ -187,6 +226,8 @@ def test_given_gains_are_used():
         ["--accuracy", "0.02", "--kp", "3"],
         ["--accuracy", "0.02", "--k", "-1"],
         ["--accuracy", "0.02", "--delta", "abc"],
+        ["--accuracy", "0.02", "--model", "web"],
+        ["--accuracy", "0.02", "--rg1", "0.02"],
     ],
 )
 def test_cli_rejects_bad_arguments(args):

@@ -1,5 +1,6 @@
 //! `cargo xtask design`: the paper's open question ("permissible values of compliance and
-//! backlash to yield a given accuracy") answered for one plant: the computations are in [`study`], this module parses and prints.
+//! backlash to yield a given accuracy") answered for one plant, shaft or belt form: the
+//! computations are in [`study`], this module parses and prints.
 
 pub mod study;
 
@@ -9,11 +10,12 @@ use serde::Serialize;
 use serde_json::ser::Formatter;
 use serde_json::{json, Value};
 
+use backlash_fmu::fmu::{adapter, variables};
 use backlash_fmu::physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
 use study::{Crossing, GainDesign, StiffnessStudy};
 
 const USAGE: &str = "\
-usage: cargo xtask design --accuracy EPS [options] [--json]
+usage: cargo xtask design --accuracy EPS [--model shaft|belt] [options] [--json]
 
 For a required load-speed accuracy EPS (the bound on |omega_L with backlash - omega_L without|,
 docs/model.md §3 bound_sup) and a PI loop on the motor speed, prints
@@ -23,18 +25,26 @@ docs/model.md §3 bound_sup) and a PI loop on the motor speed, prints
              bound_sup <= EPS at the given Delta (log scan, then a bracketing root
              finder), and k_max, the largest by stiffening: with fixed gains bound_sup
              is not monotone in k.
-The plant is the shaft form of docs/model.md §1; defaults are the paper's rectilinear rig
-(SI units, metres as the angle unit).
+
+--model shaft (default): the shaft form of docs/model.md §1 with the paper's rectilinear rig
+as defaults (SI units, metres as the angle unit); the stiffness is k [N.m/rad], Delta in rad.
+--model belt: the belt-pulley + gear form with BacklashBelt.fmu's parameter values as
+defaults; the stiffness is the belt's K_b [N/m], Delta in m on the gears' pitch circle.
 
 options:
   --accuracy EPS  required speed accuracy [rad/s], finite and > 0 (required)
-  --delta D       half gap Delta for the stiffness search [rad] (default 0.775e-3: the paper's
-                  1.55 mm gap read as 2 Delta)
-  --k K           nominal stiffness [N.m/rad] (default 200)
+  --model M       shaft or belt (default shaft)
+  --delta D       half gap Delta for the stiffness search (default: shaft 0.775e-3 rad, the
+                  paper's 1.55 mm gap read as 2 Delta; belt 5e-5 m)
+  --k K           nominal stiffness: shaft k [N.m/rad] (default 200), belt K_b [N/m]
+                  (default 2e5)
+  --r1 --r2 --rg1 --rg2
+                  belt only: pulley radii R_1, R_2 and gear pitch radii R_g1, R_g2 [m]
+                  (defaults 0.02, 0.04, 0.015, 0.045)
   --kp KP --ki KI PI gains [N.m.s/rad, N.m/rad] (default: the best-damped rule: the gains that
                   maximise the smallest damping ratio of the backlash-free closed-loop poles)
-  --jm --jl       inertias [kg.m2] (defaults 2.28, 2.55)
-  --bm --bl       viscous friction [N.m.s/rad] (defaults 0.05, 0.05)
+  --jm --jl       inertias [kg.m2] (defaults: shaft 2.28, 2.55; belt 1e-4, 5e-3)
+  --bm --bl       viscous friction [N.m.s/rad] (defaults: shaft 0.05, 0.05; belt 1e-4, 1e-3)
   --json          print one JSON object instead of text
   --help          this text";
 
@@ -80,7 +90,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
 /// Parses the command line; `Ok(None)` for `--help`.
 pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
     let mut accuracy = None;
-    let mut params = PlantParams::paper_rig(0.775e-3);
+    let mut params = default_params(model_choice(args)?);
     let (mut kp, mut ki) = (None, None);
     let mut json = false;
     let mut seen: Vec<String> = Vec::new();
@@ -97,7 +107,15 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
                 json = true;
                 continue;
             }
-            "--accuracy" | "--delta" | "--k" | "--kp" | "--ki" | "--jm" | "--jl" | "--bm" | "--bl" => {}
+            "--model" => {
+                // Read by `model_choice`; skip its value.
+                if inline.is_none() {
+                    it.next();
+                }
+                continue;
+            }
+            "--accuracy" | "--delta" | "--k" | "--kp" | "--ki" | "--jm" | "--jl" | "--bm" | "--bl" | "--r1"
+            | "--r2" | "--rg1" | "--rg2" => {}
             _ => return Err(format!("unknown argument `{arg}`\n\n{USAGE}")),
         }
         if seen.iter().any(|s| s == flag) {
@@ -139,6 +157,21 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
             "--jl" => params.j_l = positive(value)?,
             "--bm" => params.b_m = non_negative(value)?,
             "--bl" => params.b_l = non_negative(value)?,
+            "--r1" | "--r2" | "--rg1" | "--rg2" => {
+                let Geometry::Belt {
+                    r_1, r_2, r_g1, r_g2, ..
+                } = &mut params.geometry
+                else {
+                    return Err(format!("{flag} is a belt parameter: give --model belt"));
+                };
+                let slot = match flag {
+                    "--r1" => r_1,
+                    "--r2" => r_2,
+                    "--rg1" => r_g1,
+                    _ => r_g2,
+                };
+                *slot = positive(value)?;
+            }
             _ => unreachable!("flag list checked above"),
         }
     }
@@ -156,6 +189,100 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
         },
         json,
     )))
+}
+
+/// The drive train a design is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    Shaft,
+    Belt,
+}
+
+impl Form {
+    fn name(self) -> &'static str {
+        match self {
+            Form::Shaft => "shaft",
+            Form::Belt => "belt",
+        }
+    }
+}
+
+/// `--model`'s value (shaft when absent), read before the other flags, whose defaults it sets.
+fn model_choice(args: &[String]) -> Result<Form, String> {
+    let mut found = None;
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        let value = match arg.split_once('=') {
+            Some(("--model", v)) => v.to_string(),
+            _ if arg == "--model" => it.next().cloned().ok_or("--model needs a value")?,
+            _ => continue,
+        };
+        if found.is_some() {
+            return Err("--model given twice".into());
+        }
+        found = Some(match value.as_str() {
+            "shaft" => Form::Shaft,
+            "belt" => Form::Belt,
+            other => return Err(format!("--model = {other}: choose shaft or belt")),
+        });
+    }
+    Ok(found.unwrap_or(Form::Shaft))
+}
+
+/// The default plant of each form: the paper's rig (shaft, Δ = 0.775 mm read as rad), and
+/// BacklashBelt.fmu's parameter start values (belt).
+fn default_params(form: Form) -> PlantParams {
+    match form {
+        Form::Shaft => PlantParams::paper_rig(0.775e-3),
+        Form::Belt => {
+            let model = variables::model_by_identifier("BacklashBelt").expect("the library serves BacklashBelt");
+            adapter::plant_params(model, &adapter::start_values(model))
+        }
+    }
+}
+
+fn form_of(params: &PlantParams) -> Form {
+    match params.geometry {
+        Geometry::Shaft { .. } => Form::Shaft,
+        Geometry::Belt { .. } => Form::Belt,
+    }
+}
+
+/// The plant's parameters by their FMU names, in the order of the text and JSON answers.
+fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
+    let mut named = vec![
+        ("J_m", params.j_m),
+        ("J_L", params.j_l),
+        ("b_m", params.b_m),
+        ("b_L", params.b_l),
+    ];
+    match params.geometry {
+        Geometry::Shaft { k, delta } => named.extend([("k", k), ("Delta", delta)]),
+        Geometry::Belt {
+            k_b,
+            r_1,
+            r_2,
+            r_g1,
+            r_g2,
+            delta,
+        } => named.extend([
+            ("K_b", k_b),
+            ("R_1", r_1),
+            ("R_2", r_2),
+            ("R_g1", r_g1),
+            ("R_g2", r_g2),
+            ("Delta", delta),
+        ]),
+    }
+    named
+}
+
+/// Units of the stiffness and the half gap in `form`.
+fn units(form: Form) -> (&'static str, &'static str) {
+    match form {
+        Form::Shaft => ("N.m/rad", "rad"),
+        Form::Belt => ("N/m", "m"),
+    }
 }
 
 /// Runs the design computations of [`study`] for `request`.
@@ -187,12 +314,6 @@ pub fn solve(request: Request) -> Result<Answer, String> {
     })
 }
 
-fn shaft_k(params: &PlantParams) -> f64 {
-    match params.geometry {
-        Geometry::Shaft { k, .. } | Geometry::Belt { k_b: k, .. } => k,
-    }
-}
-
 fn describe_crossing(c: &Option<Crossing>, edge: &str) -> String {
     match c {
         Some(c) => format!(
@@ -214,15 +335,10 @@ fn describe_crossing(c: &Option<Crossing>, edge: &str) -> String {
 
 fn print_text(a: &Answer) {
     let p = &a.request.params;
-    println!(
-        "plant (shaft form): J_m = {}, J_L = {}, b_m = {}, b_L = {}, k = {}, Delta = {}",
-        p.j_m,
-        p.j_l,
-        p.b_m,
-        p.b_l,
-        shaft_k(p),
-        study::half_gap(p)
-    );
+    let form = form_of(p);
+    let (k_unit, delta_unit) = units(form);
+    let listed: Vec<String> = named_parameters(p).iter().map(|(n, v)| format!("{n} = {v}")).collect();
+    println!("plant ({} form): {}", form.name(), listed.join(", "));
     match &a.rule {
         Some(_) => println!(
             "PI gains (best-damped rule): Kp = {:.6}, Ki = {:.6}; smallest closed-loop damping ratio {:.6}",
@@ -235,12 +351,12 @@ fn print_text(a: &Answer) {
     }
     println!("required accuracy eps = {:e} rad/s", a.request.accuracy);
     println!(
-        "bound_sup per unit Delta at k = {}: {:.9} (rad/s)/rad",
-        shaft_k(p),
+        "bound_sup per unit Delta at k = {} {k_unit}: {:.9} (rad/s)/{delta_unit}",
+        study::stiffness(p),
         a.bound_sup_per_delta
     );
     println!(
-        "delta_max = {:.9e} rad (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
+        "delta_max = {:.9e} {delta_unit} (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
         a.delta_max,
         2.0 * a.delta_max,
         study::half_gap(p),
@@ -248,7 +364,7 @@ fn print_text(a: &Answer) {
     );
     let s = &a.study;
     println!(
-        "stiffness at Delta = {} (scan {} points, k in [{:.4}, {:.4}]): bound_sup is {}",
+        "stiffness at Delta = {} {delta_unit} (scan {} points, k in [{:.4}, {:.4}] {k_unit}): bound_sup is {}",
         s.delta,
         s.scan.len(),
         s.scan.first().map_or(0.0, |x| x.0),
@@ -316,16 +432,13 @@ pub fn to_json(a: &Answer) -> String {
     } else {
         "given"
     };
+    let mut plant = serde_json::Map::new();
+    plant.insert("form".into(), json!(form_of(p).name()));
+    for (name, value) in named_parameters(p) {
+        plant.insert(name.into(), json!(value));
+    }
     let value = json!({
-        "plant": {
-            "form": "shaft",
-            "J_m": p.j_m,
-            "J_L": p.j_l,
-            "b_m": p.b_m,
-            "b_L": p.b_l,
-            "k": shaft_k(p),
-            "Delta": study::half_gap(p),
-        },
+        "plant": plant,
         "accuracy": a.request.accuracy,
         "gain_rule": gain_rule,
         "Kp": a.gains.kp,
@@ -425,6 +538,11 @@ mod tests {
             &["--accuracy", "0.1", "--kp", "3"],
             &["--accuracy", "0.1", "--k", "-200"],
             &["--accuracy", "0.1", "--accuracy", "0.2"],
+            &["--accuracy", "0.1", "--model"],
+            &["--accuracy", "0.1", "--model", "web"],
+            &["--accuracy", "0.1", "--model", "belt", "--model=belt"],
+            &["--accuracy", "0.1", "--r1", "0.02"],
+            &["--accuracy", "0.1", "--model", "belt", "--rg2", "0"],
         ] {
             assert!(parse(&args(bad)).is_err(), "{bad:?} accepted");
         }
@@ -439,6 +557,35 @@ mod tests {
             "{\n  \"a\": {\"x\": 1.0, \"y\": [null, 2.5e-7]},\n  \"b\": [],\n  \"c\": \"q\\\"uote\"\n}"
         );
         assert_eq!(serde_json::from_str::<Value>(&text).unwrap()["c"], "q\"uote");
+    }
+
+    #[test]
+    fn the_belt_form_starts_from_the_belt_fmu_and_takes_its_flags() {
+        let (r, _) = parse(&args(&[
+            "--model",
+            "belt",
+            "--accuracy",
+            "0.5",
+            "--rg1=0.02",
+            "--k",
+            "3e5",
+        ]))
+        .unwrap()
+        .unwrap();
+        let Geometry::Belt {
+            k_b, r_1, r_g1, delta, ..
+        } = r.params.geometry
+        else {
+            panic!("not the belt form: {:?}", r.params.geometry)
+        };
+        // BacklashBelt.fmu's start values (docs/model.md §4), two of them overridden.
+        assert_eq!((k_b, r_1, r_g1, delta), (3e5, 0.02, 0.02, 5e-5));
+        assert_eq!((r.params.j_m, r.params.j_l), (1e-4, 5e-3));
+        let names: Vec<_> = named_parameters(&r.params).into_iter().map(|(n, _)| n).collect();
+        assert_eq!(
+            names,
+            ["J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta"]
+        );
     }
 
     #[test]
