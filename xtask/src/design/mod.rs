@@ -3,6 +3,7 @@
 //! computations are in [`study`], this module parses and prints.
 
 pub mod study;
+pub mod web;
 
 use std::io;
 
@@ -16,6 +17,7 @@ use study::{Crossing, GainDesign, StiffnessStudy};
 
 const USAGE: &str = "\
 usage: cargo xtask design --accuracy EPS [--model shaft|belt] [options] [--json]
+       cargo xtask design --model web --tension-accuracy EPS_T [--accuracy EPS] [options] [--json]
 
 For a required load-speed accuracy EPS (the bound on |omega_L with backlash - omega_L without|,
 docs/model.md §3 bound_sup) and a PI loop on the motor speed, prints
@@ -30,17 +32,27 @@ docs/model.md §3 bound_sup) and a PI loop on the motor speed, prints
 as defaults (SI units, metres as the angle unit); the stiffness is k [N.m/rad], Delta in rad.
 --model belt: the belt-pulley + gear form with BacklashBelt.fmu's parameter values as
 defaults; the stiffness is the belt's K_b [N/m], Delta in m on the gears' pitch circle.
+--model web: that belt drive pulling one web span (docs/model.md §8); requires
+--tension-accuracy EPS_T [N], the bound on |T with backlash - T without|, and takes --accuracy
+as an optional second requirement. delta_max and the K_b window then meet every accuracy given.
 
 options:
-  --accuracy EPS  required speed accuracy [rad/s], finite and > 0 (required)
-  --model M       shaft or belt (default shaft)
+  --accuracy EPS  required speed accuracy [rad/s], finite and > 0 (required, except for web)
+  --model M       shaft, belt or web (default shaft)
   --delta D       half gap Delta for the stiffness search (default: shaft 0.775e-3 rad, the
                   paper's 1.55 mm gap read as 2 Delta; belt 5e-5 m)
   --k K           nominal stiffness: shaft k [N.m/rad] (default 200), belt K_b [N/m]
                   (default 2e5)
   --r1 --r2 --rg1 --rg2
-                  belt only: pulley radii R_1, R_2 and gear pitch radii R_g1, R_g2 [m]
+                  belt and web: pulley radii R_1, R_2 and gear pitch radii R_g1, R_g2 [m]
                   (defaults 0.02, 0.04, 0.015, 0.045)
+  --tension-accuracy EPS_T
+                  web: required tension accuracy [N], finite and > 0
+  --rw --lw --ea --vref
+                  web: roller radius R_w [m], span length L_w [m], web stiffness EA [N] and
+                  transport speed v_ref [m/s] (defaults 0.05, 1, 1e5, 2)
+  --kp-t --ki-t   web: outer tension PI trimming the speed reference [rad/s per N,
+                  rad/s^2 per N] (default 0 0: no tension loop)
   --kp KP --ki KI PI gains [N.m.s/rad, N.m/rad] (default: the best-damped rule: the gains that
                   maximise the smallest damping ratio of the backlash-free closed-loop poles)
   --jm --jl       inertias [kg.m2] (defaults: shaft 2.28, 2.55; belt 1e-4, 5e-3)
@@ -74,9 +86,24 @@ pub struct Answer {
 }
 
 pub fn run(args: &[String]) -> Result<(), String> {
-    let Some((request, json)) = parse(args)? else {
+    let Some((command, json)) = parse(args)? else {
         println!("{USAGE}");
         return Ok(());
+    };
+    let request = match command {
+        Command::Speed(request) => request,
+        Command::Web(request) => {
+            let answer = web::solve(request)?;
+            println!(
+                "{}",
+                if json {
+                    laid_out(&web::to_json(&answer))
+                } else {
+                    web::to_text(&answer)
+                }
+            );
+            return Ok(());
+        }
     };
     let answer = solve(request)?;
     if json {
@@ -87,11 +114,47 @@ pub fn run(args: &[String]) -> Result<(), String> {
     Ok(())
 }
 
+/// What the command line asks for.
+pub enum Command {
+    /// The speed design of the shaft or belt form.
+    Speed(Request),
+    /// The tension design of the web line.
+    Web(web::Request),
+}
+
+/// Flags that take a number, and the forms each belongs to (all forms when empty).
+const NUMBER_FLAGS: [(&str, &[Form]); 20] = [
+    ("--accuracy", &[]),
+    ("--delta", &[]),
+    ("--k", &[]),
+    ("--kp", &[]),
+    ("--ki", &[]),
+    ("--jm", &[]),
+    ("--jl", &[]),
+    ("--bm", &[]),
+    ("--bl", &[]),
+    ("--r1", &[Form::Belt, Form::Web]),
+    ("--r2", &[Form::Belt, Form::Web]),
+    ("--rg1", &[Form::Belt, Form::Web]),
+    ("--rg2", &[Form::Belt, Form::Web]),
+    ("--tension-accuracy", &[Form::Web]),
+    ("--kp-t", &[Form::Web]),
+    ("--ki-t", &[Form::Web]),
+    ("--rw", &[Form::Web]),
+    ("--lw", &[Form::Web]),
+    ("--ea", &[Form::Web]),
+    ("--vref", &[Form::Web]),
+];
+
 /// Parses the command line; `Ok(None)` for `--help`.
-pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
+pub fn parse(args: &[String]) -> Result<Option<(Command, bool)>, String> {
+    let form = model_choice(args)?;
     let mut accuracy = None;
-    let mut params = default_params(model_choice(args)?);
+    let mut tension_accuracy = None;
+    let mut params = default_params(form);
+    let mut line = web::Web::DEFAULT;
     let (mut kp, mut ki) = (None, None);
+    let mut tension_gains = PiGains::default();
     let mut json = false;
     let mut seen: Vec<String> = Vec::new();
     let mut it = args.iter();
@@ -114,9 +177,14 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
                 }
                 continue;
             }
-            "--accuracy" | "--delta" | "--k" | "--kp" | "--ki" | "--jm" | "--jl" | "--bm" | "--bl" | "--r1"
-            | "--r2" | "--rg1" | "--rg2" => {}
-            _ => return Err(format!("unknown argument `{arg}`\n\n{USAGE}")),
+            _ => {}
+        }
+        let Some((_, forms)) = NUMBER_FLAGS.iter().find(|(f, _)| *f == flag) else {
+            return Err(format!("unknown argument `{arg}`\n\n{USAGE}"));
+        };
+        if !forms.is_empty() && !forms.contains(&form) {
+            let names: Vec<&str> = forms.iter().map(|f| f.name()).collect();
+            return Err(format!("{flag} applies to --model {} only", names.join(" or ")));
         }
         if seen.iter().any(|s| s == flag) {
             return Err(format!("{flag} given twice"));
@@ -149,20 +217,27 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
         };
         match flag {
             "--accuracy" => accuracy = Some(positive(value)?),
+            "--tension-accuracy" => tension_accuracy = Some(positive(value)?),
             "--delta" => params = study::with_half_gap(&params, positive(value)?),
             "--k" => params = study::with_stiffness(&params, positive(value)?),
             "--kp" => kp = Some(value),
             "--ki" => ki = Some(value),
+            "--kp-t" => tension_gains.kp = value,
+            "--ki-t" => tension_gains.ki = value,
             "--jm" => params.j_m = positive(value)?,
             "--jl" => params.j_l = positive(value)?,
             "--bm" => params.b_m = non_negative(value)?,
             "--bl" => params.b_l = non_negative(value)?,
+            "--rw" => line.r_w = positive(value)?,
+            "--lw" => line.l_w = positive(value)?,
+            "--ea" => line.ea = positive(value)?,
+            "--vref" => line.v_ref = positive(value)?,
             "--r1" | "--r2" | "--rg1" | "--rg2" => {
                 let Geometry::Belt {
                     r_1, r_2, r_g1, r_g2, ..
                 } = &mut params.geometry
                 else {
-                    return Err(format!("{flag} is a belt parameter: give --model belt"));
+                    unreachable!("belt flags are refused for the shaft form above");
                 };
                 let slot = match flag {
                     "--r1" => r_1,
@@ -175,20 +250,28 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
             _ => unreachable!("flag list checked above"),
         }
     }
-    let accuracy = accuracy.ok_or_else(|| format!("--accuracy EPS is required\n\n{USAGE}"))?;
     let gains = match (kp, ki) {
         (Some(kp), Some(ki)) => Some(PiGains { kp, ki }),
         (None, None) => None,
         _ => return Err("--kp and --ki go together (or neither, for the best-damped rule)".into()),
     };
-    Ok(Some((
-        Request {
+    let command = match form {
+        Form::Web => Command::Web(web::Request {
+            tension_accuracy: tension_accuracy
+                .ok_or_else(|| format!("--tension-accuracy EPS_T is required with --model web\n\n{USAGE}"))?,
             accuracy,
+            drive: params,
+            web: line,
+            gains,
+            tension_gains,
+        }),
+        Form::Shaft | Form::Belt => Command::Speed(Request {
+            accuracy: accuracy.ok_or_else(|| format!("--accuracy EPS is required\n\n{USAGE}"))?,
             params,
             gains,
-        },
-        json,
-    )))
+        }),
+    };
+    Ok(Some((command, json)))
 }
 
 /// The drive train a design is for.
@@ -196,6 +279,8 @@ pub fn parse(args: &[String]) -> Result<Option<(Request, bool)>, String> {
 pub enum Form {
     Shaft,
     Belt,
+    /// The belt drive pulling a web span (docs/model.md §8).
+    Web,
 }
 
 impl Form {
@@ -203,6 +288,7 @@ impl Form {
         match self {
             Form::Shaft => "shaft",
             Form::Belt => "belt",
+            Form::Web => "web",
         }
     }
 }
@@ -223,7 +309,8 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
         found = Some(match value.as_str() {
             "shaft" => Form::Shaft,
             "belt" => Form::Belt,
-            other => return Err(format!("--model = {other}: choose shaft or belt")),
+            "web" => Form::Web,
+            other => return Err(format!("--model = {other}: choose shaft, belt or web")),
         });
     }
     Ok(found.unwrap_or(Form::Shaft))
@@ -234,7 +321,7 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
 fn default_params(form: Form) -> PlantParams {
     match form {
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
-        Form::Belt => {
+        Form::Belt | Form::Web => {
             let model = variables::model_by_identifier("BacklashBelt").expect("the library serves BacklashBelt");
             adapter::plant_params(model, &adapter::start_values(model))
         }
@@ -249,7 +336,7 @@ fn form_of(params: &PlantParams) -> Form {
 }
 
 /// The plant's parameters by their FMU names, in the order of the text and JSON answers.
-fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
+pub(crate) fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
     let mut named = vec![
         ("J_m", params.j_m),
         ("J_L", params.j_l),
@@ -281,7 +368,7 @@ fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
 fn units(form: Form) -> (&'static str, &'static str) {
     match form {
         Form::Shaft => ("N.m/rad", "rad"),
-        Form::Belt => ("N/m", "m"),
+        Form::Belt | Form::Web => ("N/m", "m"),
     }
 }
 
@@ -461,7 +548,7 @@ pub fn to_json(a: &Answer) -> String {
 }
 
 /// `value` as text in the [`Layout`].
-fn laid_out(value: &Value) -> String {
+pub(crate) fn laid_out(value: &Value) -> String {
     let mut out = Vec::new();
     let mut writer = serde_json::Serializer::with_formatter(&mut out, Layout { depth: 0 });
     value
@@ -540,6 +627,10 @@ mod tests {
             &["--accuracy", "0.1", "--accuracy", "0.2"],
             &["--accuracy", "0.1", "--model"],
             &["--accuracy", "0.1", "--model", "web"],
+            &["--accuracy", "0.1", "--model", "wire"],
+            &["--tension-accuracy", "1", "--model", "belt", "--accuracy", "0.1"],
+            &["--model", "web", "--tension-accuracy", "0"],
+            &["--model", "web", "--tension-accuracy", "1", "--rw", "0"],
             &["--accuracy", "0.1", "--model", "belt", "--model=belt"],
             &["--accuracy", "0.1", "--r1", "0.02"],
             &["--accuracy", "0.1", "--model", "belt", "--rg2", "0"],
@@ -561,17 +652,10 @@ mod tests {
 
     #[test]
     fn the_belt_form_starts_from_the_belt_fmu_and_takes_its_flags() {
-        let (r, _) = parse(&args(&[
-            "--model",
-            "belt",
-            "--accuracy",
-            "0.5",
-            "--rg1=0.02",
-            "--k",
-            "3e5",
-        ]))
-        .unwrap()
-        .unwrap();
+        let list = ["--model", "belt", "--accuracy", "0.5", "--rg1=0.02", "--k", "3e5"];
+        let Some((Command::Speed(r), _)) = parse(&args(&list)).unwrap() else {
+            panic!("not the speed design")
+        };
         let Geometry::Belt {
             k_b, r_1, r_g1, delta, ..
         } = r.params.geometry
@@ -590,9 +674,12 @@ mod tests {
 
     #[test]
     fn parses_both_flag_forms() {
-        let (r, json) = parse(&args(&["--accuracy=0.02", "--delta", "1e-3", "--json"]))
+        let (Command::Speed(r), json) = parse(&args(&["--accuracy=0.02", "--delta", "1e-3", "--json"]))
             .unwrap()
-            .unwrap();
+            .unwrap()
+        else {
+            panic!("not the speed design")
+        };
         assert_eq!(r.accuracy, 0.02);
         assert_eq!(study::half_gap(&r.params), 1e-3);
         assert!(json && r.gains.is_none());

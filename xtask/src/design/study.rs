@@ -363,14 +363,24 @@ pub fn stiffness_study_on(
     epsilon: f64,
     grid: StiffnessScan,
 ) -> Result<StiffnessStudy, DesignError> {
+    Plant::new(*params)?;
+    let eval = |k: f64| sup_or_inf(&with_stiffness(params, k), gains);
+    stiffness_scan(stiffness(params), half_gap(params), epsilon, grid, &eval)
+}
+
+/// The stiffness study of any bound: `eval(K)` (+∞ where the loop is not stable) against
+/// `epsilon`, on `grid` around `k_nominal`; `delta` is recorded in the answer.
+pub fn stiffness_scan(
+    k_nominal: f64,
+    delta: f64,
+    epsilon: f64,
+    grid: StiffnessScan,
+    eval: &dyn Fn(f64) -> Result<f64, DesignError>,
+) -> Result<StiffnessStudy, DesignError> {
     check_accuracy(epsilon)?;
     if !(grid.decades > 0.0 && grid.decades.is_finite() && grid.per_decade > 0) {
         return Err(DesignError::BadScan);
     }
-    let k_nominal = stiffness(params);
-    Plant::new(*params)?;
-    let eval = |k: f64| sup_or_inf(&with_stiffness(params, k), gains);
-
     let n = (2.0 * grid.decades * grid.per_decade as f64).round() as usize;
     let mut ks: Vec<f64> = (0..=n)
         .map(|i| k_nominal * 10f64.powf(-grid.decades + i as f64 / grid.per_decade as f64))
@@ -404,7 +414,7 @@ pub fn stiffness_study_on(
         }
         let lo = if start > 0 {
             Some(refine_crossing(
-                &eval,
+                eval,
                 epsilon,
                 scan[start - 1].0,
                 scan[start].0,
@@ -415,7 +425,7 @@ pub fn stiffness_study_on(
         };
         let hi = if i + 1 < scan.len() {
             Some(refine_crossing(
-                &eval,
+                eval,
                 epsilon,
                 scan[i].0,
                 scan[i + 1].0,
@@ -436,7 +446,7 @@ pub fn stiffness_study_on(
         .position(|iv| iv.contains(k_nominal) && feasible(eval(k_nominal).unwrap_or(f64::INFINITY)));
     Ok(StiffnessStudy {
         epsilon,
-        delta: half_gap(params),
+        delta,
         k_nominal,
         scan,
         intervals,
