@@ -228,6 +228,14 @@ def test_given_gains_are_used():
         ["--accuracy", "0.02", "--delta", "abc"],
         ["--accuracy", "0.02", "--model", "web"],
         ["--accuracy", "0.02", "--rg1", "0.02"],
+        ["--model", "web"],
+        ["--model", "web", "--tension-accuracy", "0"],
+        ["--model", "web", "--tension-accuracy", "nan"],
+        ["--model", "web", "--tension-accuracy", "-1"],
+        ["--model", "web", "--tension-accuracy", "1", "--rw", "0"],
+        ["--model", "belt", "--tension-accuracy", "1"],
+        ["--model", "belt", "--accuracy", "2.5", "--tension-accuracy", "1"],
+        ["--accuracy", "0.02", "--tension-accuracy", "1"],
     ],
 )
 def test_cli_rejects_bad_arguments(args):

@@ -174,12 +174,16 @@ fn l1_norm(a: &DMatrix<f64>, d: &DVector<f64>, c: &DVector<f64>) -> Result<f64, 
     Ok(l1_norms(a, d, std::slice::from_ref(c))?[0])
 }
 
-/// Grid intervals per radian of the fastest eigenvalue: two sign changes closer than this (a
-/// grazing touch of zero) are not resolved, which changes the integral by less than the
-/// integral of |h| between them, negligible next to the sum.
+/// Grid intervals per radian of the fastest eigenvalue.
 const INTERVALS_PER_RADIAN: f64 = 2.0;
 /// Taylor terms of h on one interval: the remainder is below (ρw)^TERMS / TERMS! ≈ 1e-33 of |x|.
 const TERMS: usize = 25;
+/// Terms the cheap test of each interval computes; the rest enter by their norms.
+const CHEAP: usize = 4;
+/// Points at which an interval that may hold a sign change is sampled: two sign changes closer
+/// than w / SUBINTERVALS (a grazing touch of zero) are not resolved, which changes the integral
+/// by less than the integral of |h| between them.
+const SUBINTERVALS: usize = 64;
 /// The integration stops once a bound on the rest is below this fraction of the sum.
 const TAIL_TOLERANCE: f64 = 1e-13;
 /// The tail bound decays at this fraction of the slowest decay rate (< 1: the closer to 1, the
@@ -190,11 +194,11 @@ const MAX_INTERVALS: usize = 1 << 24;
 
 /// ∫_0^∞ |c_i e^{As} d| ds for each row c_i, for a Hurwitz A (`Err` otherwise). The response
 /// x(s) = e^{As} d is propagated exactly on a grid of INTERVALS_PER_RADIAN intervals per radian
-/// of the fastest eigenvalue; where c x keeps its sign over an interval the integral there is
-/// exact, c ∫_0^w e^{Aσ}dσ x (both matrices from one exponential of an augmented matrix);
-/// where it changes sign, h is its Taylor polynomial Σ (c A^k x) σ^k / k! (exact to round-off
-/// on the interval), whose root is found by bisection and whose two parts are integrated term
-/// by term. The integration stops when the tail bound of a Lyapunov Gramian
+/// of the fastest eigenvalue. On each interval h is its Taylor polynomial Σ (c A^k x) σ^k / k!
+/// (exact to round-off there); where its first terms and a bound on the others show that h
+/// keeps its sign, the integral is exact, c ∫_0^w e^{Aσ}dσ x (both matrices from one
+/// exponential of an augmented matrix); elsewhere the polynomial's sign changes are located
+/// (see [`abs_integral`]) and its parts integrated term by term. The integration stops when the tail bound of a Lyapunov Gramian
 /// (∫_T^∞ |c x| ≤ sqrt(xᵀWx / 2ε), see [`gramian`]) is below TAIL_TOLERANCE of the sum, and the
 /// bound is added: an upper bound, tight to 1e-13.
 pub fn l1_norms(a: &DMatrix<f64>, d: &DVector<f64>, rows: &[DVector<f64>]) -> Result<Vec<f64>, Unbounded> {
@@ -230,11 +234,18 @@ pub fn l1_norms(a: &DMatrix<f64>, d: &DVector<f64>, rows: &[DVector<f64>]) -> Re
             out
         })
         .collect();
+    // Σ_{k ≥ CHEAP} |c A^k / k!| w^k, entrywise: its product with |x| bounds the Taylor terms
+    // that the cheap test (h cannot vanish on an interval) does not compute.
+    let far_terms: Vec<DVector<f64>> = taylor_rows
+        .iter()
+        .map(|r| (CHEAP..TERMS).fold(DVector::zeros(a.nrows()), |sum, k| sum + r[k].abs() * w.powi(k as i32)))
+        .collect();
     let tail = |x: &DVector<f64>, i: usize| (x.dot(&(&tails[i] * x)).max(0.0) / (2.0 * epsilon)).sqrt();
     let mut sums = vec![0.0; rows.len()];
     let mut x = d.clone();
     let mut next = d.clone();
     let mut integral = d.clone();
+    let mut coefficients = vec![0.0; TERMS];
     for step in 0..MAX_INTERVALS {
         // Every 64 intervals: done when every tail is negligible.
         if step % 64 == 0 && step > 0 {
@@ -245,13 +256,19 @@ pub fn l1_norms(a: &DMatrix<f64>, d: &DVector<f64>, rows: &[DVector<f64>]) -> Re
         }
         phi.mul_to(&x, &mut next);
         gamma.mul_to(&x, &mut integral);
-        for (i, c) in rows.iter().enumerate() {
-            let (h0, h1) = (c.dot(&x), c.dot(&next));
-            sums[i] += if (h0 > 0.0 && h1 < 0.0) || (h0 < 0.0 && h1 > 0.0) {
-                let coefficients: Vec<f64> = taylor_rows[i].iter().map(|r| r.dot(&x)).collect();
-                split_integral(&coefficients, w)
+        let size = x.abs();
+        for (i, r) in taylor_rows.iter().enumerate() {
+            // h keeps its sign on the interval when |h(0)| exceeds every other term's reach.
+            let h0 = r[0].dot(&x);
+            let reach: f64 =
+                (1..CHEAP).map(|k| r[k].dot(&x).abs() * w.powi(k as i32)).sum::<f64>() + far_terms[i].dot(&size);
+            sums[i] += if h0.abs() > reach {
+                r[0].dot(&integral).abs()
             } else {
-                c.dot(&integral).abs()
+                for (k, row) in r.iter().enumerate() {
+                    coefficients[k] = row.dot(&x);
+                }
+                abs_integral(&coefficients, w)
             };
         }
         std::mem::swap(&mut x, &mut next);
@@ -270,9 +287,10 @@ fn flow(a: &DMatrix<f64>, w: f64) -> (DMatrix<f64>, DMatrix<f64>) {
     (e.view((0, 0), (n, n)).into_owned(), e.view((0, n), (n, n)).into_owned())
 }
 
-/// ∫_0^w |p(σ)| dσ for the polynomial p = Σ coefficients[k] σ^k, which changes sign once on
-/// [0, w]: the root by bisection (to the resolution of σ), each side integrated term by term.
-fn split_integral(coefficients: &[f64], w: f64) -> f64 {
+/// ∫_0^w |p(σ)| dσ for the polynomial p = Σ coefficients[k] σ^k: its sign changes found on
+/// SUBINTERVALS points and located by bisection to the resolution of σ, each part integrated
+/// term by term.
+fn abs_integral(coefficients: &[f64], w: f64) -> f64 {
     let value = |s: f64| coefficients.iter().rev().fold(0.0, |acc, c| acc * s + c);
     let primitive = |s: f64| {
         coefficients
@@ -282,22 +300,35 @@ fn split_integral(coefficients: &[f64], w: f64) -> f64 {
             .fold(0.0, |acc, (k, c)| acc * s + c / (k + 1) as f64)
             * s
     };
-    let positive_at_0 = coefficients[0] > 0.0;
-    let (mut lo, mut hi) = (0.0, w);
-    loop {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
-            break;
+    let mut total = 0.0;
+    let (mut from, mut at_from) = (0.0, 0.0);
+    let mut previous = (0.0, value(0.0));
+    for j in 1..=SUBINTERVALS {
+        let s = w * j as f64 / SUBINTERVALS as f64;
+        let v = value(s);
+        if (previous.1 > 0.0 && v < 0.0) || (previous.1 < 0.0 && v > 0.0) {
+            let positive_before = previous.1 > 0.0;
+            let (mut lo, mut hi) = (previous.0, s);
+            loop {
+                let mid = 0.5 * (lo + hi);
+                if mid <= lo || mid >= hi {
+                    break;
+                }
+                if (value(mid) > 0.0) == positive_before {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let root = 0.5 * (lo + hi);
+            let at_root = primitive(root);
+            total += (at_root - at_from).abs();
+            (from, at_from) = (root, at_root);
         }
-        if (value(mid) > 0.0) == positive_at_0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
+        previous = (s, v);
     }
-    let root = 0.5 * (lo + hi);
-    let at_root = primitive(root);
-    at_root.abs() + (primitive(w) - at_root).abs()
+    debug_assert!(from <= w);
+    total + (primitive(w) - at_from).abs()
 }
 
 /// W with (A + εI)ᵀ W + W (A + εI) = −cᵀc (by the Kronecker form; None if singular). Then

@@ -1,0 +1,200 @@
+"""Independent reference for the web-tension drive train (docs/model.md §1, §3, §8).
+
+The belt drive of §1 pulls a web span: with x = [u, omega_m, omega_L, x_c, T, x_T]
+(u = r_m theta_m - r_L theta_L replaces the two angles, which enter only through u)
+
+    u'       = r_m omega_m - r_L omega_L
+    J_m w_m' = tau_m - b_m omega_m - r_m psi
+    J_L w_L' = tau_L - b_L omega_L + r_L psi - R_w T
+    L_w T'   = EA (R_w omega_L - v_in) + v_ref (T_in - T)
+    x_c'     = e = w_ref - omega_m,      tau_m = Kp e + Ki x_c
+    x_T'     = T_ref - T,                w_ref = w_ref0 + Kp_T (T_ref - T) + Ki_T x_T
+
+The bounds integrate |h| by an exact antiderivative instead of quadrature: for a Hurwitz A,
+H(s) = c A^-1 e^{As} d has H' = h and H(inf) = 0, so between consecutive sign changes
+r_i < r_i+1 of h, int |h| = |H(r_i+1) - H(r_i)|. Only the sign changes are searched for
+(on a grid of e^{A delta} steps, split at the extrema of h, then brentq); the sum stops when
+the eigen-decomposition's envelope of the tail is below 1e-13 of the sum.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.linalg import expm
+from scipy.optimize import brentq
+
+# Drive: BacklashBelt's parameter start values. Web span: docs/model.md §8 design defaults.
+WEB = {
+    "J_m": 1e-4, "J_L": 5e-3, "b_m": 1e-4, "b_L": 1e-3, "K_b": 2e5,
+    "R_1": 0.02, "R_2": 0.04, "R_g1": 0.015, "R_g2": 0.045, "Delta": 5e-5,
+    "R_w": 0.05, "L_w": 1.0, "EA": 1e5, "v_ref": 2.0,
+}
+DRIVE = ("J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta")
+
+
+def transmission(p: dict) -> tuple[float, float, float, float]:
+    """(r_m, r_L, K, g) of the belt form (docs/model.md §1 table)."""
+    return p["R_1"], p["R_2"] * p["R_g2"] / p["R_g1"], p["K_b"], p["R_2"] / p["R_g1"] * p["Delta"]
+
+
+def loop_matrices(p: dict, Kp: float, Ki: float, Kp_T: float = 0.0, Ki_T: float = 0.0, web: bool = True):
+    """(A, d, c_T, c_w): backlash-free closed loop in x = [u, w_m, w_L, x_c, T, x_T], the column
+    by which phi enters, and the rows picking T and omega_L. x_T is dropped when Ki_T = 0 (it
+    would be a pure integrator that nothing reads), T and x_T without the web (the plain belt
+    speed loop)."""
+    r_m, r_L, K, _ = transmission(p)
+    J_m, J_L, b_m, b_L = p["J_m"], p["J_L"], p["b_m"], p["b_L"]
+    A = np.zeros((6, 6))
+    e = np.array([0.0, -1.0, 0.0, 0.0, -Kp_T, Ki_T])  # homogeneous part of the speed error
+    A[0, 1], A[0, 2] = r_m, -r_L
+    A[1] = Kp * e / J_m
+    A[1, 0] -= K * r_m / J_m
+    A[1, 1] -= b_m / J_m
+    A[1, 3] += Ki / J_m
+    A[2, 0], A[2, 2] = K * r_L / J_L, -b_L / J_L
+    A[3] = e
+    if web:
+        A[2, 4] = -p["R_w"] / J_L
+        A[4, 2], A[4, 4] = p["EA"] * p["R_w"] / p["L_w"], -p["v_ref"] / p["L_w"]
+        A[5, 4] = -1.0
+    d = np.array([0.0, r_m / J_m, -r_L / J_L, 0.0, 0.0, 0.0])
+    n = 4 if not web else 6 if Ki_T else 5  # x_T feeds back only through Ki_T
+    eye = np.eye(6)
+    return A[:n, :n], d[:n], eye[4, :n], eye[2, :n]
+
+
+def l1_norm(A: np.ndarray, d: np.ndarray, c: np.ndarray, rtol: float = 1e-13, block: int = 2048) -> float:
+    """int_0^inf |c e^{As} d| ds; ValueError unless every eigenvalue of A has Re < 0."""
+    lam, V = np.linalg.eig(A)
+    if np.max(lam.real) >= 0.0:
+        raise ValueError(f"closed loop not asymptotically stable: max Re(lambda) = {np.max(lam.real)}")
+    residue = np.abs((c @ V) * np.linalg.solve(V, d))
+
+    def tail(t: float) -> float:  # int_t^inf of the envelope sum |r_i| e^{Re lambda_i s}
+        return float(np.sum(residue * np.exp(lam.real * t) / -lam.real))
+
+    delta = 0.05 / np.max(np.abs(lam))
+    steps = np.empty((block + 1, len(d), len(d)))  # e^{A j delta}, j = 0..block, by doubling
+    steps[0], steps[1], m = np.eye(len(d)), expm(A * delta), 1
+    while m < block:
+        steps[m + 1 : 2 * m + 1] = steps[1 : m + 1] @ steps[m]
+        m *= 2
+    c_int, c_der = np.linalg.solve(A.T, c), A.T @ c  # H = c_int . v, h' = c_der . v
+    h_at = lambda v: lambda x: c @ expm(A * x) @ v  # noqa: E731
+    dh_at = lambda v: lambda x: c_der @ expm(A * x) @ v  # noqa: E731
+
+    total, H_last, v0, t0 = 0.0, c_int @ d, d.astype(float), 0.0
+    while True:
+        vs = steps @ v0
+        h, dh = vs @ c, vs @ c_der
+        candidates = np.nonzero((h[:-1] * h[1:] < 0.0) | (dh[:-1] * dh[1:] < 0.0))[0]
+        for k in candidates:
+            # Split the cell at an extremum of h, so that h is monotone on each part.
+            cuts, f = [0.0, delta], h_at(vs[k])
+            if dh[k] * dh[k + 1] < 0.0:
+                cuts.insert(1, brentq(dh_at(vs[k]), 0.0, delta, xtol=1e-300, rtol=1e-15))
+            for a, b in zip(cuts[:-1], cuts[1:]):
+                fa, fb = (h[k] if a == 0.0 else f(a)), (h[k + 1] if b == delta else f(b))
+                if fa * fb < 0.0:
+                    r = brentq(f, a, b, xtol=1e-300, rtol=1e-15)
+                    H = c_int @ expm(A * r) @ vs[k]
+                    total, H_last = total + abs(H - H_last), H
+        t0, v0 = t0 + block * delta, vs[-1]
+        H_end = c_int @ v0
+        if tail(t0) <= rtol * (total + abs(H_end - H_last)):
+            return total + abs(H_end - H_last) + abs(H_end)
+
+
+def bound_sups(p: dict, Kp: float, Ki: float, Kp_T: float = 0.0, Ki_T: float = 0.0) -> tuple[float, float]:
+    """(bound_T_sup [N], bound_sup [rad/s]) = K g int_0^inf |h_T|, K g int_0^inf |h|."""
+    _, _, K, g = transmission(p)
+    A, d, c_T, c_w = loop_matrices(p, Kp, Ki, Kp_T, Ki_T)
+    return K * g * l1_norm(A, d, c_T), K * g * l1_norm(A, d, c_w)
+
+
+def simulate(
+    p: dict,
+    gains: tuple[float, float, float, float],
+    w_ref0: Callable[[float], float],
+    t: np.ndarray,
+    T_ref: float = 0.0,
+    tau_L: float = 0.0,
+    v_in: float = 0.0,
+    T_in: float = 0.0,
+    rtol: float = 1e-11,
+    atol: float = 1e-15,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(T, omega_L) at the times t (t[0] = 0, all states 0 there) of the web plant with backlash
+    under the continuous speed PI and tension PI, gains = (Kp, Ki, Kp_T, Ki_T). DOP853 inside
+    each contact mode; each switch u = +-g is a terminal event, and the integration restarts in
+    the mode entered. With Delta = 0 the plant is linear (psi = K u) and there is one mode."""
+    Kp, Ki, Kp_T, Ki_T = gains
+    r_m, r_L, K, g = transmission(p)
+    J_m, J_L, b_m, b_L = p["J_m"], p["J_L"], p["b_m"], p["b_L"]
+    R_w, L_w, EA, v_ref = p["R_w"], p["L_w"], p["EA"], p["v_ref"]
+
+    def rhs(offset: float | None):
+        def f(s, x):
+            u, w_m, w_L, x_c, T, x_T = x
+            psi = 0.0 if offset is None else K * (u + offset)
+            e = w_ref0(s) + Kp_T * (T_ref - T) + Ki_T * x_T - w_m
+            return [
+                r_m * w_m - r_L * w_L,
+                (Kp * e + Ki * x_c - b_m * w_m - r_m * psi) / J_m,
+                (tau_L - b_L * w_L + r_L * psi - R_w * T) / J_L,
+                e,
+                (EA * (R_w * w_L - v_in) + v_ref * (T_in - T)) / L_w,
+                T_ref - T,
+            ]
+
+        return f
+
+    def upper(_s, x):
+        return x[0] - g
+
+    def lower(_s, x):
+        return x[0] + g
+
+    upper.terminal = lower.terminal = True
+
+    def mode_data(mode: int):
+        """(psi offset, switch events, modes they lead to); free 0, contact + 1, contact - -1."""
+        if mode == 0:
+            upper.direction, lower.direction = 1.0, -1.0
+            return None, [upper, lower], [1, -1]
+        if mode == 1:
+            upper.direction = -1.0
+            return -g, [upper], [0]
+        lower.direction = 1.0
+        return g, [lower], [0]
+
+    mode = 0 if g > 0.0 else 1
+    x, s, out, stalls = np.zeros(6), 0.0, [np.zeros(6)], 0
+    while len(out) < len(t):
+        offset, events, targets = mode_data(mode)
+        sol = solve_ivp(
+            rhs(offset), (s, t[-1]), x, method="DOP853", rtol=rtol, atol=atol,
+            t_eval=t[len(out):], events=None if g == 0.0 else events,
+        )
+        if sol.status == -1:
+            raise RuntimeError(sol.message)
+        out.extend(sol.y.T)
+        if sol.status == 1:
+            hit = next(i for i, te in enumerate(sol.t_events) if len(te))
+            s_ev = float(sol.t_events[hit][0])
+            stalls = stalls + 1 if s_ev == s else 0
+            if stalls > 3:
+                raise RuntimeError(f"switch events do not advance at t = {s}")
+            s, x, mode = s_ev, sol.y_events[hit][0].copy(), targets[hit]
+    y = np.array(out)
+    return y[:, 4], y[:, 2]
+
+
+def dominant_frequency(A: np.ndarray, d: np.ndarray, c: np.ndarray) -> float:
+    """The angular frequency (rad/s) of the largest |c (jw - A)^-1 d| on a log grid."""
+    w = np.logspace(-1, 5, 3000)
+    gain = [abs(c @ np.linalg.solve(1j * wi * np.eye(len(d)) - A, d)) for wi in w]
+    return float(w[int(np.argmax(gain))])
