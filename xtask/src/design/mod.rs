@@ -318,7 +318,7 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
 
 /// The default plant of each form: the paper's rig (shaft, Δ = 0.775 mm read as rad), and
 /// BacklashBelt.fmu's parameter start values (belt).
-fn default_params(form: Form) -> PlantParams {
+pub(crate) fn default_params(form: Form) -> PlantParams {
     match form {
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
         Form::Belt | Form::Web => {

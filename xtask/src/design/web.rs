@@ -581,26 +581,12 @@ pub fn to_json(a: &Answer) -> Value {
 mod tests {
     use super::*;
     use backlash_fmu::physics::closed_loop::reduced_loop_matrix;
-    use backlash_fmu::physics::Geometry;
 
     /// The dense norm against the FMU's own bound_sup (sign changes located on Taylor models,
     /// a different method) on the speed loops of both rigs.
     #[test]
     fn the_dense_norm_agrees_with_the_fmu_bound_sup() {
-        let belt = PlantParams {
-            j_m: 1e-4,
-            j_l: 5e-3,
-            b_m: 1e-4,
-            b_l: 1e-3,
-            geometry: Geometry::Belt {
-                k_b: 2e5,
-                r_1: 0.02,
-                r_2: 0.04,
-                r_g1: 0.015,
-                r_g2: 0.045,
-                delta: 5e-5,
-            },
-        };
+        let belt = crate::design::default_params(crate::design::Form::Belt);
         for (params, gains) in [
             (PlantParams::paper_rig(0.775e-3), PiGains { kp: 42.0, ki: 180.0 }),
             (belt, PiGains { kp: 0.18, ki: 57.6 }),
