@@ -89,7 +89,8 @@ pub(crate) fn in_scale(name: &'static str, value: f64) -> Result<f64, ParamError
     }
 }
 
-fn positive(name: &'static str, value: f64) -> Result<f64, ParamError> {
+/// `value` as a parameter that must be finite, > 0 and within the range the plant integrates.
+pub fn positive(name: &'static str, value: f64) -> Result<f64, ParamError> {
     if !value.is_finite() {
         Err(ParamError::NotFinite { name, value })
     } else if value <= 0.0 {

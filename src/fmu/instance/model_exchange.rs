@@ -186,8 +186,7 @@ impl Instance {
 
     /// dv_unknown = J dv_known with J the exact Jacobian, in the mode in force, of the unknowns
     /// (state derivatives, states, ψ, the event indicators, and the bounds, which depend on time
-    /// alone) with respect
-    /// to the knowns (states and inputs).
+    /// alone) with respect to the knowns (states and inputs).
     pub(crate) fn get_directional_derivative_body(
         &mut self,
         unknowns: &[u32],

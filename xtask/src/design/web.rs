@@ -12,6 +12,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde_json::{json, Value};
 
+use backlash_fmu::physics::params::positive;
 use backlash_fmu::physics::{PiGains, Plant, PlantParams, Unbounded};
 
 use super::study::{self, DesignError, StiffnessScan, StiffnessStudy};
@@ -134,18 +135,13 @@ pub fn reduced_loop(
 
 fn check_web(web: &Web) -> Result<(), DesignError> {
     for (name, value) in web.named() {
-        if !value.is_finite() {
-            return Err(backlash_fmu::physics::ParamError::NotFinite { name, value }.into());
-        }
-        if value <= 0.0 {
-            return Err(backlash_fmu::physics::ParamError::NotPositive { name, value }.into());
-        }
+        positive(name, value)?;
     }
     Ok(())
 }
 
-/// `bound_T_sup` and `bound_sup` of the web line (+∞ both when the loop is not asymptotically
-/// stable).
+/// `bound_T_sup` and `bound_sup` of the web line; `DesignError::Unbounded` when the loop is not
+/// asymptotically stable.
 pub fn sups(drive: &PlantParams, web: &Web, speed: PiGains, tension: PiGains) -> Result<Sups, DesignError> {
     let LoopMatrices {
         a,
@@ -155,16 +151,14 @@ pub fn sups(drive: &PlantParams, web: &Web, speed: PiGains, tension: PiGains) ->
     } = reduced_loop(drive, web, speed, tension)?;
     let plant = Plant::new(*drive)?;
     let scale = plant.stiffness() * plant.half_gap();
-    let norms = l1_norms(&a, &d, &[tension_row, speed_row]);
-    Ok(match norms {
-        Ok(n) => Sups {
-            tension: scale * n[0],
-            speed: scale * n[1],
-        },
-        Err(_) => Sups {
-            tension: f64::INFINITY,
-            speed: f64::INFINITY,
-        },
+    let norms = l1_norms(&a, &d, &[tension_row, speed_row]).map_err(|reason| DesignError::Unbounded {
+        kp: speed.kp,
+        ki: speed.ki,
+        reason,
+    })?;
+    Ok(Sups {
+        tension: scale * norms[0],
+        speed: scale * norms[1],
     })
 }
 
@@ -346,34 +340,17 @@ fn gramian(a: &DMatrix<f64>, c: &DVector<f64>, epsilon: f64) -> Option<DMatrix<f
     Some((&w + w.transpose()) * 0.5)
 }
 
-/// The largest Δ meeting the tension accuracy, and the speed accuracy when given: both bounds
-/// are linear in Δ. Returns (Δ_max, Δ_max for tension alone, Δ_max for speed alone).
-pub fn delta_max(
-    drive: &PlantParams,
-    web: &Web,
-    speed: PiGains,
-    tension: PiGains,
-    tension_accuracy: f64,
-    accuracy: Option<f64>,
-) -> Result<(f64, f64, Option<f64>), DesignError> {
-    let per_delta = sups(&study::with_half_gap(drive, 1.0), web, speed, tension)?;
-    if !per_delta.tension.is_finite() {
-        let a = reduced_loop(drive, web, speed, tension)?.a;
-        return Err(DesignError::Unbounded {
-            kp: speed.kp,
-            ki: speed.ki,
-            reason: l1_norms(&a, &DVector::zeros(a.nrows()), &[])
-                .err()
-                .unwrap_or(Unbounded::Undamped),
-        });
-    }
+/// The largest Δ meeting the tension accuracy, and the speed accuracy when given, from the
+/// bounds per unit Δ (both are linear in Δ). Returns (Δ_max, Δ_max for tension alone, Δ_max for
+/// speed alone).
+pub fn delta_max(per_delta: Sups, tension_accuracy: f64, accuracy: Option<f64>) -> (f64, f64, Option<f64>) {
     let for_tension = tension_accuracy / per_delta.tension;
     let for_speed = accuracy.map(|eps| eps / per_delta.speed);
-    Ok((
+    (
         for_speed.map_or(for_tension, |s| s.min(for_tension)),
         for_tension,
         for_speed,
-    ))
+    )
 }
 
 /// The inputs of one web design.
@@ -428,19 +405,26 @@ pub fn solve(request: Request) -> Result<Answer, String> {
         }
     };
     let (web, tension) = (request.web, request.tension_gains);
+    let per_delta = sups(&study::with_half_gap(&drive, 1.0), &web, gains, tension).map_err(|e| match e {
+        DesignError::Unbounded { reason, .. } => format!(
+            "with Kp = {}, Ki = {}, Kp_T = {}, Ki_T = {} the web loop has no finite bound: {reason}",
+            gains.kp, gains.ki, tension.kp, tension.ki
+        ),
+        e => e.to_string(),
+    })?;
     let (delta_max, delta_max_tension, delta_max_speed) =
-        delta_max(&drive, &web, gains, tension, request.tension_accuracy, request.accuracy).map_err(|e| match e {
-            DesignError::Unbounded { reason, .. } => format!(
-                "with Kp = {}, Ki = {}, Kp_T = {}, Ki_T = {} the web loop has no finite bound: {reason}",
-                gains.kp, gains.ki, tension.kp, tension.ki
-            ),
-            e => e.to_string(),
-        })?;
-    let per_delta = sups(&study::with_half_gap(&drive, 1.0), &web, gains, tension).map_err(fail)?;
+        delta_max(per_delta, request.tension_accuracy, request.accuracy);
     let at_delta = sups(&drive, &web, gains, tension).map_err(fail)?;
     let evaluated = std::cell::RefCell::new(Vec::new());
     let eval = |k: f64| -> Result<f64, DesignError> {
-        let s = sups(&study::with_stiffness(&drive, k), &web, gains, tension)?;
+        // A loop that is not stable meets no accuracy: +∞, as in the speed design.
+        let s = match sups(&study::with_stiffness(&drive, k), &web, gains, tension) {
+            Err(DesignError::Unbounded { .. }) => Sups {
+                tension: f64::INFINITY,
+                speed: f64::INFINITY,
+            },
+            other => other?,
+        };
         evaluated.borrow_mut().push((k, s.tension, s.speed));
         Ok(worst_ratio(s, &request))
     };
