@@ -153,21 +153,41 @@ fn state_derivative(
 ) -> Var {
     Var {
         derivative_of: Some(of.vr),
-        ..var(
+        ..continuous_local(
             name,
             symbol,
             vr,
-            Type::Real,
-            Causality::Local,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             unit,
             quantity,
             "Time derivative of the continuous state (Model Exchange); a pure function of the state and the inputs",
         )
     }
+}
+
+/// A local Real computed from the state and the inputs (Model Exchange's derivatives and event
+/// indicators).
+fn continuous_local(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Causality::Local,
+        Variability::Continuous,
+        Initial::Calculated,
+        None,
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
 }
 
 /// The event indicators u − g and u + g as variables, value references 28 and 29 in both models
@@ -177,22 +197,7 @@ fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
         DriveTrain::Shaft => "rad",
         DriveTrain::Belt => "m",
     };
-    let indicator = |name, symbol, vr, description| {
-        var(
-            name,
-            symbol,
-            vr,
-            Type::Real,
-            Causality::Local,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Range::Finite,
-            unit,
-            "",
-            description,
-        )
-    };
+    let indicator = |name, symbol, vr, description| continuous_local(name, symbol, vr, unit, "", description);
     [
         indicator(
             "u_minus_g",
