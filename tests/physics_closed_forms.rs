@@ -60,6 +60,8 @@ fn schedule(sizes: &[f64], tau_m: f64, tau_l: f64, ramp_m: f64, ramp_l: f64) -> 
                 tau_l,
                 dtau_m: ramp_m * sign,
                 dtau_l: ramp_l,
+                span: 0.0,
+                dspan: 0.0,
             },
             h,
         ));
@@ -136,6 +138,8 @@ fn undamped_permanent_contact_matches_the_closed_form() {
                             tau_l: 0.0,
                             dtau_m: 0.3,
                             dtau_l: 0.0,
+                            span: 0.0,
+                            dspan: 0.0,
                         },
                         h,
                     ),

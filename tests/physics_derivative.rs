@@ -35,6 +35,8 @@ fn first_and_second_derivatives_match_the_equations_of_motion() {
         tau_l: -0.4,
         dtau_m: 2.0,
         dtau_l: -0.5,
+        span: 0.0,
+        dspan: 0.0,
     };
     // (θ_m, ω_m, θ_L, ω_L), expected mode, δ, σ. The last two sit exactly on u = g: the mode
     // is the one being entered (docs/model.md §4), which decides the second derivative.
@@ -71,6 +73,8 @@ fn first_derivative_matches_a_difference_quotient_of_the_step() {
         tau_l: -0.4,
         dtau_m: 2.0,
         dtau_l: -0.5,
+        span: 0.0,
+        dspan: 0.0,
     };
     for (tm, wm, tl, wl) in [
         (0.5e-3, 0.7, 0.0, 0.1),

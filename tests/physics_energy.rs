@@ -55,6 +55,8 @@ fn energy_balance_holds_across_many_switches() {
                         tau_l: -0.2 * tau,
                         dtau_m: ramp,
                         dtau_l: 0.0,
+                        span: 0.0,
+                        dspan: 0.0,
                     },
                     h,
                 )

@@ -55,6 +55,8 @@ fn reference_matches_free_inertias_in_closed_form() {
                     tau_l: 0.3,
                     dtau_m: -0.7,
                     dtau_l: 0.2,
+                    span: 0.0,
+                    dspan: 0.0,
                 },
             ),
             (
@@ -64,6 +66,8 @@ fn reference_matches_free_inertias_in_closed_form() {
                     tau_l: 0.0,
                     dtau_m: 0.4,
                     dtau_l: -0.1,
+                    span: 0.0,
+                    dspan: 0.0,
                 },
             ),
         ] {
@@ -118,6 +122,8 @@ fn reference_matches_undamped_permanent_contact_in_closed_form() {
                 tau_l: 0.0,
                 dtau_m,
                 dtau_l: 0.0,
+                span: 0.0,
+                dspan: 0.0,
             };
             let mut s = r.state(th_m0, w_m0, th_l0, w_l0);
             let mut z = [th_m0, w_m0, th_l0, w_l0];
@@ -194,6 +200,8 @@ fn own_expm_matches_nalgebra_and_reference_matches_damped_linear_plant() {
                 tau_l: -0.5,
                 dtau_m: 3.0,
                 dtau_l: 0.0,
+                span: 0.0,
+                dspan: 0.0,
             },
         ),
         (
@@ -204,6 +212,8 @@ fn own_expm_matches_nalgebra_and_reference_matches_damped_linear_plant() {
                 tau_l: 0.5,
                 dtau_m: 0.1,
                 dtau_l: -0.2,
+                span: 0.0,
+                dspan: 0.0,
             },
         ),
     ] {
@@ -299,6 +309,8 @@ fn reference_conserves_energy_across_many_switches() {
                     tau_l: -0.2 * tau,
                     dtau_m: 0.3,
                     dtau_l: 0.0,
+                    span: 0.0,
+                    dspan: 0.0,
                 },
                 h,
                 &mut events,

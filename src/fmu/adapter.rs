@@ -186,6 +186,7 @@ pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
         b_m: at(Symbol::BM),
         b_l: at(Symbol::BL),
         geometry,
+        web: None,
     }
 }
 
@@ -205,6 +206,8 @@ pub fn inputs(v: &Values, slopes: [f64; 2]) -> Inputs {
         tau_l: v[Symbol::TauL.index()],
         dtau_m: slopes[0],
         dtau_l: slopes[1],
+        span: 0.0,
+        dspan: 0.0,
     }
 }
 

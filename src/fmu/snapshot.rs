@@ -276,6 +276,7 @@ impl Snapshot {
                 u: z[4],
                 du: z[5],
                 mode,
+                tension: 0.0,
             },
             bound,
         });

@@ -39,8 +39,9 @@ impl ContactMode {
     }
 }
 
-/// State of the plant: z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1), the transmission coordinate u
-/// carried alongside (so that u keeps full precision when the angles grow large), and the mode.
+/// State of the plant: z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1), the web span's tension T when
+/// the load pulls one (docs/model.md §8), the transmission coordinate u carried alongside (so that
+/// u keeps full precision when the angles grow large), and the mode.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlantState {
     /// Motor angle θ_m [rad].
@@ -57,6 +58,8 @@ pub struct PlantState {
     pub du: f64,
     /// The mode in force at this instant (on ±g: the mode being entered).
     pub mode: ContactMode,
+    /// Tension T of the web span [N]; 0 when the load pulls no web.
+    pub tension: f64,
 }
 
 impl PlantState {
@@ -73,7 +76,13 @@ impl PlantState {
             u,
             du,
             mode: mode_at(u, du, plant.half_gap()),
+            tension: 0.0,
         }
+    }
+
+    /// This state with web tension `tension` [N].
+    pub fn with_tension(self, tension: f64) -> PlantState {
+        PlantState { tension, ..self }
     }
 
     /// All fields finite. Non-short-circuit `&`: one branch for the whole test, which runs
@@ -86,6 +95,7 @@ impl PlantState {
             & self.omega_l.is_finite()
             & self.u.is_finite()
             & self.du.is_finite()
+            & self.tension.is_finite()
     }
 }
 

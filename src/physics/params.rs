@@ -30,6 +30,47 @@ pub enum Geometry {
     },
 }
 
+/// One web span pulled out by a roller on the load shaft (docs/model.md §8): the load of a web
+/// line. The span's tension T is a fifth state: L_w T' = EA (R_w ω_L − v_in) + v_ref (T_in − T),
+/// and the web pulls back on the roller with R_w T.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WebSpan {
+    /// Roller radius R_w [m].
+    pub r_w: f64,
+    /// Span length L_w [m].
+    pub l_w: f64,
+    /// Web stiffness EA (Young's modulus times cross-section) [N].
+    pub ea: f64,
+    /// Web speed the transport term is linearized at, v_ref [m/s].
+    pub v_ref: f64,
+}
+
+impl WebSpan {
+    /// A film line: 50 mm roller, 1 m span, EA = 1e5 N (e.g. 50 µm PET, 0.5 m wide), 2 m/s.
+    pub const FILM_LINE: WebSpan = WebSpan {
+        r_w: 0.05,
+        l_w: 1.0,
+        ea: 1e5,
+        v_ref: 2.0,
+    };
+
+    /// The parameters by their names (docs/model.md §8).
+    pub fn named(&self) -> [(&'static str, f64); 4] {
+        [
+            ("R_w", self.r_w),
+            ("L_w", self.l_w),
+            ("EA", self.ea),
+            ("v_ref", self.v_ref),
+        ]
+    }
+
+    /// The span's forcing by the upstream web, (v_ref T_in − EA v_in)/L_w [N/s]: what the
+    /// inputs v_in [m/s] and T_in [N] (or their time derivatives) add to T'.
+    pub fn forcing(&self, v_in: f64, t_in: f64) -> f64 {
+        (self.v_ref * t_in - self.ea * v_in) / self.l_w
+    }
+}
+
 /// Parameters as a user gives them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlantParams {
@@ -42,6 +83,8 @@ pub struct PlantParams {
     /// Load viscous friction b_L [N·m·s/rad].
     pub b_l: f64,
     pub geometry: Geometry,
+    /// The web span the load pulls, if any (docs/model.md §8); None: the load is an inertia.
+    pub web: Option<WebSpan>,
 }
 
 impl PlantParams {
@@ -53,6 +96,7 @@ impl PlantParams {
             b_m: 0.05,
             b_l: 0.05,
             geometry: Geometry::Shaft { k: 200.0, delta },
+            web: None,
         }
     }
 }
@@ -125,7 +169,8 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// Validates `params` (J > 0, b ≥ 0, K > 0, Δ ≥ 0, radii > 0, all finite).
+    /// Validates `params` (J > 0, b ≥ 0, K > 0, Δ ≥ 0, radii > 0, the web's R_w, L_w, EA, v_ref > 0,
+    /// all finite).
     pub fn new(params: PlantParams) -> Result<Plant, ParamError> {
         positive("J_m", params.j_m)?;
         positive("J_L", params.j_l)?;
@@ -151,6 +196,9 @@ impl Plant {
                 (r_1, r_2 * r_g2 / r_g1, k_b, r_2 / r_g1 * delta)
             }
         };
+        for (name, value) in params.web.iter().flat_map(WebSpan::named) {
+            positive(name, value)?;
+        }
         let plant = Plant {
             params,
             r_m,
@@ -173,7 +221,17 @@ impl Plant {
             ("g", half_gap),
             ("r_L/r_m", r_l / r_m),
         ];
-        for (name, value) in derived {
+        // The span's rates: its stiffness against the load inertia, EA R_w²/(L_w J_L), its
+        // relaxation v_ref/L_w, the pull's lever R_w/J_L and the speed gain EA R_w/L_w.
+        let web = params.web.into_iter().flat_map(|w| {
+            [
+                ("EA*R_w^2/(L_w*J_L)", w.ea * w.r_w * w.r_w / (w.l_w * p.j_l)),
+                ("v_ref/L_w", w.v_ref / w.l_w),
+                ("R_w/J_L", w.r_w / p.j_l),
+                ("EA*R_w/L_w", w.ea * w.r_w / w.l_w),
+            ]
+        });
+        for (name, value) in derived.into_iter().chain(web) {
             if value != 0.0 && !(value.abs() >= 1e-200 && value.abs() <= 1e200) {
                 return Err(ParamError::DerivedOutOfScale { name, value });
             }
@@ -183,6 +241,14 @@ impl Plant {
 
     pub fn params(&self) -> &PlantParams {
         &self.params
+    }
+    /// The web span the load pulls, if any.
+    pub fn web(&self) -> Option<&WebSpan> {
+        self.params.web.as_ref()
+    }
+    /// The web's lever on the load, R_w [m]; 0 without a web (the pull R_w T then vanishes).
+    pub fn web_lever(&self) -> f64 {
+        self.params.web.map_or(0.0, |w| w.r_w)
     }
     pub fn r_m(&self) -> f64 {
         self.r_m

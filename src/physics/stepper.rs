@@ -1,7 +1,7 @@
 //! Exact stepping between contact switches (docs/model.md §2).
 
 use super::kernel::KernelColumn;
-use super::linear::{self, AugMatrix, AugVector, AUG};
+use super::linear::{self, AugMatrix, AugVector, AUG, WEB_AUG};
 use super::mode::{ContactMode, PlantState};
 use super::params::Plant;
 use super::roots::{self, Side, SignalRows};
@@ -20,6 +20,11 @@ pub struct Inputs {
     pub dtau_m: f64,
     /// dτ_L/dt over the step [N·m/s].
     pub dtau_l: f64,
+    /// The web span's forcing by the upstream web at the step start, w = (v_ref T_in −
+    /// EA v_in)/L_w [N/s] ([`super::WebSpan::forcing`]); unused without a web.
+    pub span: f64,
+    /// dw/dt over the step [N/s²].
+    pub dspan: f64,
 }
 
 impl Inputs {
@@ -29,6 +34,8 @@ impl Inputs {
             tau_l,
             dtau_m: 0.0,
             dtau_l: 0.0,
+            span: 0.0,
+            dspan: 0.0,
         }
     }
 }
@@ -72,54 +79,80 @@ pub fn max_step(plant: &Plant) -> f64 {
 
 /// One contact mode: its augmented matrix and the derivative rows of u along it.
 #[derive(Clone, Debug)]
-struct ModeDynamics {
-    m: AugMatrix,
-    sparse: Sparse<AUG>,
-    u_rows: SignalRows<AUG>,
+struct ModeDynamics<const N: usize> {
+    m: AugMatrix<N>,
+    sparse: Sparse<N>,
+    u_rows: SignalRows<N>,
 }
 
 /// Everything a whole piece in one mode needs, fused into one pass over the augmented state:
 /// outputs 0–4 are e^{M len} y restricted to [u, ω_m, ω_L, δθ_m, δθ_L], 5–6 are u″ and u‴ at
-/// the piece start, and 7 is `remainder`·|y|, which bounds how far u‴ moves over the piece.
-/// Stored by column, eight outputs wide, so that the pass vectorizes across the outputs.
+/// the piece start, and 7 is `remainder`·|y|, which bounds how far u‴ moves over the piece;
+/// with a web span, output 8 is T at the piece end (and 9 pads the column to whole vectors).
+/// Stored by column, `KO` outputs wide, so that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
-struct PieceKernel {
-    cols: [KernelColumn<KERNEL_OUT>; AUG],
+struct PieceKernel<const N: usize, const KO: usize> {
+    cols: [KernelColumn<KO>; N],
 }
 
-const KERNEL_OUT: usize = 8;
 /// The output that takes |y|: the growth bound of u‴.
 const GROWTH_ROW: usize = 7;
+/// The output that carries T with a web span.
+const TENSION_ROW: usize = 8;
 
-impl PieceKernel {
-    fn new(phi: &AugMatrix, u_rows: &SignalRows<AUG>, remainder: &AugVector) -> PieceKernel {
+/// The end of a piece: [u, v, ω_L, δθ_m, δθ_L] in the order of `linear`, then T (with a web
+/// span; else unused).
+type PieceEnd = [f64; 6];
+
+/// The web span's entries at a piece start, [T, w, ẇ] (unused without one).
+type SpanEntries = [f64; 3];
+
+impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
+    fn new(phi: &AugMatrix<N>, u_rows: &SignalRows<N>, remainder: &AugVector<N>) -> Self {
         PieceKernel {
             cols: KernelColumn::table(|r, j| match r {
                 0..=4 => phi[(r, j)],
                 5 => u_rows.row(2)[j],
                 6 => u_rows.row(3)[j],
                 GROWTH_ROW => remainder[j],
-                _ => unreachable!("KERNEL_OUT rows"),
+                TENSION_ROW if N == WEB_AUG => phi[(linear::TENSION, j)],
+                _ if N == WEB_AUG => 0.0,
+                _ => unreachable!("KO rows"),
             }),
         }
     }
 
-    /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L], u″, bound on sup |u‴| over the piece).
+    /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L, T], u″, bound on sup |u‴| over the piece).
     /// The sums out of line: see `sums`.
     #[inline(always)]
-    fn apply(&self, y: &AugVector) -> ([f64; 5], f64, f64) {
+    fn apply(&self, y: &AugVector<N>) -> (PieceEnd, f64, f64) {
         use linear::*;
         debug_assert!(y[DTHETA_M] == 0.0 && y[DTHETA_L] == 0.0 && y[ONE] == 1.0);
         let [u, v, w, tm, tl, dtm, dtl] = [U, V, OMEGA_L, TAU_M, TAU_L, DTAU_M, DTAU_L].map(|j| y[j]);
-        Self::split(self.sums(u, v, w, tm, tl, dtm, dtl))
+        let span = if N == WEB_AUG {
+            [TENSION, SPAN, DSPAN].map(|j| y[j])
+        } else {
+            [0.0; 3]
+        };
+        Self::split(self.sums(u, v, w, tm, tl, dtm, dtl, span))
     }
 
     /// `apply` at the start of a step from `state` under `inputs`, with the sums inlined:
     /// for the one-piece step, where there is no loop to hoist the coefficients out of.
     #[inline(always)]
-    fn apply_at_start(&self, state: &PlantState, inputs: &Inputs) -> ([f64; 5], f64, f64) {
+    fn apply_at_start(&self, state: &PlantState, inputs: &Inputs) -> (PieceEnd, f64, f64) {
         let i = inputs;
-        let acc = self.sums_inline(state.u, state.du, state.omega_l, i.tau_m, i.tau_l, i.dtau_m, i.dtau_l);
+        let span = [state.tension, i.span, i.dspan];
+        let acc = self.sums_inline(
+            state.u,
+            state.du,
+            state.omega_l,
+            i.tau_m,
+            i.tau_l,
+            i.dtau_m,
+            i.dtau_l,
+            span,
+        );
         // `black_box` (an identity) keeps the sums whole until they are stored: else the
         // vectorizer, seeing each output used on its own below, pairs products of different
         // columns, which takes more shuffling (measured by callgrind: 355 instructions per
@@ -128,9 +161,10 @@ impl PieceKernel {
     }
 
     #[inline(always)]
-    fn split(acc: [f64; KERNEL_OUT]) -> ([f64; 5], f64, f64) {
+    fn split(acc: [f64; KO]) -> (PieceEnd, f64, f64) {
+        let tension = if N == WEB_AUG { acc[TENSION_ROW] } else { 0.0 };
         (
-            [acc[0], acc[1], acc[2], acc[3], acc[4]],
+            [acc[0], acc[1], acc[2], acc[3], acc[4], tension],
             acc[5],
             acc[6].abs() + acc[GROWTH_ROW],
         )
@@ -140,17 +174,27 @@ impl PieceKernel {
     /// hoisted out of it and spilled to the stack.
     #[allow(clippy::too_many_arguments)]
     #[inline(never)]
-    fn sums(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64) -> [f64; KERNEL_OUT] {
-        self.sums_inline(u, v, w, tm, tl, dtm, dtl)
+    fn sums(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64, span: SpanEntries) -> [f64; KO] {
+        self.sums_inline(u, v, w, tm, tl, dtm, dtl, span)
     }
 
-    /// The eight column sums at a piece start y = [u, v, ω_L, 0, 0, τ_m, τ_L, 1, τ̇_m, τ̇_L]
-    /// (the angle increments are zero there: their columns drop out), in the column order
-    /// of `linear`. The entries come as scalars, in registers: read back from a vector just
-    /// stored, they would stall on store forwarding.
+    /// The `KO` column sums at a piece start y = [u, v, ω_L, 0, 0, τ_m, τ_L, 1, τ̇_m, τ̇_L]
+    /// and, with a web span, [T, w, ẇ] = `span` (the angle increments are zero there: their
+    /// columns drop out), in the column order of `linear`. The entries come as scalars, in
+    /// registers: read back from a vector just stored, they would stall on store forwarding.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn sums_inline(&self, u: f64, v: f64, w: f64, tm: f64, tl: f64, dtm: f64, dtl: f64) -> [f64; KERNEL_OUT] {
+    fn sums_inline(
+        &self,
+        u: f64,
+        v: f64,
+        w: f64,
+        tm: f64,
+        tl: f64,
+        dtm: f64,
+        dtl: f64,
+        span: SpanEntries,
+    ) -> [f64; KO] {
         use linear::*;
         // The first product rather than zeros plus it (the same but for a zero's sign); then a
         // loop over the columns rather than one call per column: unrolled after it is
@@ -165,30 +209,120 @@ impl PieceKernel {
                 self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
             }
         }
+        if N == WEB_AUG {
+            let [t, w, dw] = span;
+            for (j, yj) in [(TENSION, t), (SPAN, w), (DSPAN, dw)] {
+                self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
+            }
+        }
         acc
     }
 }
 
 /// Exponentials for the current step size: the step is cut into `pieces` of length `len`.
 #[derive(Clone, Debug)]
-struct StepCache {
+struct StepCache<const N: usize, const KO: usize> {
     h: f64,
     pieces: usize,
     len: f64,
-    kernel: [PieceKernel; 3],
+    kernel: [PieceKernel<N, KO>; 3],
 }
 
-/// Advances the plant exactly (docs/model.md §2). Holds the exponentials for the current step size;
-/// they are recomputed only when the step size changes.
+/// The exact stepper of a plant with an augmented state of `N` entries (`linear::AUG`, or
+/// `linear::WEB_AUG` with a web span) and `KO` kernel outputs; [`Stepper`] picks one.
 #[derive(Clone, Debug)]
-pub struct Stepper {
+pub struct Exact<const N: usize, const KO: usize> {
     plant: Plant,
-    modes: [ModeDynamics; 3],
+    modes: [ModeDynamics<N>; 3],
     /// Longest piece [s]: PIECE_RATE over the fastest rate of the plant.
     len_ref: f64,
     /// Longest step: `MAX_PIECES` pieces.
     max_h: f64,
-    cache: Option<StepCache>,
+    cache: Option<StepCache<N, KO>>,
+}
+
+/// The drive train alone: 10 augmented entries, 8 kernel outputs.
+pub type DriveStepper = Exact<AUG, 8>;
+/// The drive train pulling a web span: 13 augmented entries, 10 kernel outputs.
+pub type WebStepper = Exact<WEB_AUG, 10>;
+
+/// Advances the plant exactly (docs/model.md §2), with or without a web span. Holds the
+/// exponentials for the current step size; they are recomputed only when the step size changes.
+#[derive(Clone, Debug)]
+pub enum Stepper {
+    Drive(DriveStepper),
+    Web(Box<WebStepper>),
+}
+
+impl Stepper {
+    pub fn new(plant: Plant) -> Stepper {
+        if plant.web().is_some() {
+            Stepper::Web(Box::new(Exact::new(plant)))
+        } else {
+            Stepper::Drive(Exact::new(plant))
+        }
+    }
+
+    pub fn plant(&self) -> &Plant {
+        match self {
+            Stepper::Drive(s) => s.plant(),
+            Stepper::Web(s) => s.plant(),
+        }
+    }
+
+    /// Advances `state` over [t, t+h] with `inputs` (values at t, slopes over the step),
+    /// calling `on_switch` for every contact switch in time order. Returns the number of
+    /// switches. On error `state` is left unchanged.
+    pub fn step(
+        &mut self,
+        state: &mut PlantState,
+        inputs: &Inputs,
+        h: f64,
+        on_switch: &mut dyn FnMut(SwitchEvent),
+    ) -> Result<usize, StepError> {
+        match self {
+            Stepper::Drive(s) => s.step(state, inputs, h, on_switch),
+            Stepper::Web(s) => s.step(state, inputs, h, on_switch),
+        }
+    }
+
+    /// As [`Stepper::step`], but stops at the first contact switch inside the step: `state` is
+    /// then the state at the switch (u exactly on ±g, the mode entered) and the returned offset
+    /// is the switch instant from the step start, located to round-off. None: no switch, the
+    /// whole step was taken.
+    pub fn step_to_first_switch(
+        &mut self,
+        state: &mut PlantState,
+        inputs: &Inputs,
+        h: f64,
+        on_switch: &mut dyn FnMut(SwitchEvent),
+    ) -> Result<Option<f64>, StepError> {
+        match self {
+            Stepper::Drive(s) => s.step_to_first_switch(state, inputs, h, on_switch),
+            Stepper::Web(s) => s.step_to_first_switch(state, inputs, h, on_switch),
+        }
+    }
+
+    /// The step of a co-simulation in the common case, with nothing to locate: `h` is the
+    /// step size `step` last took and one piece long, and the piece is certified free of
+    /// switches. Returns the state at its end if it is finite; else `None`, and `step` does
+    /// the step (or says why not). `state` must be finite.
+    #[inline]
+    pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
+        match self {
+            Stepper::Drive(s) => s.quiet_step(state, inputs, h),
+            Stepper::Web(s) => s.quiet_step(state, inputs, h),
+        }
+    }
+
+    /// The `order`-th time derivative (order ≥ 1) of [θ_m, ω_m, θ_L, ω_L] at `state` under the
+    /// mode in force (at a switch instant: the mode being entered, i.e. the right derivative).
+    pub fn time_derivative(&self, state: &PlantState, inputs: &Inputs, order: u32) -> [f64; 4] {
+        match self {
+            Stepper::Drive(s) => s.time_derivative(state, inputs, order),
+            Stepper::Web(s) => s.time_derivative(state, inputs, order),
+        }
+    }
 }
 
 /// How a step ended: the switches located, and where it stopped if it stopped at one.
@@ -206,15 +340,15 @@ struct Exit {
     u: f64,
 }
 
-impl Stepper {
-    pub fn new(plant: Plant) -> Stepper {
+impl<const N: usize, const KO: usize> Exact<N, KO> {
+    pub fn new(plant: Plant) -> Self {
         let rate = linear::fastest_rate(&plant);
         let len_ref = if rate > 0.0 {
             linear::PIECE_RATE / rate
         } else {
             f64::INFINITY
         };
-        let mut e_u = AugVector::zeros();
+        let mut e_u = AugVector::<N>::zeros();
         e_u[linear::U] = 1.0;
         let modes = ContactMode::ALL.map(|mode| {
             let m = linear::mode_matrix(&plant, mode);
@@ -224,7 +358,7 @@ impl Stepper {
                 u_rows: SignalRows::new(e_u, &m, len_ref),
             }
         });
-        Stepper {
+        Exact {
             plant,
             modes,
             len_ref,
@@ -265,9 +399,7 @@ impl Stepper {
         });
     }
 
-    /// Advances `state` over [t, t+h] with `inputs` (values at t, slopes over the step),
-    /// calling `on_switch` for every contact switch in time order. Returns the number of
-    /// switches. On error `state` is left unchanged.
+    /// [`Stepper::step`].
     pub fn step(
         &mut self,
         state: &mut PlantState,
@@ -279,10 +411,7 @@ impl Stepper {
             .map(|end| end.switches)
     }
 
-    /// As [`Stepper::step`], but stops at the first contact switch inside the step: `state` is
-    /// then the state at the switch (u exactly on ±g, the mode entered) and the returned offset
-    /// is the switch instant from the step start, located to round-off. None: no switch, the
-    /// whole step was taken.
+    /// [`Stepper::step_to_first_switch`].
     pub fn step_to_first_switch(
         &mut self,
         state: &mut PlantState,
@@ -310,6 +439,7 @@ impl Stepper {
             & inputs.tau_l.is_finite()
             & inputs.dtau_m.is_finite()
             & inputs.dtau_l.is_finite()
+            & (N != WEB_AUG || (inputs.span.is_finite() & inputs.dspan.is_finite()))
             & state.is_finite();
         if !(finite & (h > 0.0) & (h <= self.max_h)) {
             return Err(self.refusal(state, inputs, h));
@@ -338,10 +468,7 @@ impl Stepper {
         })
     }
 
-    /// The step of a co-simulation in the common case, with nothing to locate: `h` is the
-    /// step size `step` last took and one piece long, and the piece is certified free of
-    /// switches. Returns the state at its end if it is finite; else `None`, and `step` does
-    /// the step (or says why not). `state` must be finite.
+    /// [`Stepper::quiet_step`].
     #[inline]
     pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
         debug_assert!(state.is_finite());
@@ -356,7 +483,10 @@ impl Stepper {
         self.finish_piece(&mut next, &whole);
         // Finite when the sum of its fields is (a NaN or ∞ field makes the sum NaN or ∞);
         // the sum of finite fields that overflows leaves the step to `step`.
-        let sum = next.theta_m + next.omega_m + next.theta_l + next.omega_l + next.u + next.du;
+        let mut sum = next.theta_m + next.omega_m + next.theta_l + next.omega_l + next.u + next.du;
+        if N == WEB_AUG {
+            sum += next.tension;
+        }
         super::finite(sum).then_some(next)
     }
 
@@ -372,6 +502,8 @@ impl Stepper {
             ("tau_L", inputs.tau_l),
             ("der(tau_m)", inputs.dtau_m),
             ("der(tau_L)", inputs.dtau_l),
+            ("the web span's forcing w", inputs.span),
+            ("der(w)", inputs.dspan),
         ];
         if let Some(&(name, value)) = named.iter().find(|(_, v)| !v.is_finite()) {
             return StepError::NonFiniteInput { name, value };
@@ -421,7 +553,7 @@ impl Stepper {
                 let mut model = None;
                 match self.exit(&y, next.mode, span, probe.take(), &mut model, &mut budget) {
                     None if !switched => {
-                        y.as_mut_slice()[..5].copy_from_slice(&whole);
+                        set_piece_end(&mut y, &whole);
                         break;
                     }
                     None => {
@@ -443,6 +575,9 @@ impl Stepper {
                         // Inputs are functions of time: re-evaluate rather than carry round-off.
                         y[linear::TAU_M] = inputs.tau_m + inputs.dtau_m * t;
                         y[linear::TAU_L] = inputs.tau_l + inputs.dtau_l * t;
+                        if N == WEB_AUG {
+                            y[linear::SPAN] = inputs.span + inputs.dspan * t;
+                        }
                         on_switch(SwitchEvent {
                             offset: t,
                             from: next.mode,
@@ -451,7 +586,7 @@ impl Stepper {
                         next.mode = exit.to;
                         switches += 1;
                         if stop_at_switch {
-                            self.finish_piece(&mut next, &y.as_slice()[..5]);
+                            self.finish_piece(&mut next, &piece_end(&y));
                             if !next.is_finite() {
                                 return Err(StepError::Overflow);
                             }
@@ -470,7 +605,7 @@ impl Stepper {
                     }
                 }
             }
-            self.finish_piece(&mut next, &y.as_slice()[..5]);
+            self.finish_piece(&mut next, &piece_end(&y));
         }
         if !next.is_finite() {
             return Err(StepError::Overflow);
@@ -522,11 +657,11 @@ impl Stepper {
     /// The Taylor model of the piece, when the search needed it, is left in `model`.
     fn exit(
         &self,
-        y: &AugVector,
+        y: &AugVector<N>,
         mode: ContactMode,
         span: f64,
         probe: Option<(f64, f64)>,
-        model: &mut Option<TaylorModel<AUG>>,
+        model: &mut Option<TaylorModel<N>>,
         budget: &mut usize,
     ) -> Option<Exit> {
         let g = self.plant.half_gap();
@@ -627,9 +762,12 @@ impl Stepper {
         ]
     }
 
-    /// Takes the end of a piece, [u, v, ω_L, δθ_m, δθ_L], into the state.
+    /// Takes the end of a piece, [u, v, ω_L, δθ_m, δθ_L, T], into the state.
     #[inline]
-    fn finish_piece(&self, next: &mut PlantState, end: &[f64]) {
+    fn finish_piece(&self, next: &mut PlantState, end: &PieceEnd) {
+        if N == WEB_AUG {
+            next.tension = end[5];
+        }
         next.theta_m += end[linear::DTHETA_M];
         next.theta_l += end[linear::DTHETA_L];
         next.u = end[linear::U];
@@ -645,9 +783,11 @@ impl Stepper {
 }
 
 /// The augmented vector of `state` at time `t` into the step (angle increments zero).
-fn augmented(state: &PlantState, inputs: &Inputs, t: f64) -> AugVector {
-    // In the order of `linear`: [u, v, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L].
-    AugVector::from([
+#[inline(always)]
+fn augmented<const N: usize>(state: &PlantState, inputs: &Inputs, t: f64) -> AugVector<N> {
+    // In the order of `linear`: [u, v, ω_L, δθ_m, δθ_L, τ_m, τ_L, 1, τ̇_m, τ̇_L] and, with a
+    // web span, [T, w, ẇ].
+    let drive = [
         state.u,
         state.du,
         state.omega_l,
@@ -658,5 +798,23 @@ fn augmented(state: &PlantState, inputs: &Inputs, t: f64) -> AugVector {
         1.0,
         inputs.dtau_m,
         inputs.dtau_l,
-    ])
+    ];
+    let span = [state.tension, inputs.span + inputs.dspan * t, inputs.dspan];
+    AugVector::<N>::from_fn(|i, _| if i < AUG { drive[i] } else { span[i - AUG] })
+}
+
+/// The end of a piece from the augmented state there.
+#[inline(always)]
+fn piece_end<const N: usize>(y: &AugVector<N>) -> PieceEnd {
+    let tension = if N == WEB_AUG { y[linear::TENSION] } else { 0.0 };
+    [y[0], y[1], y[2], y[3], y[4], tension]
+}
+
+/// Writes a piece end into the augmented state.
+#[inline(always)]
+fn set_piece_end<const N: usize>(y: &mut AugVector<N>, end: &PieceEnd) {
+    y.as_mut_slice()[..5].copy_from_slice(&end[..5]);
+    if N == WEB_AUG {
+        y[linear::TENSION] = end[5];
+    }
 }

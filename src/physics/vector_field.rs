@@ -15,7 +15,8 @@ const ANGLE_SCALE_WITHOUT_GAP: f64 = 1e-4;
 
 impl Plant {
     /// z' = d/dt [θ_m, ω_m, θ_L, ω_L] at `state` with torques τ_m, τ_L (docs/model.md §1):
-    /// θ_m' = ω_m, J_m ω_m' = τ_m − b_m ω_m − r_m ψ, θ_L' = ω_L, J_L ω_L' = τ_L − b_L ω_L + r_L ψ.
+    /// θ_m' = ω_m, J_m ω_m' = τ_m − b_m ω_m − r_m ψ, θ_L' = ω_L, J_L ω_L' = τ_L − b_L ω_L + r_L ψ
+    /// (− R_w T when the load pulls a web span, docs/model.md §8).
     #[inline]
     pub fn rates(&self, state: &PlantState, tau_m: f64, tau_l: f64) -> [f64; 4] {
         let p = self.params();
@@ -24,8 +25,17 @@ impl Plant {
             state.omega_m,
             (tau_m - p.b_m * state.omega_m - self.r_m() * psi) / p.j_m,
             state.omega_l,
-            (tau_l - p.b_l * state.omega_l + self.r_l() * psi) / p.j_l,
+            (tau_l - p.b_l * state.omega_l + self.r_l() * psi - self.web_lever() * state.tension) / p.j_l,
         ]
+    }
+
+    /// T' of the web span at `state` under its forcing w = (v_ref T_in − EA v_in)/L_w
+    /// (docs/model.md §8): L_w T' = EA R_w ω_L − v_ref T + L_w w. 0 without a web.
+    #[inline]
+    pub fn tension_rate(&self, state: &PlantState, span: f64) -> f64 {
+        self.web().map_or(0.0, |w| {
+            (w.ea * w.r_w * state.omega_l - w.v_ref * state.tension) / w.l_w + span
+        })
     }
 
     /// The Jacobian of [`Plant::rates`] in the mode in force at `state`: ∂z'/∂z (rows z', columns
@@ -93,6 +103,7 @@ mod tests {
                 r_g2: 0.045,
                 delta: 5e-5,
             },
+            web: None,
         })
         .unwrap()
     }

@@ -326,6 +326,8 @@ pub fn sine_schedule(amp: f64, period: f64, h: f64, steps: usize, tau_l: f64, fo
                     tau_l,
                     dtau_m: slope,
                     dtau_l: 0.0,
+                    span: 0.0,
+                    dspan: 0.0,
                 },
                 h,
             )

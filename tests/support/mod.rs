@@ -9,3 +9,4 @@ pub mod harness;
 pub mod reference;
 pub mod rigs;
 pub mod taylor;
+pub mod web_reference;

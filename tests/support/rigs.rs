@@ -1,6 +1,6 @@
 //! Parameter sets shared by the physics tests.
 
-use backlash_fmu::physics::{Geometry, PlantParams};
+use backlash_fmu::physics::{Geometry, PlantParams, WebSpan};
 
 /// The paper's rig (docs/model.md §4) with both viscous coefficients set to `b`.
 pub fn rig(delta: f64, b: f64) -> PlantParams {
@@ -26,6 +26,7 @@ pub fn belt_damped(delta: f64, b_m: f64, b_l: f64) -> PlantParams {
             r_g2: 0.09,
             delta,
         },
+        web: None,
     }
 }
 
@@ -43,4 +44,24 @@ pub fn undamped() -> [PlantParams; 4] {
         belt_damped(0.0, 0.0, 0.0),
         belt_damped(1e-4, 0.0, 0.0),
     ]
+}
+
+/// The belt drive of BacklashBelt's start values pulling the film line's web span (docs/model.md
+/// §8).
+pub fn web_line(delta: f64) -> PlantParams {
+    PlantParams {
+        j_m: 1e-4,
+        j_l: 5e-3,
+        b_m: 1e-4,
+        b_l: 1e-3,
+        geometry: Geometry::Belt {
+            k_b: 2e5,
+            r_1: 0.02,
+            r_2: 0.04,
+            r_g1: 0.015,
+            r_g2: 0.045,
+            delta,
+        },
+        web: Some(WebSpan::FILM_LINE),
+    }
 }

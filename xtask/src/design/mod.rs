@@ -152,7 +152,7 @@ pub fn parse(args: &[String]) -> Result<Option<(Command, bool)>, String> {
     let mut accuracy = None;
     let mut tension_accuracy = None;
     let mut params = default_params(form);
-    let mut line = web::Web::DEFAULT;
+    let mut line = web::Web::FILM_LINE;
     let (mut kp, mut ki) = (None, None);
     let mut tension_gains = PiGains::default();
     let mut json = false;

@@ -12,43 +12,12 @@
 use nalgebra::{DMatrix, DVector};
 use serde_json::{json, Value};
 
-use backlash_fmu::physics::params::positive;
 use backlash_fmu::physics::{PiGains, Plant, PlantParams, Unbounded};
 
 use super::study::{self, DesignError, StiffnessScan, StiffnessStudy};
 
-/// The web span and roller driven by the belt drive.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Web {
-    /// Roller radius R_w [m].
-    pub r_w: f64,
-    /// Span length L_w [m].
-    pub l_w: f64,
-    /// Web stiffness EA [N].
-    pub ea: f64,
-    /// Transport speed the span equation is linearized at, v_ref [m/s].
-    pub v_ref: f64,
-}
-
-impl Web {
-    /// A film line: 50 mm roller, 1 m span, EA = 1e5 N (e.g. 50 µm PET, 0.5 m wide), 2 m/s.
-    pub const DEFAULT: Web = Web {
-        r_w: 0.05,
-        l_w: 1.0,
-        ea: 1e5,
-        v_ref: 2.0,
-    };
-
-    /// The parameters by their names, in the order of the answers.
-    pub fn named(&self) -> [(&'static str, f64); 4] {
-        [
-            ("R_w", self.r_w),
-            ("L_w", self.l_w),
-            ("EA", self.ea),
-            ("v_ref", self.v_ref),
-        ]
-    }
-}
+/// The web span and roller driven by the belt drive (docs/model.md §8).
+pub use backlash_fmu::physics::WebSpan as Web;
 
 /// Both suprema for one parameter set.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,8 +46,10 @@ pub fn reduced_loop(
     speed: PiGains,
     tension: PiGains,
 ) -> Result<LoopMatrices, DesignError> {
-    check_web(web)?;
-    let plant = Plant::new(*drive)?;
+    let plant = Plant::new(PlantParams {
+        web: Some(*web),
+        ..*drive
+    })?;
     let (r_m, r_l, k) = (plant.r_m(), plant.r_l(), plant.stiffness());
     let (j_m, j_l, b_m, b_l) = (drive.j_m, drive.j_l, drive.b_m, drive.b_l);
     const U: usize = 0;
@@ -131,13 +102,6 @@ pub fn reduced_loop(
         tension_row: pick(T),
         speed_row: pick(WL),
     })
-}
-
-fn check_web(web: &Web) -> Result<(), DesignError> {
-    for (name, value) in web.named() {
-        positive(name, value)?;
-    }
-    Ok(())
 }
 
 /// `bound_T_sup` and `bound_sup` of the web line; `DesignError::Unbounded` when the loop is not

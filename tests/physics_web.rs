@@ -1,0 +1,266 @@
+//! The web line of docs/model.md §8 stepped exactly: against the independent reference of
+//! support/web_reference.rs (its own matrices and Taylor integrator), against the belt drive
+//! when the web is decoupled, and its parameters refused by name.
+
+mod support;
+
+use backlash_fmu::physics::{Geometry, Inputs, ParamError, Plant, PlantParams, PlantState, Stepper, WebSpan};
+use support::reference::RefEvent;
+use support::rigs::{belt_damped, web_line};
+use support::web_reference::{WebInputs, WebReference};
+
+/// [θ_m, ω_m, θ_L, ω_L, u, T] of the crate's state.
+fn sample(s: &PlantState) -> [f64; 6] {
+    [s.theta_m, s.omega_m, s.theta_l, s.omega_l, s.u, s.tension]
+}
+
+/// The crate's inputs for the reference's: the span's forcing from v_in and T_in.
+fn crate_inputs(plant: &Plant, i: &WebInputs) -> Inputs {
+    let web = plant.web().expect("a web line");
+    Inputs {
+        tau_m: i.tau_m,
+        tau_l: i.tau_l,
+        dtau_m: i.dtau_m,
+        dtau_l: i.dtau_l,
+        span: web.forcing(i.v_in, i.t_in),
+        dspan: web.forcing(i.dv_in, i.dt_in),
+    }
+}
+
+/// Errors relative to the amplitude of each kind over the run: angles to max |θ|, speeds to
+/// max |ω|, u to max(|u|, g), T to max |T|.
+fn relative_errors(got: &[[f64; 6]], want: &[[f64; 6]], g: f64) -> [f64; 4] {
+    let amplitude = |idx: &[usize]| {
+        want.iter()
+            .flat_map(|w| idx.iter().map(move |&k| w[k].abs()))
+            .fold(f64::MIN_POSITIVE, f64::max)
+    };
+    let kinds: [(&[usize], f64); 4] = [
+        (&[0, 2], amplitude(&[0, 2])),
+        (&[1, 3], amplitude(&[1, 3])),
+        (&[4], amplitude(&[4]).max(g)),
+        (&[5], amplitude(&[5])),
+    ];
+    kinds.map(|(idx, scale)| {
+        got.iter()
+            .zip(want)
+            .flat_map(|(a, b)| idx.iter().map(move |&k| (a[k] - b[k]).abs() / scale))
+            .fold(0.0, f64::max)
+    })
+}
+
+/// A web line started at line speed (ω_L R_w = v_in, no slip in the gap) and at the upstream
+/// tension, then driven by `schedule`: both solutions sampled after every step, and the switches.
+fn run_both(
+    params: &PlantParams,
+    schedule: &[(WebInputs, f64)],
+) -> (Vec<[f64; 6]>, Vec<[f64; 6]>, Vec<f64>, Vec<RefEvent>) {
+    let plant = Plant::new(*params).unwrap();
+    let web = *plant.web().unwrap();
+    let (v_in, t_in) = (schedule[0].0.v_in, schedule[0].0.t_in);
+    let omega_l = v_in / web.r_w;
+    let omega_m = omega_l * plant.r_l() / plant.r_m();
+    let z = [0.0, omega_m, 0.0, omega_l];
+    let mut stepper = Stepper::new(plant);
+    let mut state = PlantState::new(&plant, z[0], z[1], z[2], z[3]).with_tension(t_in);
+    let reference = WebReference::new(params);
+    let mut ref_state = reference.state(z, t_in);
+    let (mut got, mut want) = (vec![sample(&state)], vec![WebReference::sample(&ref_state)]);
+    let (mut switches, mut ref_events) = (Vec::new(), Vec::new());
+    let mut t = 0.0;
+    for (inputs, h) in schedule {
+        let t0 = t;
+        stepper
+            .step(&mut state, &crate_inputs(&plant, inputs), *h, &mut |e| {
+                switches.push(t0 + e.offset)
+            })
+            .unwrap();
+        reference.step(&mut ref_state, t, inputs, *h, &mut ref_events);
+        t += h;
+        got.push(sample(&state));
+        want.push(WebReference::sample(&ref_state));
+    }
+    (got, want, switches, ref_events)
+}
+
+fn assert_agrees(params: &PlantParams, schedule: &[(WebInputs, f64)], label: &str) {
+    let (got, want, switches, ref_events) = run_both(params, schedule);
+    let g = Plant::new(*params).unwrap().half_gap();
+    let errors = relative_errors(&got, &want, g);
+    let worst = errors.iter().fold(0.0, |m: f64, e| m.max(*e));
+    println!(
+        "{label}: {} switches; relative errors θ {:.1e}, ω {:.1e}, u {:.1e}, T {:.1e}; T within [{:.3}, {:.3}] N",
+        switches.len(),
+        errors[0],
+        errors[1],
+        errors[2],
+        errors[3],
+        want.iter().map(|w| w[5]).fold(f64::INFINITY, f64::min),
+        want.iter().map(|w| w[5]).fold(f64::NEG_INFINITY, f64::max),
+    );
+    assert!(worst <= 1e-9, "{label}: relative errors {errors:?}");
+    assert!(
+        switches.len() >= 4,
+        "{label}: the scenario must switch contact ({})",
+        switches.len()
+    );
+    assert_eq!(switches.len(), ref_events.len(), "{label}: switch counts");
+    for (t, e) in switches.iter().zip(&ref_events) {
+        assert!(
+            (t - e.t).abs() <= 1e-10,
+            "{label}: switch at {t} vs the reference's {}",
+            e.t
+        );
+    }
+}
+
+/// A reversing motor torque about `bias` (period `period`), held over steps of `h`.
+fn reversing(bias: f64, amp: f64, period: f64, h: f64, steps: usize, web: WebInputs) -> Vec<(WebInputs, f64)> {
+    (0..steps)
+        .map(|k| {
+            let sign = if ((k as f64 * h / (0.5 * period)) as i64) % 2 == 0 {
+                1.0
+            } else {
+                -1.0
+            };
+            (
+                WebInputs {
+                    tau_m: bias + sign * amp,
+                    ..web
+                },
+                h,
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn web_line_open_loop_matches_an_independent_solution() {
+    let params = web_line(5e-5);
+    let upstream = WebInputs {
+        v_in: 2.0,
+        t_in: 50.0,
+        ..WebInputs::default()
+    };
+    // Held torques reversing every 20 ms: the gear crosses its gap both ways.
+    assert_agrees(
+        &params,
+        &reversing(0.42, 0.3, 0.04, 1e-3, 200, upstream),
+        "held, h = 1 ms",
+    );
+    // Steps of 7 ms (several pieces each) and a load torque.
+    let loaded = WebInputs {
+        tau_l: -0.2,
+        ..upstream
+    };
+    assert_agrees(&params, &reversing(0.4, 0.5, 0.07, 7e-3, 30, loaded), "held, h = 7 ms");
+    // First-order hold: torque, upstream speed and tension all ramp over each step.
+    let ramps: Vec<(WebInputs, f64)> = (0..150)
+        .map(|k| {
+            let t = k as f64 * 2e-3;
+            let phase = (2.0 * std::f64::consts::PI * t / 0.05).sin();
+            (
+                WebInputs {
+                    tau_m: 0.42 + 0.4 * phase,
+                    dtau_m: 0.4 * 2.0 * std::f64::consts::PI / 0.05 * (2.0 * std::f64::consts::PI * t / 0.05).cos(),
+                    tau_l: 0.0,
+                    dtau_l: 0.1,
+                    v_in: 2.0 + 0.01 * phase,
+                    dv_in: -0.05,
+                    t_in: 50.0 + 5.0 * phase,
+                    dt_in: 30.0,
+                },
+                2e-3,
+            )
+        })
+        .collect();
+    assert_agrees(&params, &ramps, "ramped inputs, h = 2 ms");
+}
+
+#[test]
+fn a_decoupled_web_leaves_the_belt_drive_as_it_was() {
+    // EA and T_in tiny and T starting at 0: the web pulls with R_w T ~ 1e-12 N·m, so the drive
+    // train's motion is the belt drive's to far below 1e-9.
+    let delta = 5e-5;
+    let belt = PlantParams {
+        web: None,
+        ..web_line(delta)
+    };
+    let decoupled = PlantParams {
+        web: Some(WebSpan {
+            ea: 1e-9,
+            ..web_line(delta).web.unwrap()
+        }),
+        ..belt
+    };
+    let (belt_plant, web_plant) = (Plant::new(belt).unwrap(), Plant::new(decoupled).unwrap());
+    let (mut belt_stepper, mut web_stepper) = (Stepper::new(belt_plant), Stepper::new(web_plant));
+    let start = |p: &Plant| PlantState::new(p, 0.0, 0.0, 0.0, 0.0);
+    let (mut a, mut b) = (start(&belt_plant), start(&web_plant));
+    let web = *web_plant.web().unwrap();
+    let (mut switches_a, mut switches_b) = (0, 0);
+    let (mut got, mut want) = (Vec::new(), Vec::new());
+    // A sinusoidal motor torque, first-order hold. The lightly damped belt rattles in the gap
+    // after each reversal, and a rattling gap amplifies any difference, however small, from
+    // one impact to the next (a factor of ~10 per 40 ms here): the run is kept to 150 ms.
+    let period = 0.2;
+    let w = 2.0 * std::f64::consts::PI / period;
+    for k in 0..150 {
+        let t = k as f64 * 1e-3;
+        let inputs = Inputs {
+            dtau_m: 0.05 * w * (w * t).cos(),
+            ..Inputs::held(0.05 * (w * t).sin(), 0.0)
+        };
+        let web_inputs = Inputs {
+            span: web.forcing(2.0, 1e-9),
+            ..inputs
+        };
+        switches_a += belt_stepper.step(&mut a, &inputs, 1e-3, &mut |_| {}).unwrap();
+        switches_b += web_stepper.step(&mut b, &web_inputs, 1e-3, &mut |_| {}).unwrap();
+        got.push(sample(&b));
+        want.push(sample(&a));
+    }
+    let errors = relative_errors(&got, &want, belt_plant.half_gap());
+    println!(
+        "{switches_a} switches; web vs belt: θ {:.1e}, ω {:.1e}, u {:.1e}; |T| ≤ {:.1e} N",
+        errors[0],
+        errors[1],
+        errors[2],
+        got.iter().map(|s| s[5].abs()).fold(0.0, f64::max)
+    );
+    assert!(
+        switches_a >= 4 && switches_a == switches_b,
+        "switches {switches_a} vs {switches_b}"
+    );
+    assert!(errors[..3].iter().all(|e| *e <= 1e-9), "{errors:?}");
+}
+
+#[test]
+fn web_parameters_are_refused_by_name() {
+    let names = ["R_w", "L_w", "EA", "v_ref"];
+    for (i, name) in names.iter().enumerate() {
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-300] {
+            let mut web = web_line(5e-5).web.unwrap();
+            *[&mut web.r_w, &mut web.l_w, &mut web.ea, &mut web.v_ref][i] = bad;
+            let params = PlantParams {
+                web: Some(web),
+                ..web_line(5e-5)
+            };
+            let named = match Plant::new(params) {
+                Err(ParamError::NotFinite { name, .. })
+                | Err(ParamError::NotPositive { name, .. })
+                | Err(ParamError::OutOfScale { name, .. }) => name,
+                other => panic!("{name} = {bad}: {other:?}"),
+            };
+            assert_eq!(named, *name, "{name} = {bad}");
+        }
+    }
+    // A shaft pulls a web as well as a belt does: the span is independent of the geometry.
+    let shaft = PlantParams {
+        web: web_line(0.0).web,
+        ..PlantParams::paper_rig(1e-3)
+    };
+    assert!(matches!(shaft.geometry, Geometry::Shaft { .. }));
+    assert!(Plant::new(shaft).is_ok());
+    assert!(Plant::new(belt_damped(1e-4, 0.0, 0.0)).unwrap().web().is_none());
+}
