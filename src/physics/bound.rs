@@ -1,9 +1,9 @@
-//! The speed-error bounds of docs/model.md §3 for a PI loop on motor speed.
+//! The speed-error bounds of docs/model.md §3 for a PI loop on motor speed, and the bounds of the
+//! web line (docs/model.md §8) on its load speed and span tension: one [`LoopBound`] for each.
 
 pub use super::closed_loop::PiGains;
 
-// h(s) = v[OMEGA_L] and ∫h = I[OMEGA_L] for the closed-loop state of `CL` entries.
-use super::closed_loop::{closed_loop, spectral_radius, Reduced, TailBound, CL, OMEGA_L};
+use super::closed_loop::{closed_loop, spectral_radius, web_loop, Reduced, TailBound, CL, OMEGA_L, WEB_CL};
 use super::kernel::KernelColumn;
 use super::linear;
 use super::params::Plant;
@@ -23,17 +23,29 @@ pub enum Unbounded {
     Indeterminate,
 }
 
-/// Everything that evolves in [`SpeedErrorBound`], as plain numbers (for FMU-state saving).
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct BoundState {
+/// Everything that evolves in a [`LoopBound`] of an `N`-entry loop state, as plain numbers (for
+/// FMU-state saving).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundState<const N: usize = CL> {
     /// Time since the experiment's start [s].
     pub elapsed: f64,
-    /// e^{A s} D_1 at s = elapsed (5 entries; the 5th is 0 in open loop).
-    pub response: [f64; 5],
+    /// e^{A s} D_1 at s = elapsed (in open loop the integrators' entries are 0).
+    pub response: [f64; N],
     /// ∫_0^elapsed e^{A s} D_1 ds.
-    pub integral: [f64; 5],
+    pub integral: [f64; N],
     /// ∫_0^elapsed |h(s)| ds.
     pub l1: f64,
+}
+
+impl<const N: usize> Default for BoundState<N> {
+    fn default() -> Self {
+        BoundState {
+            elapsed: 0.0,
+            response: [0.0; N],
+            integral: [0.0; N],
+            l1: 0.0,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Error)]
@@ -54,86 +66,96 @@ pub enum BoundError {
     Overflow { bound: f64, bound_paper: f64 },
 }
 
-/// Augmented [v, I] with v = e^{A s} D_1 and I = ∫_0^s v: y' = [A v; v].
-const BA: usize = 2 * CL;
-type BoundMatrix = SMatrix<f64, BA, BA>;
-type BoundVector = SVector<f64, BA>;
+// The augmented state [v, I] with v = e^{A s} D_1 and I = ∫_0^s v: y' = [A v; v], `BA` = 2 N
+// entries for a loop state of N.
+type BoundMatrix<const BA: usize> = SMatrix<f64, BA, BA>;
+type BoundVector<const BA: usize> = SVector<f64, BA>;
 const MAX_CROSSINGS: usize = 64;
 
 /// Exponential for the current advance length, cut into `pieces` of `len`.
 #[derive(Clone, Debug)]
-struct AdvanceCache {
+struct AdvanceCache<const N: usize, const BA: usize, const KO: usize> {
     h: f64,
     pieces: usize,
     len: f64,
-    kernel: PieceKernel,
+    kernel: PieceKernel<N, BA, KO>,
 }
 
 /// Everything a whole piece needs, fused into one pass over the response v (at a piece start
-/// y = [v, 0]: the integral columns drop out): outputs 0–9 are e^{M len} y, 10–12 are h′, h″
-/// and h‴ at the start, 13 is `remainder`·|v|, which bounds how far h‴ moves over the piece.
-/// Stored by column, sixteen outputs wide, so that the pass vectorizes across the outputs.
+/// y = [v, 0]: the integral columns drop out): outputs 0..BA are e^{M len} y, the next three
+/// are h′, h″ and h‴ at the start, the next `remainder`·|v|, which bounds how far h‴ moves over
+/// the piece (the speed loop: outputs 0–9, 10–12, 13). Stored by column, `KO` outputs wide, so
+/// that the pass vectorizes across the outputs.
 #[derive(Clone, Debug)]
-struct PieceKernel {
-    cols: [KernelColumn<KERNEL_OUT>; CL],
+struct PieceKernel<const N: usize, const BA: usize, const KO: usize> {
+    cols: [KernelColumn<KO>; N],
 }
-
-const KERNEL_OUT: usize = 16;
-/// The output that takes |v|: the growth bound of h‴.
-const GROWTH_ROW: usize = 13;
 
 /// What the kernel gives for one piece: the end state, [h, h′, h″] at the start and a bound on
 /// |h‴| over the piece.
-struct Piece {
-    end: BoundVector,
+struct Piece<const BA: usize> {
+    end: BoundVector<BA>,
     d: [f64; 3],
     c3: f64,
 }
 
-impl PieceKernel {
-    fn new(phi: &BoundMatrix, rows: &SignalRows<BA>, remainder: &BoundVector) -> PieceKernel {
+impl<const N: usize, const BA: usize, const KO: usize> PieceKernel<N, BA, KO> {
+    /// The output that takes |v|: the growth bound of h‴.
+    const GROWTH_ROW: usize = BA + 3;
+
+    fn new(phi: &BoundMatrix<BA>, rows: &SignalRows<BA>, remainder: &BoundVector<BA>) -> Self {
+        assert!(BA == 2 * N && KO > Self::GROWTH_ROW, "kernel of {KO} outputs for a loop of {N}");
         PieceKernel {
             cols: KernelColumn::table(|r, j| match r {
-                0..BA => phi[(r, j)],
-                10..=12 => rows.row(r - 9)[j],
-                GROWTH_ROW => remainder[j],
+                _ if r < BA => phi[(r, j)],
+                _ if r < Self::GROWTH_ROW => rows.row(r - BA + 1)[j],
+                _ if r == Self::GROWTH_ROW => remainder[j],
                 _ => 0.0,
             }),
         }
     }
 
-    fn apply(&self, v: &[f64; CL]) -> Piece {
-        let mut acc = [0.0; KERNEL_OUT];
+    fn apply(&self, v: &[f64; N], out: usize) -> Piece<BA> {
+        let mut acc = [0.0; KO];
         for (col, &vj) in self.cols.iter().zip(v) {
-            col.accumulate(&mut acc, vj, GROWTH_ROW);
+            col.accumulate(&mut acc, vj, Self::GROWTH_ROW);
         }
         Piece {
             end: BoundVector::from_column_slice(&acc[..BA]),
-            d: [v[OMEGA_L], acc[10], acc[11]],
-            c3: acc[12].abs() + acc[GROWTH_ROW],
+            d: [v[out], acc[BA], acc[BA + 1]],
+            c3: acc[BA + 2].abs() + acc[Self::GROWTH_ROW],
         }
     }
 }
 
-/// bound(t), bound_paper(t) and bound_sup of docs/model.md §3, advanced alongside the simulation.
+/// The bounds of the speed loop of docs/model.md §3 (`bound`, `bound_paper`, `bound_sup`).
+pub type SpeedErrorBound = LoopBound<CL, { 2 * CL }, 16, 4>;
+/// A bound of the web line (docs/model.md §8), on its load speed or its span tension.
+pub type WebLoopBound = LoopBound<WEB_CL, { 2 * WEB_CL }, 18, 6>;
+
+/// bound(t), bound_paper(t) and bound_sup of docs/model.md §3, advanced alongside the simulation,
+/// for a backlash-free loop of `N` states (augmented to `BA` = 2 N, `KO` kernel outputs, at
+/// most `R` coordinates in the tail bound) and the response of one of them.
 ///
 /// h(s) = L_c e^{A s} D_1 is tracked exactly through the augmented state [v, ∫v]; ∫|h| is the
 /// sum of |∫h| between the sign changes of h, which are located like contact switches
 /// (`roots`): no quadrature.
 #[derive(Clone, Debug)]
-pub struct SpeedErrorBound {
+pub struct LoopBound<const N: usize, const BA: usize, const KO: usize, const R: usize> {
     /// K g [N·m or N].
     scale: f64,
-    m: BoundMatrix,
+    /// The entry of the loop state whose response h is (ω_L, or T on a web line).
+    out: usize,
+    m: BoundMatrix<BA>,
     sparse: Sparse<BA>,
     h_rows: SignalRows<BA>,
-    start: BoundVector,
-    state: BoundState,
+    start: BoundVector<BA>,
+    state: BoundState<N>,
     /// bound_sup and its relative slack (see `compute_sup`).
     sup: Result<(f64, f64), Unbounded>,
     /// Bounds what is left of ∫|h|; None when the loop does not decay.
-    tail: Option<TailBound>,
-    cache: Option<AdvanceCache>,
+    tail: Option<TailBound<N, R>>,
+    cache: Option<AdvanceCache<N, BA, KO>>,
     /// `settled_now()` of `state`, kept with it: in the settled regime the response no longer
     /// moves, so the answer cannot change until the state is replaced.
     settled: bool,
@@ -145,32 +167,73 @@ pub struct SpeedErrorBound {
     reach_limit: f64,
 }
 
+/// Refuses gains that are not finite or not in scale.
+fn check_gains(named: &[(&'static str, f64)]) -> Result<(), BoundError> {
+    for &(name, value) in named {
+        if !value.is_finite() {
+            return Err(BoundError::NonFiniteGain { name, value });
+        }
+        if super::params::in_scale(name, value).is_err() {
+            return Err(BoundError::GainOutOfScale { name, value });
+        }
+    }
+    Ok(())
+}
+
 impl SpeedErrorBound {
     pub fn new(plant: &Plant, gains: PiGains) -> Result<SpeedErrorBound, BoundError> {
-        for (name, value) in [("Kp", gains.kp), ("Ki", gains.ki)] {
-            if !value.is_finite() {
-                return Err(BoundError::NonFiniteGain { name, value });
-            }
-            if super::params::in_scale(name, value).is_err() {
-                return Err(BoundError::GainOutOfScale { name, value });
-            }
-        }
-        let a = closed_loop(plant, gains);
-        let mut m = BoundMatrix::zeros();
-        m.fixed_view_mut::<CL, CL>(0, 0).copy_from(&a);
-        m.fixed_view_mut::<CL, CL>(CL, 0)
-            .copy_from(&SMatrix::<f64, CL, CL>::identity());
+        check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
+        Ok(Self::build(plant, closed_loop(plant, gains), OMEGA_L, Reduced::new(plant, gains)))
+    }
+}
+
+/// The output of the web line a [`WebLoopBound`] bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WebOutput {
+    /// The load speed ω_L [rad/s]: `bound`, `bound_sup`.
+    Speed,
+    /// The span tension T [N]: `bound_T`, `bound_T_sup`.
+    Tension,
+}
+
+impl WebLoopBound {
+    /// The bound on `output` of the web line under the speed PI `speed` and the tension PI
+    /// `tension` (both gains 0: no tension loop). Panics unless `plant` has a web span.
+    pub fn new(plant: &Plant, speed: PiGains, tension: PiGains, output: WebOutput) -> Result<WebLoopBound, BoundError> {
+        check_gains(&[
+            ("Kp", speed.kp),
+            ("Ki", speed.ki),
+            ("Kp_T", tension.kp),
+            ("Ki_T", tension.ki),
+        ])?;
+        let out = match output {
+            WebOutput::Speed => OMEGA_L,
+            WebOutput::Tension => super::closed_loop::TENSION,
+        };
+        let reduced = Reduced::web(plant, speed, tension, out);
+        Ok(Self::build(plant, web_loop(plant, speed, tension), out, reduced))
+    }
+}
+
+impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound<N, BA, KO, R> {
+    /// The bound of loop `a` on the response of entry `out`, with the reduced loop for its tail.
+    fn build(plant: &Plant, a: SMatrix<f64, N, N>, out: usize, reduced: Reduced) -> Self {
+        let mut m = BoundMatrix::<BA>::zeros();
+        m.fixed_view_mut::<N, N>(0, 0).copy_from(&a);
+        m.fixed_view_mut::<N, N>(N, 0)
+            .copy_from(&SMatrix::<f64, N, N>::identity());
         let p = plant.params();
-        let mut start = BoundVector::zeros();
+        let mut start = BoundVector::<BA>::zeros();
         start[1] = plant.r_m() / p.j_m;
         start[OMEGA_L] = -plant.r_l() / p.j_l;
         let rate = linear::fastest_rate(plant).max(spectral_radius(&a));
         let len_ref = linear::PIECE_RATE / rate;
-        let mut c = BoundVector::zeros();
-        c[OMEGA_L] = 1.0;
+        let mut c = BoundVector::<BA>::zeros();
+        c[out] = 1.0;
         let scale = plant.stiffness() * plant.half_gap();
-        let mut bound = SpeedErrorBound {
+        let mut bound = LoopBound {
             scale,
+            out,
             m,
             sparse: Sparse::new(&m),
             h_rows: SignalRows::new(c, &m, len_ref),
@@ -182,22 +245,21 @@ impl SpeedErrorBound {
             settled: false,
             reach: 0.0,
             drift_peak: 0.0,
-            // Then the squares in ‖integral‖₂ stay finite, and K g ‖integral‖₂ ≤ K g √5 reach
+            // Then the squares in ‖integral‖₂ stay finite, and K g ‖integral‖₂ ≤ K g √N reach
             // is below f64::MAX.
             reach_limit: (f64::MAX / (4.0 * scale)).min(1e150),
         };
-        let reduced = Reduced::new(plant, gains);
         bound.tail = reduced.tail_bound().ok();
         bound.reset();
         bound.sup = bound.compute_sup(&reduced);
         bound.reset();
-        Ok(bound)
+        bound
     }
 
     /// Back to the experiment's start (elapsed = 0).
     pub fn reset(&mut self) {
         self.state = BoundState::default();
-        self.state.response.copy_from_slice(&self.start.as_slice()[..CL]);
+        self.state.response.copy_from_slice(&self.start.as_slice()[..N]);
         self.settle();
     }
 
@@ -228,7 +290,7 @@ impl SpeedErrorBound {
     }
 
     fn refresh_reach(&mut self) {
-        let peak = |xs: &[f64; CL]| xs.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+        let peak = |xs: &[f64; N]| xs.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
         self.reach = peak(&self.state.integral);
         self.drift_peak = peak(&self.state.response);
     }
@@ -292,9 +354,9 @@ impl SpeedErrorBound {
         for _ in 0..cache.pieces {
             // Each piece integrates from zero, so ∫h over it keeps full precision however large
             // the running integral has grown.
-            let mut y = BoundVector::zeros();
-            y.as_mut_slice()[..CL].copy_from_slice(&response);
-            let mut whole_piece = Some(cache.kernel.apply(&response));
+            let mut y = BoundVector::<BA>::zeros();
+            y.as_mut_slice()[..N].copy_from_slice(&response);
+            let mut whole_piece = Some(cache.kernel.apply(&response, self.out));
             let mut done = 0.0;
             // A piece is shorter than a half period of the loop: it holds few sign changes.
             // Past `MAX_CROSSINGS`, or where the search cannot decide (h within round-off of 0
@@ -304,7 +366,7 @@ impl SpeedErrorBound {
                 let span = cache.len - done;
                 // The kernel's pass covers the piece from its start only.
                 let whole = whole_piece.take();
-                let before = y[CL + OMEGA_L];
+                let before = y[N + self.out];
                 let mut model = None;
                 let found = if crossing < MAX_CROSSINGS {
                     let probe = whole.as_ref().map(|p| (p.d, p.c3));
@@ -319,7 +381,7 @@ impl SpeedErrorBound {
                             (None, Some(model)) => model.at(span),
                             (None, None) => TaylorModel::new(&self.sparse, &y, span).at(span),
                         };
-                        l1 += (y[CL + OMEGA_L] - before).abs();
+                        l1 += (y[N + self.out] - before).abs();
                         break;
                     }
                     Ok(Some(offset)) => {
@@ -329,8 +391,8 @@ impl SpeedErrorBound {
                             .at(offset);
                         // On the root: h is 0 there to round-off, and exactly 0 keeps the
                         // search on the new side from seeing the crossing again.
-                        y[OMEGA_L] = 0.0;
-                        l1 += (y[CL + OMEGA_L] - before).abs();
+                        y[self.out] = 0.0;
+                        l1 += (y[N + self.out] - before).abs();
                         done += offset;
                         if done >= cache.len {
                             break;
@@ -339,18 +401,18 @@ impl SpeedErrorBound {
                     Err(Undecided) => {
                         let model = model.unwrap_or_else(|| TaylorModel::new(&self.sparse, &y, span));
                         y = model.at(span);
-                        let net = (y[CL + OMEGA_L] - before).abs();
-                        let upper = roots::abs_integral_bound(&model.poly(OMEGA_L), span).max(net);
+                        let net = (y[N + self.out] - before).abs();
+                        let upper = roots::abs_integral_bound(&model.poly(self.out), span).max(net);
                         l1 += upper;
                         excess += upper - net;
                         break;
                     }
                 }
             }
-            for (total, piece) in self.state.integral.iter_mut().zip(&y.as_slice()[CL..]) {
+            for (total, piece) in self.state.integral.iter_mut().zip(&y.as_slice()[N..]) {
                 *total += piece;
             }
-            response.copy_from_slice(&y.as_slice()[..CL]);
+            response.copy_from_slice(&y.as_slice()[..N]);
         }
         self.state.response = response;
         self.state.l1 = l1;
@@ -364,7 +426,7 @@ impl SpeedErrorBound {
     /// The Taylor model of the piece, when the search needed it, is left in `model`.
     fn sign_change(
         &self,
-        y: &BoundVector,
+        y: &BoundVector<BA>,
         span: f64,
         probe: Option<([f64; 3], f64)>,
         model: &mut Option<TaylorModel<BA>>,
@@ -384,14 +446,14 @@ impl SpeedErrorBound {
         };
         // The smallest positive floor keeps an h that is zero to the last bit (no response
         // left) on its side, rather than searched for a sign it does not have.
-        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[OMEGA_L].abs()) + f64::MIN_POSITIVE;
+        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[self.out].abs()) + f64::MIN_POSITIVE;
         let side = Side { offset: 0.0, sign, tol };
         if roots::cubic_clear(sign * d[0], sign * d[1], sign * d[2], c3, span, tol) {
             return Ok(None);
         }
         let poly = model
             .get_or_insert_with(|| TaylorModel::new(&self.sparse, y, span))
-            .poly(OMEGA_L);
+            .poly(self.out);
         roots::first_exit(&poly, side, span, budget)
     }
 
@@ -403,7 +465,7 @@ impl SpeedErrorBound {
     /// ∫ e^{As}D_1 after `h` more in the settled regime: bound is final, and what remains of
     /// e^{As}D_1 is the constant rigid-body part, so the integral grows by it linearly (the
     /// rest is below round-off).
-    fn drift(&self, h: f64) -> [f64; CL] {
+    fn drift(&self, h: f64) -> [f64; N] {
         let mut integral = self.state.integral;
         for (total, v) in integral.iter_mut().zip(&self.state.response) {
             *total += v * h;
@@ -423,7 +485,7 @@ impl SpeedErrorBound {
 
     /// d bound/dt = K g |h(t)|, h = ω_L entry of e^{A t} D_1 (docs/model.md §3) [rad/s²].
     pub fn bound_rate(&self) -> f64 {
-        self.scale * self.state.response[OMEGA_L].abs()
+        self.scale * self.state.response[self.out].abs()
     }
 
     /// d bound_paper/dt = K g (I·r)/‖I‖ with I = ∫ e^{A s} D_1 ds and r = e^{A t} D_1; at I = 0
@@ -455,12 +517,12 @@ impl SpeedErrorBound {
         self.state.elapsed
     }
 
-    pub fn state(&self) -> BoundState {
+    pub fn state(&self) -> BoundState<N> {
         self.state
     }
 
     /// Restores a saved state (validated: finite, elapsed ≥ 0, l1 ≥ 0).
-    pub fn restore(&mut self, state: &BoundState) -> Result<(), BoundError> {
+    pub fn restore(&mut self, state: &BoundState<N>) -> Result<(), BoundError> {
         let finite = state
             .response
             .iter()
@@ -480,7 +542,7 @@ impl SpeedErrorBound {
     fn compute_sup(&mut self, reduced: &Reduced) -> Result<(f64, f64), Unbounded> {
         let tail = match &self.tail {
             Some(tail) => tail.clone(),
-            None => return Err(reduced.tail_bound().err().unwrap_or(Unbounded::Undamped)),
+            None => return Err(reduced.tail_bound::<N, R>().err().unwrap_or(Unbounded::Undamped)),
         };
         let chunk = SUP_CHECK_PIECES as f64 * self.h_rows.len_ref();
         let mut pieces = 0;

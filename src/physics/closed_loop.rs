@@ -8,7 +8,7 @@
 
 use super::bound::Unbounded;
 use super::params::Plant;
-use nalgebra::{Complex, DMatrix, DVector, Matrix4, SMatrix, SVector};
+use nalgebra::{Complex, DMatrix, DVector, Matrix4, SMatrix};
 
 /// PI speed controller on ω_m: τ_m = Kp e + Ki ∫e, e = ω_ref − ω_m (docs/model.md §3).
 /// Kp [N·m·s/rad], Ki [N·m/rad]; Kp = Ki = 0 means the open-loop plant.
@@ -89,66 +89,139 @@ fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
     Some(schur.complex_eigenvalues().iter().copied().collect())
 }
 
-/// The loop in the coordinates h depends on: [u, ω_m, ω_L] and x_c when Ki ≠ 0. The angle
-/// translation (u fixed) is neither excited by D_1 nor seen by ω_L, and x_c without Ki feeds
-/// nothing back, so these are exactly the modes that h excites (docs/model.md §3, and §4 `bound_sup`).
+/// The web line's loop state [θ_m, ω_m, θ_L, ω_L, x_c, T, x_T] (docs/model.md §8): the speed
+/// loop's with the span tension and the tension PI's integrator.
+pub const WEB_CL: usize = 7;
+/// T in the web line's loop state.
+pub const TENSION: usize = 5;
+/// x_T = ∫(T_ref − T) in the web line's loop state.
+const X_T: usize = 6;
+
+/// The backlash-free web line under the speed PI and the tension PI that trims its reference,
+/// ω_ref += Kp_T (T_ref − T) + Ki_T x_T (docs/model.md §8), in the state [`WEB_CL`]. With zero
+/// references the speed error is e = −ω_m − Kp_T T + Ki_T x_T, τ_m = Kp e + Ki x_c, x_c' = e,
+/// x_T' = −T. Integrators without gain stay 0.
+pub fn web_loop(plant: &Plant, speed: PiGains, tension: PiGains) -> SMatrix<f64, WEB_CL, WEB_CL> {
+    let web = plant.web().expect("the web loop needs a web span");
+    let p = plant.params();
+    let mut a = SMatrix::<f64, WEB_CL, WEB_CL>::zeros();
+    a.fixed_view_mut::<CL, CL>(0, 0).copy_from(&closed_loop(plant, speed));
+    // e's dependence on T and x_T, through τ_m and x_c.
+    a[(1, TENSION)] = -speed.kp * tension.kp / p.j_m;
+    a[(1, X_T)] = speed.kp * tension.ki / p.j_m;
+    if speed.kp != 0.0 || speed.ki != 0.0 {
+        a[(4, TENSION)] = -tension.kp;
+        a[(4, X_T)] = tension.ki;
+    }
+    a[(OMEGA_L, TENSION)] = -web.r_w / p.j_l;
+    a[(TENSION, OMEGA_L)] = web.ea * web.r_w / web.l_w;
+    a[(TENSION, TENSION)] = -web.v_ref / web.l_w;
+    if tension.kp != 0.0 || tension.ki != 0.0 {
+        a[(X_T, TENSION)] = -1.0;
+    }
+    a
+}
+
+/// The loop in the coordinates an output's impulse response depends on: for the speed loop
+/// [u, ω_m, ω_L] and x_c when Ki ≠ 0; for the web line also T and x_T when Ki_T ≠ 0. The angle
+/// translation (u fixed) is neither excited by D_1 nor seen by ω_L or T, and an integrator
+/// without gain feeds nothing back, so these are exactly the modes that the response excites
+/// (docs/model.md §3, and §4 `bound_sup`). `proj` maps the loop state onto them.
 pub(crate) struct Reduced {
     a: DMatrix<f64>,
     out: DVector<f64>,
-    r_m: f64,
-    r_l: f64,
+    proj: DMatrix<f64>,
 }
 
 /// A bound on ∫_T^∞ |h| from the reduced state x(T). With ε = −α/2 (α the spectral abscissa),
 /// Cauchy–Schwarz with the weight e^{ε(s−T)} gives
 /// ∫_T^∞ |h| ≤ sqrt(1/(2ε)) · sqrt(xᵀ W x), W the observability Gramian of (A + εI, L):
 /// (A + εI)ᵀ W + W (A + εI) = −Lᵀ L. It decays at half the true rate, so it is never loose
-/// by more than the state's own decay.
+/// by more than the state's own decay. `N` is the loop state's size, `R` the most reduced
+/// coordinates (unused ones are zero rows of the projection and zero entries of W).
 #[derive(Clone, Debug)]
-pub(crate) struct TailBound {
-    /// W in the reduced coordinates, zero-padded to 4×4 when x_c is not among them.
-    gramian: SMatrix<f64, 4, 4>,
+pub(crate) struct TailBound<const N: usize, const R: usize> {
+    /// W in the reduced coordinates, zero-padded to R×R.
+    gramian: SMatrix<f64, R, R>,
+    /// The loop state onto the reduced coordinates, zero-padded to R rows.
+    proj: SMatrix<f64, R, N>,
     epsilon: f64,
-    r_m: f64,
-    r_l: f64,
-    with_xc: bool,
 }
 
-impl TailBound {
+impl<const N: usize, const R: usize> TailBound<N, R> {
     /// The bound for the full response v (projected on the reduced coordinates).
-    pub(crate) fn of(&self, v: &[f64; CL]) -> f64 {
+    pub(crate) fn of(&self, v: &[f64; N]) -> f64 {
         (self.squared(v) / (2.0 * self.epsilon)).sqrt()
     }
 
     /// Whether `of(v)` ≤ `limit` (≥ 0), without the square root and the division: a test
     /// made after every advance until the response has decayed.
-    pub(crate) fn at_most(&self, v: &[f64; CL], limit: f64) -> bool {
+    pub(crate) fn at_most(&self, v: &[f64; N], limit: f64) -> bool {
         self.squared(v) <= 2.0 * self.epsilon * limit * limit
     }
 
-    fn squared(&self, v: &[f64; CL]) -> f64 {
-        let xc = if self.with_xc { v[4] } else { 0.0 };
-        let x = SVector::<f64, 4>::new(self.r_m * v[0] - self.r_l * v[2], v[1], v[OMEGA_L], xc);
+    fn squared(&self, v: &[f64; N]) -> f64 {
+        let x = self.proj * SMatrix::<f64, N, 1>::from_column_slice(v);
         x.dot(&(self.gramian * x)).max(0.0)
     }
 }
 
 impl Reduced {
+    /// The speed loop's: h the response of ω_L.
     pub(crate) fn new(plant: &Plant, gains: PiGains) -> Reduced {
         let n = if gains.ki != 0.0 { 4 } else { 3 };
         let full = reduced_loop_matrix(plant, gains);
         let a = DMatrix::from_fn(n, n, |i, j| full[(i, j)]);
         let mut out = DVector::zeros(n);
         out[2] = 1.0;
-        Reduced {
-            a,
-            out,
-            r_m: plant.r_m(),
-            r_l: plant.r_l(),
+        // x = [r_m θ_m − r_L θ_L, ω_m, ω_L, x_c] from [θ_m, ω_m, θ_L, ω_L, x_c].
+        let mut proj = DMatrix::zeros(n, CL);
+        proj[(0, 0)] = plant.r_m();
+        proj[(0, 2)] = -plant.r_l();
+        proj[(1, 1)] = 1.0;
+        proj[(2, OMEGA_L)] = 1.0;
+        if n == 4 {
+            proj[(3, 4)] = 1.0;
         }
+        Reduced { a, out, proj }
     }
 
-    pub(crate) fn tail_bound(&self) -> Result<TailBound, Unbounded> {
+    /// The web line's, for the response of ω_L or of T (`output`, an index of the loop state
+    /// [`WEB_CL`]): the loop of [`web_loop`] on [u, ω_m, ω_L, T] and the integrators with gain.
+    pub(crate) fn web(plant: &Plant, speed: PiGains, tension: PiGains, output: usize) -> Reduced {
+        let full = web_loop(plant, speed, tension);
+        // The loop state's entries kept besides u: ω_m, ω_L, T, then x_c, x_T with gain.
+        let mut kept = vec![1, OMEGA_L, TENSION];
+        if speed.ki != 0.0 {
+            kept.push(4);
+        }
+        if tension.ki != 0.0 {
+            kept.push(X_T);
+        }
+        let n = 1 + kept.len();
+        let mut proj = DMatrix::zeros(n, WEB_CL);
+        proj[(0, 0)] = plant.r_m();
+        proj[(0, 2)] = -plant.r_l();
+        for (i, &j) in kept.iter().enumerate() {
+            proj[(i + 1, j)] = 1.0;
+        }
+        // A_r with P A = A_r P: the θ columns of A enter only through u = r_m θ_m − r_L θ_L
+        // (column θ_m of A is r_m times the u column), the others map one to one.
+        let full = DMatrix::from_iterator(WEB_CL, WEB_CL, full.iter().copied());
+        let pa = &proj * &full;
+        let mut a = DMatrix::zeros(n, n);
+        for i in 0..n {
+            a[(i, 0)] = pa[(i, 0)] / plant.r_m();
+            for (k, &j) in kept.iter().enumerate() {
+                a[(i, k + 1)] = pa[(i, j)];
+            }
+        }
+        let mut out = DVector::zeros(n);
+        out[1 + kept.iter().position(|&j| j == output).expect("ω_L or T")] = 1.0;
+        Reduced { a, out, proj }
+    }
+
+    pub(crate) fn tail_bound<const N: usize, const R: usize>(&self) -> Result<TailBound<N, R>, Unbounded> {
         let n = self.a.nrows();
         let eig = eigenvalues(&self.a).ok_or(Unbounded::Indeterminate)?;
         let radius = eig.iter().map(|l| l.norm()).fold(0.0, f64::max);
@@ -168,19 +241,18 @@ impl Reduced {
         let rhs = -DVector::from_iterator(n * n, (&self.out * self.out.transpose()).iter().copied());
         let vec_w = kron.lu().solve(&rhs).ok_or(Unbounded::Undamped)?;
         let w = DMatrix::from_iterator(n, n, vec_w.iter().copied());
-        let mut gramian = SMatrix::<f64, 4, 4>::zeros();
+        assert!(n <= R && self.proj.ncols() == N, "a tail bound of {R} coordinates for a loop of {N}");
+        let mut gramian = SMatrix::<f64, R, R>::zeros();
+        let mut proj = SMatrix::<f64, R, N>::zeros();
         for i in 0..n {
             for j in 0..n {
                 gramian[(i, j)] = 0.5 * (w[(i, j)] + w[(j, i)]);
             }
+            for j in 0..N {
+                proj[(i, j)] = self.proj[(i, j)];
+            }
         }
-        Ok(TailBound {
-            gramian,
-            epsilon,
-            r_m: self.r_m,
-            r_l: self.r_l,
-            with_xc: n == 4,
-        })
+        Ok(TailBound { gramian, proj, epsilon })
     }
 }
 
@@ -206,5 +278,39 @@ mod tests {
         let rhs = reduced_loop_matrix(&plant, gains) * proj;
         let scale = lhs.abs().max();
         assert!((lhs - rhs).abs().max() <= 1e-14 * scale, "{lhs} vs {rhs}");
+    }
+
+    #[test]
+    fn the_web_loop_and_its_reduced_form_commute() {
+        use crate::physics::{Geometry, WebSpan};
+        let plant = Plant::new(PlantParams {
+            j_m: 1e-4,
+            j_l: 5e-3,
+            b_m: 1e-4,
+            b_l: 1e-3,
+            geometry: Geometry::Belt {
+                k_b: 2e5,
+                r_1: 0.02,
+                r_2: 0.04,
+                r_g1: 0.015,
+                r_g2: 0.045,
+                delta: 5e-5,
+            },
+            web: Some(WebSpan::FILM_LINE),
+        })
+        .unwrap();
+        let speed = PiGains { kp: 0.18, ki: 57.6 };
+        for tension in [PiGains::default(), PiGains { kp: 0.01, ki: 0.05 }, PiGains { kp: 2e-4, ki: 0.0 }] {
+            let full = web_loop(&plant, speed, tension);
+            let full = DMatrix::from_iterator(WEB_CL, WEB_CL, full.iter().copied());
+            for output in [OMEGA_L, TENSION] {
+                let r = Reduced::web(&plant, speed, tension, output);
+                let (lhs, rhs) = (&r.proj * &full, &r.a * &r.proj);
+                let scale = lhs.abs().max();
+                assert!((lhs - rhs).abs().max() <= 1e-14 * scale, "{tension:?}: {} vs {}", &r.proj * &full, &r.a * &r.proj);
+                // The output row picks the same entry in both coordinates.
+                assert_eq!((r.out.transpose() * &r.proj)[output], 1.0);
+            }
+        }
     }
 }
