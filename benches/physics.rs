@@ -1,7 +1,11 @@
 //! Cost of the physics core (issue targets: an event-free step within a few 4×4 matrix–vector
-//! products, a step with a switch under 2 µs). Run: `cargo bench --bench physics`.
+//! products, a step with a switch under 2 µs; the web line's event-free step within 1.5× the
+//! belt drive's). Run: `cargo bench --bench physics`.
 
-use backlash_fmu::physics::{ContactMode, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper};
+use backlash_fmu::physics::{
+    ContactMode, Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, WebSpan,
+    WebSpeedBound, WebTensionBound,
+};
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{Matrix4, Vector4};
 use std::hint::black_box;
@@ -65,5 +69,69 @@ fn benches(c: &mut Criterion) {
     });
 }
 
-criterion_group!(physics, benches);
+/// BacklashBelt's start values, pulling the film line's web span or not.
+fn belt(web: Option<WebSpan>) -> Plant {
+    Plant::new(PlantParams {
+        j_m: 1e-4,
+        j_l: 5e-3,
+        b_m: 1e-4,
+        b_l: 1e-3,
+        geometry: Geometry::Belt {
+            k_b: 2e5,
+            r_1: 0.02,
+            r_2: 0.04,
+            r_g1: 0.015,
+            r_g2: 0.045,
+            delta: 5e-5,
+        },
+        web,
+    })
+    .expect("valid belt drive")
+}
+
+/// The belt drive and the web line side by side: the event-free step of a co-simulation at the
+/// belt's default step size (100 µs, one piece: `quiet_step`, the FMU's common case), and one
+/// step's update of the web line's two bounds.
+fn web_benches(c: &mut Criterion) {
+    const H_BELT: f64 = 1e-4;
+    for (name, web) in [
+        ("belt_quiet_step_100us", None),
+        ("web_quiet_step_100us", Some(WebSpan::FILM_LINE)),
+    ] {
+        let plant = belt(web);
+        let mut stepper = Stepper::new(plant);
+        let pressed = PlantState::new(&plant, (plant.half_gap() + 1e-4) / plant.r_m(), 0.0, 0.0, 0.0).with_tension(5.0);
+        let inputs = Inputs::held(0.5, 0.0);
+        let mut warm = pressed;
+        stepper
+            .step(&mut warm, &inputs, H_BELT, &mut |_| {})
+            .expect("valid step");
+        assert!(
+            stepper.quiet_step(&pressed, &inputs, H_BELT).is_some(),
+            "{name}: a quiet step"
+        );
+        c.bench_function(name, |b| {
+            b.iter(|| stepper.quiet_step(black_box(&pressed), &inputs, H_BELT))
+        });
+    }
+    let plant = belt(Some(WebSpan::FILM_LINE));
+    let speed = PiGains { kp: 0.18, ki: 57.6 };
+    let tension = PiGains { kp: 0.01, ki: 0.05 };
+    let mut speed_bound = WebSpeedBound::new(&plant, speed, tension).expect("valid gains");
+    let mut tension_bound = WebTensionBound::new(&plant, speed, tension).expect("valid gains");
+    speed_bound.advance(0.0123).expect("valid advance");
+    tension_bound.advance(0.0123).expect("valid advance");
+    let saved = (speed_bound.state(), tension_bound.state());
+    c.bench_function("web_bounds_advance_100us", |b| {
+        b.iter(|| {
+            speed_bound.restore(&saved.0).expect("valid state");
+            speed_bound.advance(black_box(H_BELT)).expect("valid advance");
+            tension_bound.restore(&saved.1).expect("valid state");
+            tension_bound.advance(black_box(H_BELT)).expect("valid advance");
+            tension_bound.bound()
+        })
+    });
+}
+
+criterion_group!(physics, benches, web_benches);
 criterion_main!(physics);

@@ -264,3 +264,72 @@ fn web_parameters_are_refused_by_name() {
     assert!(Plant::new(shaft).is_ok());
     assert!(Plant::new(belt_damped(1e-4, 0.0, 0.0)).unwrap().web().is_none());
 }
+
+/// Twin web lines (with Δ and with Δ = 0) under the same continuous-time PI loops, reversing
+/// speed reference and a tension reference, solved by the independent integrator: their
+/// tension and load-speed differences stay within the library's bound_T(t) and bound(t) at
+/// every sample, with and without the tension loop, and the bounds are not vacuous.
+#[test]
+fn twin_web_lines_stay_within_bound_t_and_bound() {
+    use backlash_fmu::physics::{PiGains, WebSpeedBound, WebTensionBound};
+    use support::web_reference::{WebLoopSetup, WebPiLoop, PI_OMEGA_L, PI_TENSION};
+    let params = web_line(5e-5);
+    let plant = Plant::new(params).unwrap();
+    let speed = PiGains {
+        kp: 0.178805,
+        ki: 57.61789,
+    };
+    for tension in [PiGains::default(), PiGains { kp: 0.01, ki: 0.05 }] {
+        let setup = WebLoopSetup {
+            kp: speed.kp,
+            ki: speed.ki,
+            kp_t: tension.kp,
+            ki_t: tension.ki,
+            t_ref: 2.0,
+            v_in: 0.0,
+            t_in: 0.0,
+            amp: 30.0,
+            w: 2.0 * std::f64::consts::PI * 5.0,
+        };
+        let mut with_gap = WebPiLoop::new(&params, setup, true);
+        let mut without = WebPiLoop::new(&params, setup, false);
+        let mut bound_t = WebTensionBound::new(&plant, speed, tension).unwrap();
+        let mut bound = WebSpeedBound::new(&plant, speed, tension).unwrap();
+        let dt = 2e-4;
+        let (mut switches, mut worst_t, mut worst_w) = (0, 0.0f64, 0.0f64);
+        for _ in 0..5000 {
+            switches += with_gap.advance(dt);
+            without.advance(dt);
+            bound_t.advance(dt).unwrap();
+            bound.advance(dt).unwrap();
+            let dt_diff = (with_gap.y[PI_TENSION] - without.y[PI_TENSION]).abs();
+            let dw_diff = (with_gap.y[PI_OMEGA_L] - without.y[PI_OMEGA_L]).abs();
+            assert!(
+                dt_diff <= bound_t.bound() * (1.0 + 1e-9),
+                "{tension:?} t = {}: |ΔT| {dt_diff} > bound_T {}",
+                with_gap.t,
+                bound_t.bound()
+            );
+            assert!(
+                dw_diff <= bound.bound() * (1.0 + 1e-9),
+                "{tension:?} t = {}: |Δω_L| {dw_diff} > bound {}",
+                with_gap.t,
+                bound.bound()
+            );
+            worst_t = worst_t.max(dt_diff / bound_t.bound());
+            worst_w = worst_w.max(dw_diff / bound.bound());
+        }
+        let (sup_t, sup) = (bound_t.sup().unwrap(), bound.sup().unwrap());
+        println!(
+            "tension PI {tension:?}: {switches} switches in 1 s; max |ΔT|/bound_T {worst_t:.3}, max |Δω_L|/bound {worst_w:.3}; \
+             bound_T(1 s) {:.4} N of bound_T_sup {sup_t:.4} N",
+            bound_t.bound()
+        );
+        assert!(switches >= 8, "the reference reverses: {switches} switches");
+        assert!(bound_t.bound() <= sup_t && bound.bound() <= sup);
+        assert!(
+            worst_t > 0.05 && worst_w > 0.05,
+            "bounds far from the differences: {worst_t}, {worst_w}"
+        );
+    }
+}

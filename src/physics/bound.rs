@@ -3,7 +3,7 @@
 
 pub use super::closed_loop::PiGains;
 
-use super::closed_loop::{closed_loop, spectral_radius, web_loop, Reduced, TailBound, CL, OMEGA_L, WEB_CL};
+use super::closed_loop::{closed_loop, spectral_radius, web_loop, Reduced, TailBound, CL, OMEGA_L, TENSION, WEB_CL};
 use super::kernel::KernelColumn;
 use super::linear;
 use super::params::Plant;
@@ -104,7 +104,10 @@ impl<const N: usize, const BA: usize, const KO: usize> PieceKernel<N, BA, KO> {
     const GROWTH_ROW: usize = BA + 3;
 
     fn new(phi: &BoundMatrix<BA>, rows: &SignalRows<BA>, remainder: &BoundVector<BA>) -> Self {
-        assert!(BA == 2 * N && KO > Self::GROWTH_ROW, "kernel of {KO} outputs for a loop of {N}");
+        assert!(
+            BA == 2 * N && KO > Self::GROWTH_ROW,
+            "kernel of {KO} outputs for a loop of {N}"
+        );
         PieceKernel {
             cols: KernelColumn::table(|r, j| match r {
                 _ if r < BA => phi[(r, j)],
@@ -129,23 +132,26 @@ impl<const N: usize, const BA: usize, const KO: usize> PieceKernel<N, BA, KO> {
 }
 
 /// The bounds of the speed loop of docs/model.md §3 (`bound`, `bound_paper`, `bound_sup`).
-pub type SpeedErrorBound = LoopBound<CL, { 2 * CL }, 16, 4>;
-/// A bound of the web line (docs/model.md §8), on its load speed or its span tension.
-pub type WebLoopBound = LoopBound<WEB_CL, { 2 * WEB_CL }, 18, 6>;
+pub type SpeedErrorBound = LoopBound<CL, { 2 * CL }, 16, 4, OMEGA_L>;
+/// A bound of the web line (docs/model.md §8) on the entry `OUT` of its loop state.
+pub type WebLoopBound<const OUT: usize> = LoopBound<WEB_CL, { 2 * WEB_CL }, 18, 6, OUT>;
+/// The web line's bounds on its load speed ω_L: `bound`, `bound_paper`, `bound_sup`.
+pub type WebSpeedBound = WebLoopBound<OMEGA_L>;
+/// The web line's bounds on its span tension T: `bound_T`, `bound_T_sup`.
+pub type WebTensionBound = WebLoopBound<TENSION>;
 
 /// bound(t), bound_paper(t) and bound_sup of docs/model.md §3, advanced alongside the simulation,
 /// for a backlash-free loop of `N` states (augmented to `BA` = 2 N, `KO` kernel outputs, at
-/// most `R` coordinates in the tail bound) and the response of one of them.
+/// most `R` coordinates in the tail bound) and the response of its entry `OUT` (ω_L, or T on a
+/// web line).
 ///
 /// h(s) = L_c e^{A s} D_1 is tracked exactly through the augmented state [v, ∫v]; ∫|h| is the
 /// sum of |∫h| between the sign changes of h, which are located like contact switches
 /// (`roots`): no quadrature.
 #[derive(Clone, Debug)]
-pub struct LoopBound<const N: usize, const BA: usize, const KO: usize, const R: usize> {
+pub struct LoopBound<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT: usize> {
     /// K g [N·m or N].
     scale: f64,
-    /// The entry of the loop state whose response h is (ω_L, or T on a web line).
-    out: usize,
     m: BoundMatrix<BA>,
     sparse: Sparse<BA>,
     h_rows: SignalRows<BA>,
@@ -183,41 +189,32 @@ fn check_gains(named: &[(&'static str, f64)]) -> Result<(), BoundError> {
 impl SpeedErrorBound {
     pub fn new(plant: &Plant, gains: PiGains) -> Result<SpeedErrorBound, BoundError> {
         check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
-        Ok(Self::build(plant, closed_loop(plant, gains), OMEGA_L, Reduced::new(plant, gains)))
+        Ok(Self::build(
+            plant,
+            closed_loop(plant, gains),
+            Reduced::new(plant, gains),
+        ))
     }
 }
 
-/// The output of the web line a [`WebLoopBound`] bounds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum WebOutput {
-    /// The load speed ω_L [rad/s]: `bound`, `bound_sup`.
-    Speed,
-    /// The span tension T [N]: `bound_T`, `bound_T_sup`.
-    Tension,
-}
-
-impl WebLoopBound {
-    /// The bound on `output` of the web line under the speed PI `speed` and the tension PI
-    /// `tension` (both gains 0: no tension loop). Panics unless `plant` has a web span.
-    pub fn new(plant: &Plant, speed: PiGains, tension: PiGains, output: WebOutput) -> Result<WebLoopBound, BoundError> {
+impl<const OUT: usize> WebLoopBound<OUT> {
+    /// The bound of the web line under the speed PI `speed` and the tension PI `tension`
+    /// (both gains 0: no tension loop). Panics unless `plant` has a web span.
+    pub fn new(plant: &Plant, speed: PiGains, tension: PiGains) -> Result<Self, BoundError> {
         check_gains(&[
             ("Kp", speed.kp),
             ("Ki", speed.ki),
             ("Kp_T", tension.kp),
             ("Ki_T", tension.ki),
         ])?;
-        let out = match output {
-            WebOutput::Speed => OMEGA_L,
-            WebOutput::Tension => super::closed_loop::TENSION,
-        };
-        let reduced = Reduced::web(plant, speed, tension, out);
-        Ok(Self::build(plant, web_loop(plant, speed, tension), out, reduced))
+        let reduced = Reduced::web(plant, speed, tension, OUT);
+        Ok(Self::build(plant, web_loop(plant, speed, tension), reduced))
     }
 }
 
-impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound<N, BA, KO, R> {
-    /// The bound of loop `a` on the response of entry `out`, with the reduced loop for its tail.
-    fn build(plant: &Plant, a: SMatrix<f64, N, N>, out: usize, reduced: Reduced) -> Self {
+impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT: usize> LoopBound<N, BA, KO, R, OUT> {
+    /// The bound of loop `a` on the response of entry `OUT`, with the reduced loop for its tail.
+    fn build(plant: &Plant, a: SMatrix<f64, N, N>, reduced: Reduced) -> Self {
         let mut m = BoundMatrix::<BA>::zeros();
         m.fixed_view_mut::<N, N>(0, 0).copy_from(&a);
         m.fixed_view_mut::<N, N>(N, 0)
@@ -229,11 +226,10 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
         let rate = linear::fastest_rate(plant).max(spectral_radius(&a));
         let len_ref = linear::PIECE_RATE / rate;
         let mut c = BoundVector::<BA>::zeros();
-        c[out] = 1.0;
+        c[OUT] = 1.0;
         let scale = plant.stiffness() * plant.half_gap();
         let mut bound = LoopBound {
             scale,
-            out,
             m,
             sparse: Sparse::new(&m),
             h_rows: SignalRows::new(c, &m, len_ref),
@@ -356,7 +352,7 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
             // the running integral has grown.
             let mut y = BoundVector::<BA>::zeros();
             y.as_mut_slice()[..N].copy_from_slice(&response);
-            let mut whole_piece = Some(cache.kernel.apply(&response, self.out));
+            let mut whole_piece = Some(cache.kernel.apply(&response, OUT));
             let mut done = 0.0;
             // A piece is shorter than a half period of the loop: it holds few sign changes.
             // Past `MAX_CROSSINGS`, or where the search cannot decide (h within round-off of 0
@@ -366,7 +362,7 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
                 let span = cache.len - done;
                 // The kernel's pass covers the piece from its start only.
                 let whole = whole_piece.take();
-                let before = y[N + self.out];
+                let before = y[N + OUT];
                 let mut model = None;
                 let found = if crossing < MAX_CROSSINGS {
                     let probe = whole.as_ref().map(|p| (p.d, p.c3));
@@ -381,7 +377,7 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
                             (None, Some(model)) => model.at(span),
                             (None, None) => TaylorModel::new(&self.sparse, &y, span).at(span),
                         };
-                        l1 += (y[N + self.out] - before).abs();
+                        l1 += (y[N + OUT] - before).abs();
                         break;
                     }
                     Ok(Some(offset)) => {
@@ -391,8 +387,8 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
                             .at(offset);
                         // On the root: h is 0 there to round-off, and exactly 0 keeps the
                         // search on the new side from seeing the crossing again.
-                        y[self.out] = 0.0;
-                        l1 += (y[N + self.out] - before).abs();
+                        y[OUT] = 0.0;
+                        l1 += (y[N + OUT] - before).abs();
                         done += offset;
                         if done >= cache.len {
                             break;
@@ -401,8 +397,8 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
                     Err(Undecided) => {
                         let model = model.unwrap_or_else(|| TaylorModel::new(&self.sparse, &y, span));
                         y = model.at(span);
-                        let net = (y[N + self.out] - before).abs();
-                        let upper = roots::abs_integral_bound(&model.poly(self.out), span).max(net);
+                        let net = (y[N + OUT] - before).abs();
+                        let upper = roots::abs_integral_bound(&model.poly(OUT), span).max(net);
                         l1 += upper;
                         excess += upper - net;
                         break;
@@ -446,14 +442,14 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
         };
         // The smallest positive floor keeps an h that is zero to the last bit (no response
         // left) on its side, rather than searched for a sign it does not have.
-        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[self.out].abs()) + f64::MIN_POSITIVE;
+        let tol = 8.0 * f64::EPSILON * (y[1].abs() + y[OUT].abs()) + f64::MIN_POSITIVE;
         let side = Side { offset: 0.0, sign, tol };
         if roots::cubic_clear(sign * d[0], sign * d[1], sign * d[2], c3, span, tol) {
             return Ok(None);
         }
         let poly = model
             .get_or_insert_with(|| TaylorModel::new(&self.sparse, y, span))
-            .poly(self.out);
+            .poly(OUT);
         roots::first_exit(&poly, side, span, budget)
     }
 
@@ -485,7 +481,7 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize> LoopBound
 
     /// d bound/dt = K g |h(t)|, h = ω_L entry of e^{A t} D_1 (docs/model.md §3) [rad/s²].
     pub fn bound_rate(&self) -> f64 {
-        self.scale * self.state.response[self.out].abs()
+        self.scale * self.state.response[OUT].abs()
     }
 
     /// d bound_paper/dt = K g (I·r)/‖I‖ with I = ∫ e^{A s} D_1 ds and r = e^{A t} D_1; at I = 0

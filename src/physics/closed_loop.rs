@@ -126,11 +126,14 @@ pub fn web_loop(plant: &Plant, speed: PiGains, tension: PiGains) -> SMatrix<f64,
 /// [u, ω_m, ω_L] and x_c when Ki ≠ 0; for the web line also T and x_T when Ki_T ≠ 0. The angle
 /// translation (u fixed) is neither excited by D_1 nor seen by ω_L or T, and an integrator
 /// without gain feeds nothing back, so these are exactly the modes that the response excites
-/// (docs/model.md §3, and §4 `bound_sup`). `proj` maps the loop state onto them.
+/// (docs/model.md §3, and §4 `bound_sup`). The coordinates are u = r_m θ_m − r_L θ_L and the
+/// entries `kept` of the loop state.
 pub(crate) struct Reduced {
     a: DMatrix<f64>,
     out: DVector<f64>,
-    proj: DMatrix<f64>,
+    r_m: f64,
+    r_l: f64,
+    kept: Vec<usize>,
 }
 
 /// A bound on ∫_T^∞ |h| from the reduced state x(T). With ε = −α/2 (α the spectral abscissa),
@@ -143,8 +146,10 @@ pub(crate) struct Reduced {
 pub(crate) struct TailBound<const N: usize, const R: usize> {
     /// W in the reduced coordinates, zero-padded to R×R.
     gramian: SMatrix<f64, R, R>,
-    /// The loop state onto the reduced coordinates, zero-padded to R rows.
-    proj: SMatrix<f64, R, N>,
+    /// The reduced coordinates: u = r_m v[0] − r_L v[2], then v[kept[i]] (None: padding, 0).
+    r_m: f64,
+    r_l: f64,
+    kept: [Option<usize>; R],
     epsilon: f64,
 }
 
@@ -161,7 +166,11 @@ impl<const N: usize, const R: usize> TailBound<N, R> {
     }
 
     fn squared(&self, v: &[f64; N]) -> f64 {
-        let x = self.proj * SMatrix::<f64, N, 1>::from_column_slice(v);
+        let x = SMatrix::<f64, R, 1>::from_fn(|i, _| match (i, self.kept[i]) {
+            (0, _) => self.r_m * v[0] - self.r_l * v[2],
+            (_, Some(j)) => v[j],
+            (_, None) => 0.0,
+        });
         x.dot(&(self.gramian * x)).max(0.0)
     }
 }
@@ -175,15 +184,25 @@ impl Reduced {
         let mut out = DVector::zeros(n);
         out[2] = 1.0;
         // x = [r_m θ_m − r_L θ_L, ω_m, ω_L, x_c] from [θ_m, ω_m, θ_L, ω_L, x_c].
-        let mut proj = DMatrix::zeros(n, CL);
-        proj[(0, 0)] = plant.r_m();
-        proj[(0, 2)] = -plant.r_l();
-        proj[(1, 1)] = 1.0;
-        proj[(2, OMEGA_L)] = 1.0;
-        if n == 4 {
-            proj[(3, 4)] = 1.0;
+        let kept = [1, OMEGA_L, 4][..n - 1].to_vec();
+        Reduced {
+            a,
+            out,
+            r_m: plant.r_m(),
+            r_l: plant.r_l(),
+            kept,
         }
-        Reduced { a, out, proj }
+    }
+
+    /// The map from the loop state (`cols` entries) onto the reduced coordinates.
+    fn projection(&self, cols: usize) -> DMatrix<f64> {
+        let mut proj = DMatrix::zeros(1 + self.kept.len(), cols);
+        proj[(0, 0)] = self.r_m;
+        proj[(0, 2)] = -self.r_l;
+        for (i, &j) in self.kept.iter().enumerate() {
+            proj[(i + 1, j)] = 1.0;
+        }
+        proj
     }
 
     /// The web line's, for the response of ω_L or of T (`output`, an index of the loop state
@@ -199,26 +218,27 @@ impl Reduced {
             kept.push(X_T);
         }
         let n = 1 + kept.len();
-        let mut proj = DMatrix::zeros(n, WEB_CL);
-        proj[(0, 0)] = plant.r_m();
-        proj[(0, 2)] = -plant.r_l();
-        for (i, &j) in kept.iter().enumerate() {
-            proj[(i + 1, j)] = 1.0;
-        }
+        let mut reduced = Reduced {
+            a: DMatrix::zeros(n, n),
+            out: DVector::zeros(n),
+            r_m: plant.r_m(),
+            r_l: plant.r_l(),
+            kept,
+        };
+        let proj = reduced.projection(WEB_CL);
         // A_r with P A = A_r P: the θ columns of A enter only through u = r_m θ_m − r_L θ_L
         // (column θ_m of A is r_m times the u column), the others map one to one.
         let full = DMatrix::from_iterator(WEB_CL, WEB_CL, full.iter().copied());
         let pa = &proj * &full;
-        let mut a = DMatrix::zeros(n, n);
         for i in 0..n {
-            a[(i, 0)] = pa[(i, 0)] / plant.r_m();
-            for (k, &j) in kept.iter().enumerate() {
-                a[(i, k + 1)] = pa[(i, j)];
+            reduced.a[(i, 0)] = pa[(i, 0)] / plant.r_m();
+            for (k, &j) in reduced.kept.iter().enumerate() {
+                reduced.a[(i, k + 1)] = pa[(i, j)];
             }
         }
-        let mut out = DVector::zeros(n);
-        out[1 + kept.iter().position(|&j| j == output).expect("ω_L or T")] = 1.0;
-        Reduced { a, out, proj }
+        let at = reduced.kept.iter().position(|&j| j == output).expect("ω_L or T");
+        reduced.out[1 + at] = 1.0;
+        reduced
     }
 
     pub(crate) fn tail_bound<const N: usize, const R: usize>(&self) -> Result<TailBound<N, R>, Unbounded> {
@@ -241,18 +261,23 @@ impl Reduced {
         let rhs = -DVector::from_iterator(n * n, (&self.out * self.out.transpose()).iter().copied());
         let vec_w = kron.lu().solve(&rhs).ok_or(Unbounded::Undamped)?;
         let w = DMatrix::from_iterator(n, n, vec_w.iter().copied());
-        assert!(n <= R && self.proj.ncols() == N, "a tail bound of {R} coordinates for a loop of {N}");
+        assert!(
+            n <= R && self.kept.iter().all(|&j| j < N),
+            "a tail bound of {R} coordinates for a loop of {N}"
+        );
         let mut gramian = SMatrix::<f64, R, R>::zeros();
-        let mut proj = SMatrix::<f64, R, N>::zeros();
         for i in 0..n {
             for j in 0..n {
                 gramian[(i, j)] = 0.5 * (w[(i, j)] + w[(j, i)]);
             }
-            for j in 0..N {
-                proj[(i, j)] = self.proj[(i, j)];
-            }
         }
-        Ok(TailBound { gramian, proj, epsilon })
+        Ok(TailBound {
+            gramian,
+            r_m: self.r_m,
+            r_l: self.r_l,
+            kept: std::array::from_fn(|i| i.checked_sub(1).and_then(|k| self.kept.get(k).copied())),
+            epsilon,
+        })
     }
 }
 
@@ -300,16 +325,24 @@ mod tests {
         })
         .unwrap();
         let speed = PiGains { kp: 0.18, ki: 57.6 };
-        for tension in [PiGains::default(), PiGains { kp: 0.01, ki: 0.05 }, PiGains { kp: 2e-4, ki: 0.0 }] {
+        for tension in [
+            PiGains::default(),
+            PiGains { kp: 0.01, ki: 0.05 },
+            PiGains { kp: 2e-4, ki: 0.0 },
+        ] {
             let full = web_loop(&plant, speed, tension);
             let full = DMatrix::from_iterator(WEB_CL, WEB_CL, full.iter().copied());
             for output in [OMEGA_L, TENSION] {
                 let r = Reduced::web(&plant, speed, tension, output);
-                let (lhs, rhs) = (&r.proj * &full, &r.a * &r.proj);
+                let proj = r.projection(WEB_CL);
+                let (lhs, rhs) = (&proj * &full, &r.a * &proj);
                 let scale = lhs.abs().max();
-                assert!((lhs - rhs).abs().max() <= 1e-14 * scale, "{tension:?}: {} vs {}", &r.proj * &full, &r.a * &r.proj);
+                assert!(
+                    (&lhs - &rhs).abs().max() <= 1e-14 * scale,
+                    "{tension:?}: {lhs} vs {rhs}"
+                );
                 // The output row picks the same entry in both coordinates.
-                assert_eq!((r.out.transpose() * &r.proj)[output], 1.0);
+                assert_eq!((r.out.transpose() * &proj)[output], 1.0);
             }
         }
     }

@@ -15,7 +15,7 @@ pub mod stepper;
 pub mod taylor;
 pub mod vector_field;
 
-pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded, WebLoopBound, WebOutput};
+pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded, WebSpeedBound, WebTensionBound};
 pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, Geometry, ParamError, Plant, PlantParams, WebSpan};
 pub use stepper::{max_step, Inputs, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP};

@@ -98,10 +98,10 @@ def test_bounds_per_unit_delta_agree_with_the_reference(case):
     _, d = case
     b_T, b = bound_sups(params_of(d), *gains_of(d))
     delta = d["plant"]["Delta"]
-    assert d["bound_T_sup_per_unit_delta"] == pytest.approx(b_T / delta, rel=1e-7)
-    assert d["bound_sup_per_unit_delta"] == pytest.approx(b / delta, rel=1e-7)
-    assert d["bound_T_sup_at_delta"] == pytest.approx(b_T, rel=1e-7)
-    assert d["bound_sup_at_delta"] == pytest.approx(b, rel=1e-7)
+    assert d["bound_T_sup_per_unit_delta"] == pytest.approx(b_T / delta, rel=1e-8)
+    assert d["bound_sup_per_unit_delta"] == pytest.approx(b / delta, rel=1e-8)
+    assert d["bound_T_sup_at_delta"] == pytest.approx(b_T, rel=1e-8)
+    assert d["bound_sup_at_delta"] == pytest.approx(b, rel=1e-8)
 
 
 def test_delta_max_is_where_the_first_accuracy_is_reached(case):
@@ -142,7 +142,7 @@ def test_k_scan_agrees_with_the_reference(case):
     for target in (0.5 * k_nom, k_nom, 2.0 * k_nom):
         k, b_T, b = scan[np.argmin(np.abs(np.log(scan[:, 0] / target)))]
         ref_T, ref = bound_sups(params_of(d, K_b=k), *gains_of(d))
-        assert (b_T, b) == (pytest.approx(ref_T, rel=1e-7), pytest.approx(ref, rel=1e-7))
+        assert (b_T, b) == (pytest.approx(ref_T, rel=1e-8), pytest.approx(ref, rel=1e-8))
 
 
 @pytest.mark.parametrize("name", ["tension", "tension-loop"])

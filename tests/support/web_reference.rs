@@ -135,3 +135,136 @@ impl WebReference {
         }
     }
 }
+
+/// The web line under the continuous-time speed PI and the tension PI that trims its reference
+/// (docs/model.md §8), with or without the gap: y = [u, ω_m, ω_L, θ_m, θ_L, x_c, T, x_T],
+/// e = ω_ref(t) + Kp_T (T_ref − T) + Ki_T x_T − ω_m, τ_m = Kp e + Ki x_c, x_c' = e,
+/// x_T' = T_ref − T, ω_ref(t) = amp sin(w t); τ_L = 0, v_in, T_in and T_ref constant.
+pub struct WebPiLoop {
+    sys: Hybrid<8>,
+    pub mode: usize,
+    pub y: [f64; 8],
+    pub t: f64,
+    /// Kp/J_m and Kp_T T_ref: how ω_ref enters; T_ref.
+    kp_over_jm: f64,
+    trim: f64,
+    t_ref: f64,
+    /// The span's constant forcing (v_ref T_in − EA v_in)/L_w.
+    span: f64,
+    amp: f64,
+    w: f64,
+}
+
+/// Entries of [`WebPiLoop::y`].
+pub const PI_OMEGA_L: usize = 2;
+pub const PI_TENSION: usize = 6;
+
+/// The gains and references of a [`WebPiLoop`].
+#[derive(Clone, Copy, Debug)]
+pub struct WebLoopSetup {
+    pub kp: f64,
+    pub ki: f64,
+    pub kp_t: f64,
+    pub ki_t: f64,
+    pub t_ref: f64,
+    pub v_in: f64,
+    pub t_in: f64,
+    /// Amplitude [rad/s] and angular frequency [rad/s] of the speed reference.
+    pub amp: f64,
+    pub w: f64,
+}
+
+impl WebPiLoop {
+    pub fn new(params: &PlantParams, s: WebLoopSetup, with_gap: bool) -> WebPiLoop {
+        let f = GenericForm::from_params(params);
+        let web = params.web.expect("a web line");
+        let g = if with_gap { f.g } else { 0.0 };
+        const U: usize = 0;
+        const WM: usize = 1;
+        const WL: usize = 2;
+        const XC: usize = 5;
+        const T: usize = PI_TENSION;
+        const XT: usize = 7;
+        let build = |sigma: f64, contact: bool| {
+            let mut a = [[0.0; 8]; 8];
+            let mut c = [0.0; 8];
+            a[U][WM] = f.r_m;
+            a[U][WL] = -f.r_l;
+            a[WM][WM] = -(f.b_m + s.kp) / f.j_m;
+            a[WM][XC] = s.ki / f.j_m;
+            a[WM][T] = -s.kp * s.kp_t / f.j_m;
+            a[WM][XT] = s.kp * s.ki_t / f.j_m;
+            a[WL][WL] = -f.b_l / f.j_l;
+            a[WL][T] = -web.r_w / f.j_l;
+            a[3][WM] = 1.0;
+            a[4][WL] = 1.0;
+            a[XC][WM] = -1.0;
+            a[XC][T] = -s.kp_t;
+            a[XC][XT] = s.ki_t;
+            a[T][WL] = web.ea * web.r_w / web.l_w;
+            a[T][T] = -web.v_ref / web.l_w;
+            a[XT][T] = -1.0;
+            if contact {
+                a[WM][U] = -f.r_m * f.k / f.j_m;
+                a[WL][U] = f.r_l * f.k / f.j_l;
+                c[WM] = f.r_m * f.k * sigma * g / f.j_m;
+                c[WL] = -f.r_l * f.k * sigma * g / f.j_l;
+            }
+            (a, c)
+        };
+        let modes = if g == 0.0 {
+            let (a, c) = build(0.0, true);
+            vec![Mode { a, c, guards: vec![] }]
+        } else {
+            backlash_modes(g, U, build)
+        };
+        // Start with u = 0: inside the gap, or the single linear mode; T at T_in.
+        let mut y = [0.0; 8];
+        y[T] = s.t_in;
+        WebPiLoop {
+            sys: Hybrid::new(modes, (0.25f64).min(0.5 / s.w)),
+            mode: if g == 0.0 { 0 } else { 1 },
+            y,
+            t: 0.0,
+            kp_over_jm: s.kp / f.j_m,
+            trim: s.kp_t * s.t_ref,
+            t_ref: s.t_ref,
+            span: (web.v_ref * s.t_in - web.ea * s.v_in) / web.l_w,
+            amp: s.amp,
+            w: s.w,
+        }
+    }
+
+    /// Advances by `dt`; returns the number of contact switches.
+    pub fn advance(&mut self, dt: f64) -> usize {
+        let (t0, k, trim, t_ref) = (self.t, self.kp_over_jm, self.trim, self.t_ref);
+        let (span, amp, w) = (self.span, self.amp, self.w);
+        // Normalised Taylor coefficients of ω_ref at t0 + s: amp wⁿ sin(w t + nπ/2) / n!; the
+        // constant parts (trim, span, T_ref) in the zeroth.
+        let forcing = move |s: f64, out: &mut Coeffs<8>| {
+            let (sn, cs) = (w * (t0 + s)).sin_cos();
+            let mut scale = amp;
+            for (n, row) in out.iter_mut().enumerate() {
+                let r = match n % 4 {
+                    0 => sn,
+                    1 => cs,
+                    2 => -sn,
+                    _ => -cs,
+                } * scale;
+                let constant = if n == 0 { trim } else { 0.0 };
+                row[1] = k * (r + constant);
+                row[5] = r + constant;
+                if n == 0 {
+                    row[PI_TENSION] = span;
+                    row[7] = t_ref;
+                }
+                scale *= w / (n + 1) as f64;
+            }
+        };
+        let mut events = Vec::new();
+        self.sys
+            .advance(&mut self.mode, &mut self.y, dt, &forcing, &mut events, &mut |_| {});
+        self.t += dt;
+        events.len()
+    }
+}

@@ -7,11 +7,11 @@
 //! bounded disturbance φ (|φ| ≤ K g) of §3, so the deviations it causes are bounded by
 //! `bound_T_sup = K g ∫_0^∞ |h_T|` (tension) and `bound_sup = K g ∫_0^∞ |h|` (load speed), h_T
 //! and h the impulse responses from φ of the backlash-free loop, computed by the plant library
-//! ([`WebLoopBound`], docs/model.md §8).
+//! ([`WebTensionBound`], [`WebSpeedBound`], docs/model.md §8).
 
 use serde_json::{json, Value};
 
-use backlash_fmu::physics::{PiGains, Plant, PlantParams, WebLoopBound, WebOutput};
+use backlash_fmu::physics::{PiGains, Plant, PlantParams, WebSpeedBound, WebTensionBound};
 
 use super::study::{self, DesignError, StiffnessScan, StiffnessStudy};
 
@@ -27,25 +27,21 @@ pub struct Sups {
     pub speed: f64,
 }
 
-/// `bound_T_sup` and `bound_sup` of the web line (the plant library's [`WebLoopBound`], as the
+/// `bound_T_sup` and `bound_sup` of the web line (the plant library's [`WebTensionBound`] and [`WebSpeedBound`], as the
 /// FMU computes them); `DesignError::Unbounded` when the loop is not asymptotically stable.
 pub fn sups(drive: &PlantParams, web: &Web, speed: PiGains, tension: PiGains) -> Result<Sups, DesignError> {
     let plant = Plant::new(PlantParams {
         web: Some(*web),
         ..*drive
     })?;
-    let sup = |output| -> Result<f64, DesignError> {
-        WebLoopBound::new(&plant, speed, tension, output)?
-            .sup()
-            .map_err(|reason| DesignError::Unbounded {
-                kp: speed.kp,
-                ki: speed.ki,
-                reason,
-            })
+    let unbounded = |reason| DesignError::Unbounded {
+        kp: speed.kp,
+        ki: speed.ki,
+        reason,
     };
     Ok(Sups {
-        tension: sup(WebOutput::Tension)?,
-        speed: sup(WebOutput::Speed)?,
+        tension: WebTensionBound::new(&plant, speed, tension)?.sup().map_err(unbounded)?,
+        speed: WebSpeedBound::new(&plant, speed, tension)?.sup().map_err(unbounded)?,
     })
 }
 
