@@ -36,6 +36,13 @@ commands:
   help      this text";
 
 fn main() {
+    // Rust ignores SIGPIPE, so printing into a pipe its reader has closed (`| head`) would
+    // panic; with the default action the process ends quietly there, as other tools do.
+    #[cfg(unix)]
+    // SAFETY: sets a signal disposition to its default before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (command, rest) = match args.split_first() {
         Some((command, rest)) => (command.as_str(), rest),
