@@ -231,21 +231,10 @@ impl PiLoop {
 
     pub fn advance(&mut self, dt: f64) -> usize {
         let (t0, j_m, kp, amp, w) = (self.t, self.j_m, self.kp, self.amp, self.w);
-        // Normalised Taylor coefficients of ω_ref at t0 + s: amp wⁿ sin(w t + nπ/2) / n!.
         let forcing = move |s: f64, out: &mut Coeffs<6>| {
-            let phase = w * (t0 + s);
-            let (sn, cs) = phase.sin_cos();
-            let mut scale = amp;
-            for (n, row) in out.iter_mut().enumerate() {
-                let r = match n % 4 {
-                    0 => sn,
-                    1 => cs,
-                    2 => -sn,
-                    _ => -cs,
-                } * scale;
+            for (row, r) in out.iter_mut().zip(sine_taylor(amp, w, t0 + s)) {
                 row[1] = kp * r / j_m;
                 row[5] = r;
-                scale *= w / (n + 1) as f64;
             }
         };
         let mut events = Vec::new();
@@ -254,4 +243,20 @@ impl PiLoop {
         self.t += dt;
         events.len()
     }
+}
+
+/// Normalised Taylor coefficients of amp sin(w (t + s)) in s: amp wⁿ sin(w t + nπ/2) / n!.
+pub fn sine_taylor(amp: f64, w: f64, t: f64) -> [f64; ORDER + 1] {
+    let (sn, cs) = (w * t).sin_cos();
+    let mut scale = amp;
+    std::array::from_fn(|n| {
+        let r = match n % 4 {
+            0 => sn,
+            1 => cs,
+            2 => -sn,
+            _ => -cs,
+        } * scale;
+        scale *= w / (n + 1) as f64;
+        r
+    })
 }

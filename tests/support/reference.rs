@@ -142,6 +142,32 @@ pub struct PowerIntegrals {
     pub dissipated: f64,
 }
 
+/// (A, c) of the drive train in the mode on flank `sigma` (−1, +1) or free, for a state whose
+/// first `DIM` entries are [u, v, ω_m, ω_L, θ_m, θ_L] (further entries left to the caller):
+/// v' = r_m ω_m' − r_L ω_L' = F(t) − (r_m b_m/J_m) ω_m + (r_L b_L/J_L) ω_L − μ ψ, and in contact
+/// ψ = K (u − σ g), J_m ω_m' = … − r_m ψ, J_L ω_L' = … + r_L ψ.
+pub fn drive_mode<const N: usize>(f: &GenericForm, sigma: f64, contact: bool) -> ([[f64; N]; N], [f64; N]) {
+    let mut a = [[0.0; N]; N];
+    let mut c = [0.0; N];
+    let mu = f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l;
+    a[U][V] = 1.0;
+    a[V][W_M] = -f.r_m * f.b_m / f.j_m;
+    a[V][W_L] = f.r_l * f.b_l / f.j_l;
+    a[W_M][W_M] = -f.b_m / f.j_m;
+    a[W_L][W_L] = -f.b_l / f.j_l;
+    a[TH_M][W_M] = 1.0;
+    a[TH_L][W_L] = 1.0;
+    if contact {
+        a[V][U] = -mu * f.k;
+        a[W_M][U] = -f.r_m * f.k / f.j_m;
+        a[W_L][U] = f.r_l * f.k / f.j_l;
+        c[V] = mu * f.k * sigma * f.g;
+        c[W_M] = f.r_m * f.k * sigma * f.g / f.j_m;
+        c[W_L] = -f.r_l * f.k * sigma * f.g / f.j_l;
+    }
+    (a, c)
+}
+
 pub struct Reference {
     pub form: GenericForm,
     sys: Hybrid<DIM>,
@@ -153,29 +179,7 @@ impl Reference {
     }
 
     pub fn from_form(f: GenericForm) -> Reference {
-        let mode = |sigma: f64, contact: bool| {
-            let mut a = [[0.0; DIM]; DIM];
-            let mut c = [0.0; DIM];
-            // v' = r_m ω_m' − r_L ω_L' = F(t) − (r_m b_m/J_m) ω_m + (r_L b_L/J_L) ω_L − μ ψ.
-            let mu = f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l;
-            a[U][V] = 1.0;
-            a[V][W_M] = -f.r_m * f.b_m / f.j_m;
-            a[V][W_L] = f.r_l * f.b_l / f.j_l;
-            a[W_M][W_M] = -f.b_m / f.j_m;
-            a[W_L][W_L] = -f.b_l / f.j_l;
-            a[TH_M][W_M] = 1.0;
-            a[TH_L][W_L] = 1.0;
-            if contact {
-                // ψ = K (u − σ g): J_m ω_m' = … − r_m ψ, J_L ω_L' = … + r_L ψ.
-                a[V][U] = -mu * f.k;
-                a[W_M][U] = -f.r_m * f.k / f.j_m;
-                a[W_L][U] = f.r_l * f.k / f.j_l;
-                c[V] = mu * f.k * sigma * f.g;
-                c[W_M] = f.r_m * f.k * sigma * f.g / f.j_m;
-                c[W_L] = -f.r_l * f.k * sigma * f.g / f.j_l;
-            }
-            (a, c)
-        };
+        let mode = |sigma: f64, contact: bool| drive_mode::<DIM>(&f, sigma, contact);
         let g = f.g;
         let modes = if g == 0.0 {
             // No gap: both flanks carry K u, one mode in effect and no switch.

@@ -6,7 +6,8 @@
 //! of their own) plus the span tension:
 //! J_L ω_L' = τ_L − b_L ω_L + r_L ψ − R_w T, L_w T' = EA (R_w ω_L − v_in) + v_ref (T_in − T).
 
-use super::reference::{GenericForm, RefEvent, TH_L, TH_M, U, V, W_L, W_M};
+use super::reference::{drive_mode, GenericForm, RefEvent, TH_L, TH_M, U, V, W_L, W_M};
+use super::closed_loop::sine_taylor;
 use super::taylor::{backlash_modes, Coeffs, Event, Hybrid, Mode};
 use backlash_fmu::physics::PlantParams;
 
@@ -49,29 +50,12 @@ impl WebReference {
         let web = params.web.expect("a web line");
         let (r_w, l_w, ea, v_ref) = (web.r_w, web.l_w, web.ea, web.v_ref);
         let mode = |sigma: f64, contact: bool| {
-            let mut a = [[0.0; DIM]; DIM];
-            let mut c = [0.0; DIM];
-            let mu = f.r_m * f.r_m / f.j_m + f.r_l * f.r_l / f.j_l;
-            a[U][V] = 1.0;
-            a[V][W_M] = -f.r_m * f.b_m / f.j_m;
-            a[V][W_L] = f.r_l * f.b_l / f.j_l;
-            a[W_M][W_M] = -f.b_m / f.j_m;
-            a[W_L][W_L] = -f.b_l / f.j_l;
-            a[TH_M][W_M] = 1.0;
-            a[TH_L][W_L] = 1.0;
+            let (mut a, c) = drive_mode::<DIM>(&f, sigma, contact);
             // The web's pull −R_w T on the load, and through ω_L' on v' = r_m ω_m' − r_L ω_L'.
             a[W_L][TENSION] = -r_w / f.j_l;
             a[V][TENSION] = f.r_l * r_w / f.j_l;
             a[TENSION][W_L] = ea * r_w / l_w;
             a[TENSION][TENSION] = -v_ref / l_w;
-            if contact {
-                a[V][U] = -mu * f.k;
-                a[W_M][U] = -f.r_m * f.k / f.j_m;
-                a[W_L][U] = f.r_l * f.k / f.j_l;
-                c[V] = mu * f.k * sigma * f.g;
-                c[W_M] = f.r_m * f.k * sigma * f.g / f.j_m;
-                c[W_L] = -f.r_l * f.k * sigma * f.g / f.j_l;
-            }
             (a, c)
         };
         let modes = if f.g == 0.0 {
@@ -239,18 +223,9 @@ impl WebPiLoop {
     pub fn advance(&mut self, dt: f64) -> usize {
         let (t0, k, trim, t_ref) = (self.t, self.kp_over_jm, self.trim, self.t_ref);
         let (span, amp, w) = (self.span, self.amp, self.w);
-        // Normalised Taylor coefficients of ω_ref at t0 + s: amp wⁿ sin(w t + nπ/2) / n!; the
-        // constant parts (trim, span, T_ref) in the zeroth.
+        // ω_ref's Taylor coefficients; the constant parts (trim, span, T_ref) in the zeroth.
         let forcing = move |s: f64, out: &mut Coeffs<8>| {
-            let (sn, cs) = (w * (t0 + s)).sin_cos();
-            let mut scale = amp;
-            for (n, row) in out.iter_mut().enumerate() {
-                let r = match n % 4 {
-                    0 => sn,
-                    1 => cs,
-                    2 => -sn,
-                    _ => -cs,
-                } * scale;
+            for (n, (row, r)) in out.iter_mut().zip(sine_taylor(amp, w, t0 + s)).enumerate() {
                 let constant = if n == 0 { trim } else { 0.0 };
                 row[1] = k * (r + constant);
                 row[5] = r + constant;
@@ -258,7 +233,6 @@ impl WebPiLoop {
                     row[PI_TENSION] = span;
                     row[7] = t_ref;
                 }
-                scale *= w / (n + 1) as f64;
             }
         };
         let mut events = Vec::new();
