@@ -2,9 +2,10 @@
 //! products, a step with a switch under 2 µs; the web line's event-free step within 1.5× the
 //! belt drive's). Run: `cargo bench --bench physics`.
 
+use backlash_fmu::fmu::{adapter, model_by_identifier};
 use backlash_fmu::physics::{
-    ContactMode, Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, WebSpan,
-    WebSpeedBound, WebTensionBound,
+    ContactMode, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, WebSpan, WebSpeedBound,
+    WebTensionBound,
 };
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{Matrix4, Vector4};
@@ -72,19 +73,8 @@ fn benches(c: &mut Criterion) {
 /// BacklashBelt's start values, pulling the film line's web span or not.
 fn belt(web: Option<WebSpan>) -> Plant {
     Plant::new(PlantParams {
-        j_m: 1e-4,
-        j_l: 5e-3,
-        b_m: 1e-4,
-        b_l: 1e-3,
-        geometry: Geometry::Belt {
-            k_b: 2e5,
-            r_1: 0.02,
-            r_2: 0.04,
-            r_g1: 0.015,
-            r_g2: 0.045,
-            delta: 5e-5,
-        },
         web,
+        ..adapter::default_plant_params(model_by_identifier("BacklashBelt").expect("a served model"))
     })
     .expect("valid belt drive")
 }

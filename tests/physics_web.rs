@@ -49,12 +49,17 @@ fn relative_errors(got: &[[f64; 6]], want: &[[f64; 6]], g: f64) -> [f64; 4] {
     })
 }
 
+/// Both solutions of one run: samples after every step, and the switches.
+struct Runs {
+    got: Vec<[f64; 6]>,
+    want: Vec<[f64; 6]>,
+    switches: Vec<f64>,
+    ref_events: Vec<RefEvent>,
+}
+
 /// A web line started at line speed (ω_L R_w = v_in, no slip in the gap) and at the upstream
-/// tension, then driven by `schedule`: both solutions sampled after every step, and the switches.
-fn run_both(
-    params: &PlantParams,
-    schedule: &[(WebInputs, f64)],
-) -> (Vec<[f64; 6]>, Vec<[f64; 6]>, Vec<f64>, Vec<RefEvent>) {
+/// tension, then driven by `schedule`.
+fn run_both(params: &PlantParams, schedule: &[(WebInputs, f64)]) -> Runs {
     let plant = Plant::new(*params).unwrap();
     let web = *plant.web().unwrap();
     let (v_in, t_in) = (schedule[0].0.v_in, schedule[0].0.t_in);
@@ -80,11 +85,21 @@ fn run_both(
         got.push(sample(&state));
         want.push(WebReference::sample(&ref_state));
     }
-    (got, want, switches, ref_events)
+    Runs {
+        got,
+        want,
+        switches,
+        ref_events,
+    }
 }
 
 fn assert_agrees(params: &PlantParams, schedule: &[(WebInputs, f64)], label: &str) {
-    let (got, want, switches, ref_events) = run_both(params, schedule);
+    let Runs {
+        got,
+        want,
+        switches,
+        ref_events,
+    } = run_both(params, schedule);
     let g = Plant::new(*params).unwrap().half_gap();
     let errors = relative_errors(&got, &want, g);
     let worst = errors.iter().fold(0.0, |m: f64, e| m.max(*e));

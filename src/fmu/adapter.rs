@@ -190,6 +190,11 @@ pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
     }
 }
 
+/// The plant of `model`'s start values: its default parameters (docs/model.md §4).
+pub fn default_plant_params(model: &ModelInfo) -> PlantParams {
+    plant_params(model, &start_values(model))
+}
+
 /// The PI gains the bounds assume (docs/model.md §3).
 pub fn gains(v: &Values) -> PiGains {
     PiGains {

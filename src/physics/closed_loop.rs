@@ -307,21 +307,12 @@ mod tests {
 
     #[test]
     fn the_web_loop_and_its_reduced_form_commute() {
-        use crate::physics::{Geometry, WebSpan};
+        use crate::physics::WebSpan;
         let plant = Plant::new(PlantParams {
-            j_m: 1e-4,
-            j_l: 5e-3,
-            b_m: 1e-4,
-            b_l: 1e-3,
-            geometry: Geometry::Belt {
-                k_b: 2e5,
-                r_1: 0.02,
-                r_2: 0.04,
-                r_g1: 0.015,
-                r_g2: 0.045,
-                delta: 5e-5,
-            },
             web: Some(WebSpan::FILM_LINE),
+            ..crate::fmu::adapter::default_plant_params(
+                crate::fmu::model_by_identifier("BacklashBelt").expect("a served model"),
+            )
         })
         .unwrap();
         let speed = PiGains { kp: 0.18, ki: 57.6 };

@@ -248,6 +248,9 @@ pub type WebStepper = Exact<WEB_AUG, 10>;
 
 /// Advances the plant exactly (docs/model.md §2), with or without a web span. Holds the
 /// exponentials for the current step size; they are recomputed only when the step size changes.
+// The drive train's stepper stays inline, out of reach of an indirection on the hot path of
+// every step; the web line's, larger still, is boxed.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Stepper {
     Drive(DriveStepper),

@@ -1,5 +1,6 @@
 //! Parameter sets shared by the physics tests.
 
+use backlash_fmu::fmu::{adapter, model_by_identifier};
 use backlash_fmu::physics::{Geometry, PlantParams, WebSpan};
 
 /// The paper's rig (docs/model.md §4) with both viscous coefficients set to `b`.
@@ -49,19 +50,28 @@ pub fn undamped() -> [PlantParams; 4] {
 /// The belt drive of BacklashBelt's start values pulling the film line's web span (docs/model.md
 /// §8).
 pub fn web_line(delta: f64) -> PlantParams {
+    let belt = adapter::default_plant_params(model_by_identifier("BacklashBelt").expect("a served model"));
+    let Geometry::Belt {
+        k_b,
+        r_1,
+        r_2,
+        r_g1,
+        r_g2,
+        ..
+    } = belt.geometry
+    else {
+        panic!("BacklashBelt has belt geometry")
+    };
     PlantParams {
-        j_m: 1e-4,
-        j_l: 5e-3,
-        b_m: 1e-4,
-        b_l: 1e-3,
         geometry: Geometry::Belt {
-            k_b: 2e5,
-            r_1: 0.02,
-            r_2: 0.04,
-            r_g1: 0.015,
-            r_g2: 0.045,
+            k_b,
+            r_1,
+            r_2,
+            r_g1,
+            r_g2,
             delta,
         },
         web: Some(WebSpan::FILM_LINE),
+        ..belt
     }
 }

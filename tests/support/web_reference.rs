@@ -6,8 +6,8 @@
 //! of their own) plus the span tension:
 //! J_L ω_L' = τ_L − b_L ω_L + r_L ψ − R_w T, L_w T' = EA (R_w ω_L − v_in) + v_ref (T_in − T).
 
-use super::reference::{drive_mode, GenericForm, RefEvent, TH_L, TH_M, U, V, W_L, W_M};
 use super::closed_loop::sine_taylor;
+use super::reference::{drive_mode, GenericForm, RefEvent, TH_L, TH_M, U, V, W_L, W_M};
 use super::taylor::{backlash_modes, Coeffs, Event, Hybrid, Mode};
 use backlash_fmu::physics::PlantParams;
 

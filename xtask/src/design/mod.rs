@@ -323,7 +323,7 @@ pub(crate) fn default_params(form: Form) -> PlantParams {
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
         Form::Belt | Form::Web => {
             let model = variables::model_by_identifier("BacklashBelt").expect("the library serves BacklashBelt");
-            adapter::plant_params(model, &adapter::start_values(model))
+            adapter::default_plant_params(model)
         }
     }
 }
