@@ -88,6 +88,14 @@ pub struct PlantParams {
 }
 
 impl PlantParams {
+    /// These parameters with half gap Δ = `delta` [rad (shaft) or m (belt)].
+    pub fn with_half_gap(mut self, delta: f64) -> Self {
+        match &mut self.geometry {
+            Geometry::Shaft { delta: d, .. } | Geometry::Belt { delta: d, .. } => *d = delta,
+        }
+        self
+    }
+
     /// The paper's rectilinear rig (docs/model.md §4) in shaft form, with half gap `delta`.
     pub fn paper_rig(delta: f64) -> Self {
         PlantParams {

@@ -50,28 +50,9 @@ pub fn undamped() -> [PlantParams; 4] {
 /// The belt drive of BacklashBelt's start values pulling the film line's web span (docs/model.md
 /// §8).
 pub fn web_line(delta: f64) -> PlantParams {
-    let belt = adapter::default_plant_params(model_by_identifier("BacklashBelt").expect("a served model"));
-    let Geometry::Belt {
-        k_b,
-        r_1,
-        r_2,
-        r_g1,
-        r_g2,
-        ..
-    } = belt.geometry
-    else {
-        panic!("BacklashBelt has belt geometry")
-    };
     PlantParams {
-        geometry: Geometry::Belt {
-            k_b,
-            r_1,
-            r_2,
-            r_g1,
-            r_g2,
-            delta,
-        },
         web: Some(WebSpan::FILM_LINE),
-        ..belt
+        ..adapter::default_plant_params(model_by_identifier("BacklashBelt").expect("a served model"))
+            .with_half_gap(delta)
     }
 }

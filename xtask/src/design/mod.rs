@@ -218,7 +218,7 @@ pub fn parse(args: &[String]) -> Result<Option<(Command, bool)>, String> {
         match flag {
             "--accuracy" => accuracy = Some(positive(value)?),
             "--tension-accuracy" => tension_accuracy = Some(positive(value)?),
-            "--delta" => params = study::with_half_gap(&params, positive(value)?),
+            "--delta" => params = params.with_half_gap(positive(value)?),
             "--k" => params = study::with_stiffness(&params, positive(value)?),
             "--kp" => kp = Some(value),
             "--ki" => ki = Some(value),
@@ -375,7 +375,7 @@ fn units(form: Form) -> (&'static str, &'static str) {
 /// Runs the design computations of [`study`] for `request`.
 pub fn solve(request: Request) -> Result<Answer, String> {
     let params = request.params;
-    let plant = Plant::new(study::with_half_gap(&params, 0.0)).map_err(|e| e.to_string())?;
+    let plant = Plant::new(params.with_half_gap(0.0)).map_err(|e| e.to_string())?;
     let (gains, rule) = match request.gains {
         Some(g) => (g, None),
         None => {
@@ -384,8 +384,7 @@ pub fn solve(request: Request) -> Result<Answer, String> {
         }
     };
     let min_damping = study::min_damping_ratio(&plant, gains);
-    let bound_sup_per_delta =
-        study::bound_sup(&study::with_half_gap(&params, 1.0), gains).map_err(|e| e.to_string())?;
+    let bound_sup_per_delta = study::bound_sup(&params.with_half_gap(1.0), gains).map_err(|e| e.to_string())?;
     let bound_sup_nominal = study::bound_sup(&params, gains).map_err(|e| e.to_string())?;
     let delta_max = study::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
     let study = study::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
@@ -510,7 +509,7 @@ pub fn to_json(a: &Answer) -> String {
     let poles = match &a.rule {
         Some(d) => d.poles.to_vec(),
         None => {
-            let plant = Plant::new(study::with_half_gap(p, 0.0)).expect("validated in solve");
+            let plant = Plant::new(p.with_half_gap(0.0)).expect("validated in solve");
             closed_loop::reduced_loop_poles(&plant, a.gains).to_vec()
         }
     };

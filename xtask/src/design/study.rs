@@ -62,15 +62,6 @@ pub fn with_stiffness(params: &PlantParams, value: f64) -> PlantParams {
     out
 }
 
-/// `params` with half gap Δ replaced.
-pub fn with_half_gap(params: &PlantParams, value: f64) -> PlantParams {
-    let mut out = *params;
-    match &mut out.geometry {
-        Geometry::Shaft { delta, .. } | Geometry::Belt { delta, .. } => *delta = value,
-    }
-    out
-}
-
 // ---------------------------------------------------------------------------------------------
 // The backlash-free closed loop and the gain rule
 // ---------------------------------------------------------------------------------------------
@@ -244,7 +235,7 @@ fn check_accuracy(epsilon: f64) -> Result<(), DesignError> {
 /// bound_sup = K g ∫|h| is linear in Δ (h does not depend on it), so Δ_max = ε / bound_sup(Δ=1).
 pub fn delta_max(params: &PlantParams, gains: PiGains, epsilon: f64) -> Result<f64, DesignError> {
     check_accuracy(epsilon)?;
-    Ok(epsilon / bound_sup(&with_half_gap(params, 1.0), gains)?)
+    Ok(epsilon / bound_sup(&params.with_half_gap(1.0), gains)?)
 }
 
 /// Where the stiffness study looks: a logarithmic grid around the nominal K.

@@ -105,12 +105,12 @@ pub fn solve(request: Request) -> Result<Answer, String> {
     let (gains, rule) = match request.gains {
         Some(g) => (g, false),
         None => {
-            let plant = Plant::new(study::with_half_gap(&drive, 0.0)).map_err(|e| e.to_string())?;
+            let plant = Plant::new(drive.with_half_gap(0.0)).map_err(|e| e.to_string())?;
             (study::best_damped_gains(&plant).map_err(fail)?.gains, true)
         }
     };
     let (web, tension) = (request.web, request.tension_gains);
-    let per_delta = sups(&study::with_half_gap(&drive, 1.0), &web, gains, tension).map_err(|e| match e {
+    let per_delta = sups(&drive.with_half_gap(1.0), &web, gains, tension).map_err(|e| match e {
         DesignError::Unbounded { reason, .. } => format!(
             "with Kp = {}, Ki = {}, Kp_T = {}, Ki_T = {} the web loop has no finite bound: {reason}",
             gains.kp, gains.ki, tension.kp, tension.ki
