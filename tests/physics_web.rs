@@ -120,13 +120,16 @@ fn assert_agrees(params: &PlantParams, schedule: &[(WebInputs, f64)], label: &st
         switches.len()
     );
     assert_eq!(switches.len(), ref_events.len(), "{label}: switch counts");
+    let mut latest = 0.0f64;
     for (t, e) in switches.iter().zip(&ref_events) {
+        latest = latest.max((t - e.t).abs());
         assert!(
             (t - e.t).abs() <= 1e-10,
             "{label}: switch at {t} vs the reference's {}",
             e.t
         );
     }
+    println!("{label}: switch instants within {latest:.1e} s of the reference's");
 }
 
 /// A reversing motor torque about `bias` (period `period`), held over steps of `h`.
