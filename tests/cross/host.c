@@ -1,9 +1,10 @@
-/* FMI 2.0 Co-Simulation host of the cross-platform test (xtask/src/cross/): the same program is
- * compiled for every platform the FMU ships (cc for linux64, x86_64-w64-mingw32-gcc for win64
- * under Wine, aarch64-linux-gnu-gcc under qemu), loads one platform's library and prints what it
- * observed, one result per line:
+/* FMI 2.0 and FMI 3.0 Co-Simulation host of the cross-platform test (xtask/src/cross/): the same
+ * program is compiled for every platform the FMU ships (cc for linux64, x86_64-w64-mingw32-gcc for
+ * win64 under Wine, aarch64-linux-gnu-gcc under qemu), loads one platform's library and prints
+ * what it observed, one result per line:
  *
  *     @ sample <k> <contact> <switches> <bits of theta_m omega_m theta_L omega_L psi bound bound_paper>
+ *     @ early <k> <contact> <switches> <bits of lastSuccessfulTime> <bits of the same outputs>
  *     @ misuse <case> <status> <messages logged>
  *     @ saved <size in bytes>
  *
@@ -11,7 +12,9 @@
  * xtask sees every bit. The host computes its inputs with +, - and * only (no libm, no fused
  * multiply-add: built with -ffp-contract=off), so every platform feeds the FMU identical inputs.
  *
- * usage: host <library> <guid> <variables> <parameters> <scenario> [args]
+ * usage: host <library> <token> <variables> <parameters> <scenario> [args]
+ *   <token>       the guid of the FMI 2.0 description, or for the fmi3 scenario the
+ *                 instantiationToken of the FMI 3.0 one
  *   <variables>   name=vr,... for tau_m tau_L theta_m omega_m theta_L omega_L psi bound
  *                 bound_paper contact Kp Ki (read by xtask from the archive's modelDescription.xml)
  *   <parameters>  vr=bits,... Real parameters set before initialization, each value as the
@@ -23,6 +26,9 @@
  *                                    then the samples of the rest of the run
  *   restore <steps> <every> <file>   a fresh instance restores <file> and runs the rest
  *   misuse                           calls FMI 2.0 forbids, and the status each gets
+ *   fmi3 <steps> <every>             the open loop through FMI 3.0 (fmi3DoStep with early return
+ *                                    allowed): each step stops at every contact switch inside it
+ *                                    (an `early` line) and continues from there to its end
  */
 #include <inttypes.h>
 #include <stdarg.h>
@@ -37,6 +43,7 @@
 #endif
 
 #include "fmi2Functions.h"
+#include "fmi3Functions.h"
 
 #define H 1e-3 /* communication step [s] */
 
@@ -93,6 +100,18 @@ static struct {
     fmi2DeSerializeFMUstateTYPE *deserialize;
 } api;
 
+static struct {
+    fmi3InstantiateCoSimulationTYPE *instantiate;
+    fmi3FreeInstanceTYPE *free_instance;
+    fmi3EnterInitializationModeTYPE *enter_init;
+    fmi3ExitInitializationModeTYPE *exit_init;
+    fmi3TerminateTYPE *terminate;
+    fmi3SetFloat64TYPE *set_float64;
+    fmi3GetFloat64TYPE *get_float64;
+    fmi3GetInt32TYPE *get_int32;
+    fmi3DoStepTYPE *do_step;
+} api3;
+
 static void load(const char *path) {
     open_library(path);
     api.instantiate = (fmi2InstantiateTYPE *)symbol("fmi2Instantiate");
@@ -111,6 +130,15 @@ static void load(const char *path) {
     api.serialized_size = (fmi2SerializedFMUstateSizeTYPE *)symbol("fmi2SerializedFMUstateSize");
     api.serialize = (fmi2SerializeFMUstateTYPE *)symbol("fmi2SerializeFMUstate");
     api.deserialize = (fmi2DeSerializeFMUstateTYPE *)symbol("fmi2DeSerializeFMUstate");
+    api3.instantiate = (fmi3InstantiateCoSimulationTYPE *)symbol("fmi3InstantiateCoSimulation");
+    api3.free_instance = (fmi3FreeInstanceTYPE *)symbol("fmi3FreeInstance");
+    api3.enter_init = (fmi3EnterInitializationModeTYPE *)symbol("fmi3EnterInitializationMode");
+    api3.exit_init = (fmi3ExitInitializationModeTYPE *)symbol("fmi3ExitInitializationMode");
+    api3.terminate = (fmi3TerminateTYPE *)symbol("fmi3Terminate");
+    api3.set_float64 = (fmi3SetFloat64TYPE *)symbol("fmi3SetFloat64");
+    api3.get_float64 = (fmi3GetFloat64TYPE *)symbol("fmi3GetFloat64");
+    api3.get_int32 = (fmi3GetInt32TYPE *)symbol("fmi3GetInt32");
+    api3.do_step = (fmi3DoStepTYPE *)symbol("fmi3DoStep");
 }
 
 /* ---- value references, by name ---- */
@@ -191,15 +219,23 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
 
 static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
 
-static const char *guid;
+static void logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message) {
+    (void)env;
+    messages++;
+    if (verbose) fprintf(stderr, "%s (status %d): %s\n", category ? category : "?", (int)status, message ? message : "");
+}
 
-static void check(fmi2Status s, const char *what) {
-    if (s != fmi2OK) die("%s returned status %d", what, (int)s);
+/* The guid (FMI 2.0) or the instantiationToken (FMI 3.0) of the description. */
+static const char *token;
+
+/* An fmi2Status or fmi3Status: OK is 0 in both. */
+static void check(int s, const char *what) {
+    if (s != 0) die("%s returned status %d", what, s);
 }
 
 /* An initialized instance with the given parameters. */
 static fmi2Component make(const char *name) {
-    fmi2Component c = api.instantiate(name, fmi2CoSimulation, guid, "", &callbacks, fmi2False, fmi2False);
+    fmi2Component c = api.instantiate(name, fmi2CoSimulation, token, "", &callbacks, fmi2False, fmi2False);
     if (!c) die("fmi2Instantiate(%s) returned NULL", name);
     check(api.set_real(c, param_vr, n_params, param_value), "fmi2SetReal(parameters)");
     check(api.setup_experiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment");
@@ -213,6 +249,20 @@ static void release(fmi2Component c) {
     api.free_instance(c);
 }
 
+/* An initialized FMI 3.0 Co-Simulation instance with the given parameters, whose fmi3DoStep
+ * returns early at contact switches (earlyReturnAllowed, without Event Mode). */
+static fmi3Instance make3(const char *name) {
+    fmi3Instance c = api3.instantiate(name, token, NULL, fmi3False, fmi3False, fmi3False, fmi3True, NULL, 0, NULL,
+                                      logger3, NULL);
+    if (!c) die("fmi3InstantiateCoSimulation(%s) returned NULL", name);
+    fmi3ValueReference refs[MAX_PARAMETERS];
+    for (size_t i = 0; i < n_params; i++) refs[i] = param_vr[i];
+    check(api3.set_float64(c, refs, n_params, param_value, n_params), "fmi3SetFloat64(parameters)");
+    check(api3.enter_init(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), "fmi3EnterInitializationMode");
+    check(api3.exit_init(c), "fmi3ExitInitializationMode");
+    return c;
+}
+
 /* ---- what is compared: every output at sample points, and the contact switches ---- */
 
 static uint64_t bits(double x) {
@@ -224,21 +274,54 @@ static uint64_t bits(double x) {
 static fmi2Integer last_contact;
 static long switches;
 
-static void count_switch(fmi2Component c) {
-    fmi2Integer contact;
-    check(api.get_integer(c, &vr[CONTACT], 1, &contact), "fmi2GetInteger(contact)");
+static void note_contact(int contact) {
     if (contact != last_contact) switches++;
     last_contact = contact;
 }
 
-static void sample(fmi2Component c, long k) {
-    const fmi2ValueReference out_vr[] = {vr[THETA_M], vr[OMEGA_M], vr[THETA_L], vr[OMEGA_L],
-                                         vr[PSI],     vr[BOUND],   vr[BOUND_PAPER]};
-    fmi2Real out[7];
-    check(api.get_real(c, out_vr, 7, out), "fmi2GetReal(outputs)");
-    printf("@ sample %ld %d %ld", k, (int)last_contact, switches);
-    for (int i = 0; i < 7; i++) printf(" %016" PRIx64, bits(out[i]));
+static void count_switch(fmi2Component c) {
+    fmi2Integer contact;
+    check(api.get_integer(c, &vr[CONTACT], 1, &contact), "fmi2GetInteger(contact)");
+    note_contact(contact);
+}
+
+static void count_switch3(fmi3Instance c) {
+    const fmi3ValueReference ref = vr[CONTACT];
+    fmi3Int32 contact;
+    check(api3.get_int32(c, &ref, 1, &contact, 1), "fmi3GetInt32(contact)");
+    note_contact(contact);
+}
+
+/* The Real outputs of a sample line, in their order (OUTPUTS in xtask/src/cross/compare.rs). */
+#define NOUT 7
+static const int output_var[NOUT] = {THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER};
+
+static void print_outputs(const double out[NOUT]) {
+    for (int i = 0; i < NOUT; i++) printf(" %016" PRIx64, bits(out[i]));
     printf("\n");
+}
+
+static void sample(fmi2Component c, long k) {
+    fmi2ValueReference out_vr[NOUT];
+    fmi2Real out[NOUT];
+    for (int i = 0; i < NOUT; i++) out_vr[i] = vr[output_var[i]];
+    check(api.get_real(c, out_vr, NOUT, out), "fmi2GetReal(outputs)");
+    printf("@ sample %ld %d %ld", k, (int)last_contact, switches);
+    print_outputs(out);
+}
+
+/* The outputs through FMI 3.0: after step k, or (`early` not NULL) at the instant *early inside
+ * step k where fmi3DoStep returned early. */
+static void sample3(fmi3Instance c, long k, const fmi3Float64 *early) {
+    fmi3ValueReference out_vr[NOUT];
+    fmi3Float64 out[NOUT];
+    for (int i = 0; i < NOUT; i++) out_vr[i] = vr[output_var[i]];
+    check(api3.get_float64(c, out_vr, NOUT, out, NOUT), "fmi3GetFloat64(outputs)");
+    if (early)
+        printf("@ early %ld %d %ld %016" PRIx64, k, (int)last_contact, switches, bits(*early));
+    else
+        printf("@ sample %ld %d %ld", k, (int)last_contact, switches);
+    print_outputs(out);
 }
 
 /* ---- scenarios ---- */
@@ -247,10 +330,17 @@ static void sample(fmi2Component c, long k) {
 static double square(long k, long half_period, double a) { return (k / half_period) % 2 == 0 ? a : -a; }
 
 /* Open loop: the motor torque reverses every 0.4 s, so the motor crosses the gap and takes up
- * the other flank again and again (contact made and lost); a load torque from t = 1 s. */
+ * the other flank again and again (contact made and lost); a load torque from t = 1 s. The
+ * torques tau_m, tau_L of step k. */
+static void open_torques(long k, double tau[2]) {
+    tau[0] = square(k, 400, 3.0);
+    tau[1] = k >= 1000 ? -0.5 : 0.0;
+}
+
 static void open_inputs(fmi2Component c, long k) {
     const fmi2ValueReference in[] = {vr[TAU_M], vr[TAU_L]};
-    const fmi2Real tau[] = {square(k, 400, 3.0), k >= 1000 ? -0.5 : 0.0};
+    fmi2Real tau[2];
+    open_torques(k, tau);
     check(api.set_real(c, in, 2, tau), "fmi2SetReal(inputs)");
 }
 
@@ -267,6 +357,37 @@ static void open_loop(long steps, long every) {
     fmi2Component c = make("open");
     run_open(c, 0, steps, every);
     release(c);
+}
+
+/* The open loop through FMI 3.0: the inputs of step k set once, then fmi3DoStep from where the
+ * FMU stopped to the end of the step, again after every early return at a contact switch. */
+static void fmi3_open_loop(long steps, long every) {
+    fmi3Instance c = make3("fmi3");
+    const fmi3ValueReference in[] = {vr[TAU_M], vr[TAU_L]};
+    for (long k = 0; k < steps; k++) {
+        fmi3Float64 tau[2];
+        open_torques(k, tau);
+        check(api3.set_float64(c, in, 2, tau, 2), "fmi3SetFloat64(inputs)");
+        /* The first call takes the whole step, as fmi2DoStep does in the open loop. */
+        const double end = k * H + H;
+        double t = k * H, h = H;
+        for (;;) {
+            fmi3Boolean event = fmi3False, terminate = fmi3False, early = fmi3False;
+            fmi3Float64 last = t;
+            check(api3.do_step(c, t, h, fmi3True, &event, &terminate, &early, &last), "fmi3DoStep");
+            if (event || terminate) die("fmi3DoStep at t = %.17g asked for Event Mode or termination", t);
+            count_switch3(c);
+            if (!early) break;
+            /* Each return must move time, or the step would never end. */
+            if (!(last > t && last < end)) die("fmi3DoStep from t = %.17g returned early at %.17g", t, last);
+            sample3(c, k + 1, &last);
+            t = last;
+            h = end - t;
+        }
+        if ((k + 1) % every == 0) sample3(c, k + 1, NULL);
+    }
+    check(api3.terminate(c), "fmi3Terminate");
+    api3.free_instance(c);
 }
 
 /* Closed loop: a sampled PI on the motor speed (the FMU's Kp, Ki) tracks a reference that
@@ -384,7 +505,7 @@ static void misuse(void) {
     report("deserialize_garbage", api.deserialize(c, garbage, sizeof garbage, &state), before);
     api.free_instance(c);
 
-    c = api.instantiate("misuse", fmi2CoSimulation, guid, "", &callbacks, fmi2False, fmi2False);
+    c = api.instantiate("misuse", fmi2CoSimulation, token, "", &callbacks, fmi2False, fmi2False);
     if (!c) die("fmi2Instantiate returned NULL");
     before = messages;
     report("do_step_before_initialization", api.do_step(c, 0.0, H, fmi2True), before);
@@ -410,10 +531,10 @@ static long positive(const char *text, const char *what) {
 }
 
 int main(int argc, char **argv) {
-    if (argc < 6) die("usage: host <library> <guid> <variables> <parameters> closed|open|save|restore|misuse [args]");
+    if (argc < 6) die("usage: host <library> <token> <variables> <parameters> closed|open|save|restore|misuse|fmi3 [args]");
     verbose = getenv("CROSS_HOST_VERBOSE") != NULL;
     load(argv[1]);
-    guid = argv[2];
+    token = argv[2];
     parse_variables(argv[3]);
     parse_parameters(argv[4]);
     const char *scenario = argv[5];
@@ -427,6 +548,8 @@ int main(int argc, char **argv) {
         restore(positive(argv[6], "steps"), positive(argv[7], "every"), argv[8]);
     } else if (strcmp(scenario, "misuse") == 0 && argc == 6) {
         misuse();
+    } else if (strcmp(scenario, "fmi3") == 0 && argc == 8) {
+        fmi3_open_loop(positive(argv[6], "steps"), positive(argv[7], "every"));
     } else {
         die("unknown scenario or wrong argument count: %s", scenario);
     }

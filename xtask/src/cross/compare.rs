@@ -14,42 +14,65 @@ pub const OUTPUTS: [&str; 7] = [
 /// Largest relative difference two platforms may show in any output.
 pub const TOLERANCE: f64 = 1e-12;
 
-/// The outputs after step `k`, the contact mode, and the contact switches counted so far.
+/// The outputs after step `k`, or at the instant inside step `k` where fmi3DoStep returned early
+/// (`early`, its lastSuccessfulTime), the contact mode, and the contact switches counted so far.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sample {
     pub k: u64,
+    pub early: Option<f64>,
     pub contact: i32,
     pub switches: u64,
     pub values: [f64; 7],
 }
 
-/// The host's `@ <kind> ...` lines of one kind, as fields (Windows' programs end lines in \r\n).
-fn records<'a>(output: &'a str, kind: &str) -> Vec<Vec<&'a str>> {
+impl Sample {
+    /// Where the sample was taken, in messages.
+    fn at(&self) -> String {
+        match self.early {
+            Some(_) => format!("at the early return in step {}", self.k),
+            None => format!("after step {}", self.k),
+        }
+    }
+}
+
+/// The host's `@ <kind> ...` lines of the given kinds, in their order, as fields from the kind on
+/// (Windows' programs end lines in \r\n).
+fn records<'a>(output: &'a str, kinds: &[&str]) -> Vec<Vec<&'a str>> {
     output
         .lines()
         .filter_map(|line| {
             let mut fields = line.trim_end_matches('\r').split_whitespace();
-            (fields.next() == Some("@") && fields.next() == Some(kind)).then(|| fields.collect())
+            let fields: Vec<&str> = (fields.next() == Some("@")).then(|| fields.collect())?;
+            fields
+                .first()
+                .is_some_and(|kind| kinds.contains(kind))
+                .then_some(fields)
         })
         .collect()
 }
 
+/// The `@ sample` lines and, in their place among them, the `@ early` lines (the same fields
+/// with the instant of the early return before the outputs).
 pub fn samples(output: &str) -> Result<Vec<Sample>, String> {
-    let samples = records(output, "sample")
+    let samples = records(output, &["sample", "early"])
         .into_iter()
         .map(|fields| {
-            let bad = || format!("malformed sample line: @ sample {}", fields.join(" "));
-            if fields.len() != 3 + OUTPUTS.len() {
-                return Err(bad());
-            }
+            let bad = || format!("malformed sample line: @ {}", fields.join(" "));
+            let hex = |field: &str| u64::from_str_radix(field, 16).map(f64::from_bits).map_err(|_| bad());
+            let (early, outputs) = match fields[0] {
+                "early" if fields.len() == 5 + OUTPUTS.len() => (Some(hex(fields[4])?), &fields[5..]),
+                "sample" if fields.len() == 4 + OUTPUTS.len() => (None, &fields[4..]),
+                _ => return Err(bad()),
+            };
             let mut values = [0.0; 7];
-            for (value, hex) in values.iter_mut().zip(&fields[3..]) {
-                *value = f64::from_bits(u64::from_str_radix(hex, 16).map_err(|_| bad())?);
+            for (value, field) in values.iter_mut().zip(outputs) {
+                *value = hex(field)?;
             }
             Ok(Sample {
-                k: fields[0].parse().map_err(|_| bad())?,
-                contact: fields[1].parse().map_err(|_| bad())?,
-                switches: fields[2].parse().map_err(|_| bad())?,
+                k: fields[1].parse().map_err(|_| bad())?,
+                early,
+                contact: fields[2].parse().map_err(|_| bad())?,
+                switches: fields[3].parse().map_err(|_| bad())?,
                 values,
             })
         })
@@ -62,11 +85,11 @@ pub fn samples(output: &str) -> Result<Vec<Sample>, String> {
 
 /// `(case, status, messages logged)` of each misuse line.
 pub fn misuse(output: &str) -> Result<Vec<(String, String, String)>, String> {
-    let cases: Vec<_> = records(output, "misuse")
+    let cases: Vec<_> = records(output, &["misuse"])
         .into_iter()
         .map(|f| match f.as_slice() {
-            [case, status, logged] => Ok((case.to_string(), status.to_string(), logged.to_string())),
-            _ => Err(format!("malformed misuse line: @ misuse {}", f.join(" "))),
+            [_, case, status, logged] => Ok((case.to_string(), status.to_string(), logged.to_string())),
+            _ => Err(format!("malformed misuse line: @ {}", f.join(" "))),
         })
         .collect::<Result<_, _>>()?;
     if cases.is_empty() {
@@ -93,11 +116,12 @@ pub struct Agreement {
     /// Samples whose every output has the same bits on both platforms.
     pub bit_identical: usize,
     pub max_relative: f64,
-    /// Output and step of the largest difference.
-    pub worst: Option<(&'static str, u64)>,
+    /// Output and sample (see [`Sample::at`]) of the largest difference.
+    pub worst: Option<(&'static str, String)>,
 }
 
-/// Same steps, same contact modes and switch counts, and every output within [`TOLERANCE`].
+/// Same steps and early returns, same contact modes and switch counts, and every output and
+/// early-return instant within [`TOLERANCE`].
 pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String> {
     if reference.len() != other.len() {
         return Err(format!(
@@ -113,33 +137,40 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
         worst: None,
     };
     for (r, o) in reference.iter().zip(other) {
-        if r.k != o.k {
-            return Err(format!(
-                "sample after step {} where the reference has step {}",
-                o.k, r.k
-            ));
+        if (r.k, r.early.is_some()) != (o.k, o.early.is_some()) {
+            return Err(format!("a sample {} where the reference has one {}", o.at(), r.at()));
         }
         if (r.contact, r.switches) != (o.contact, o.switches) {
             return Err(format!(
-                "after step {}: contact {} after {} switches, the reference contact {} after {}",
-                r.k, o.contact, o.switches, r.contact, r.switches
+                "{}: contact {} after {} switches, the reference contact {} after {}",
+                r.at(),
+                o.contact,
+                o.switches,
+                r.contact,
+                r.switches
             ));
         }
-        if r.values.iter().zip(&o.values).all(|(a, b)| a.to_bits() == b.to_bits()) {
+        let early = r.early.zip(o.early).map(|(a, b)| ("lastSuccessfulTime", (a, b)));
+        let outputs = OUTPUTS
+            .iter()
+            .zip(r.values.into_iter().zip(o.values))
+            .map(|(n, v)| (*n, v));
+        let compared: Vec<(&'static str, (f64, f64))> = early.into_iter().chain(outputs).collect();
+        if compared.iter().all(|(_, (a, b))| a.to_bits() == b.to_bits()) {
             agreement.bit_identical += 1;
         }
-        for (name, (a, b)) in OUTPUTS.iter().zip(r.values.iter().zip(&o.values)) {
-            let d = relative_difference(*a, *b);
+        for (name, (a, b)) in compared {
+            let d = relative_difference(a, b);
             if d > agreement.max_relative {
                 agreement.max_relative = d;
-                agreement.worst = Some((name, r.k));
+                agreement.worst = Some((name, r.at()));
             }
         }
     }
     if agreement.max_relative > TOLERANCE {
-        let (name, k) = agreement.worst.expect("a difference names its output");
+        let (name, at) = agreement.worst.expect("a difference names its output");
         return Err(format!(
-            "{name} after step {k} differs by {:e} (relative) from the reference, over {TOLERANCE:e}",
+            "{name} {at} differs by {:e} (relative) from the reference, over {TOLERANCE:e}",
             agreement.max_relative
         ));
     }
@@ -174,6 +205,7 @@ mod tests {
     fn platforms_disagree_beyond_the_tolerance_or_in_a_contact_switch() {
         let base = Sample {
             k: 10,
+            early: None,
             contact: 1,
             switches: 2,
             values: [1.0; 7],
@@ -186,7 +218,7 @@ mod tests {
         close.values[3] = 1.0 + 4.0 * f64::EPSILON;
         let near = agree(reference, &[close]).unwrap();
         assert_eq!(near.bit_identical, 0);
-        assert_eq!(near.worst, Some(("omega_L", 10)));
+        assert_eq!(near.worst, Some(("omega_L", "after step 10".into())));
         assert!(near.max_relative > 0.0 && near.max_relative <= TOLERANCE);
 
         let mut far = base.clone();
@@ -201,6 +233,33 @@ mod tests {
         switched.switches = 3;
         assert!(agree(reference, &[switched]).is_err());
         assert!(agree(reference, &[]).is_err());
+    }
+
+    #[test]
+    fn early_returns_are_read_in_place_and_compared_by_their_instant() {
+        let values = [0.5_f64; 7];
+        let early = |t: f64| {
+            let hex: Vec<String> = values.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
+            format!("@ early 7 0 1 {:016x} {}\n", t.to_bits(), hex.join(" "))
+        };
+        let text = format!("{}{}", early(6.5e-3), line(7, 0, 1, values));
+        let reference = samples(&text).unwrap();
+        assert_eq!(
+            reference.iter().map(|s| s.early).collect::<Vec<_>>(),
+            [Some(6.5e-3), None]
+        );
+        assert_eq!(agree(&reference, &reference).unwrap().bit_identical, 2);
+
+        let moved = samples(&format!("{}{}", early(6.5e-3 * (1.0 + 1e-9)), line(7, 0, 1, values))).unwrap();
+        let error = agree(&reference, &moved).unwrap_err();
+        assert!(
+            error.contains("lastSuccessfulTime at the early return in step 7"),
+            "{error}"
+        );
+
+        let missing = samples(&format!("{}{}", line(7, 0, 1, values), line(7, 0, 1, values))).unwrap();
+        assert!(agree(&reference, &missing).is_err());
+        assert!(samples("@ early 7 0 1 3ff0000000000000\n").is_err());
     }
 
     #[test]

@@ -5,6 +5,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::abi::HeaderDirs;
 use crate::platform::{BinaryFormat, Platform, Runner};
 use crate::util;
 
@@ -20,10 +21,10 @@ fn source(name: &str) -> PathBuf {
     util::repo_root().join("tests").join("cross").join(name)
 }
 
-/// Compiles the host for `platform` into `dir/<platform>/`, with the official FMI 2.0 headers
-/// of `headers`. For Windows also the test-only stand-in of bcryptprimitives.dll beside it
+/// Compiles the host for `platform` into `dir/<platform>/`, with the official FMI 2.0 and FMI 3.0
+/// headers of `headers`. For Windows also the test-only stand-in of bcryptprimitives.dll beside it
 /// (see tests/cross/bcryptprimitives.c), so that Wine loads Rust's DLL as Windows 10 would.
-pub fn compile(platform: &'static Platform, headers: &Path, dir: &Path) -> Result<Host, String> {
+pub fn compile(platform: &'static Platform, headers: &HeaderDirs, dir: &Path) -> Result<Host, String> {
     let out = dir.join(platform.name);
     fs::create_dir_all(&out).map_err(|e| format!("creating {}: {e}", out.display()))?;
     let program = out.join(match platform.format {
@@ -42,7 +43,9 @@ pub fn compile(platform: &'static Platform, headers: &Path, dir: &Path) -> Resul
         "-ffp-contract=off",
         "-I",
     ])
-    .arg(headers)
+    .arg(&headers.fmi2)
+    .arg("-I")
+    .arg(&headers.fmi3)
     .arg(source("host.c"))
     .arg("-o")
     .arg(&program);

@@ -2,12 +2,14 @@
 //! (win64 under Wine, aarch64-linux under qemu-user) by the same C host as the linux64 library,
 //! and compared with it.
 //!
-//! For each model: a closed PI loop and an open-loop torque schedule, both with contact
-//! switches, sampled along the way (every output within 1e-12 relative of linux64, the same
-//! contact modes and switch counts); misuse of the C API (the same fmi2Status and number of
-//! logged messages as on linux64); an FMU state serialized on each platform, restored on every
-//! platform and continued as the saving platform continued it. The Windows DLL in each archive
-//! must import only DLLs of a stock Windows 10.
+//! For each model: a closed PI loop and an open-loop torque schedule through FMI 2.0, both with
+//! contact switches, sampled along the way (every output within 1e-12 relative of linux64, the
+//! same contact modes and switch counts); the same open loop through FMI 3.0 from the FMI 3.0
+//! archive, whose fmi3DoStep returns early at every contact switch (each switch instant and the
+//! outputs there compared as the samples are); misuse of the C API (the same fmi2Status and
+//! number of logged messages as on linux64); an FMU state serialized on each platform, restored
+//! on every platform and continued as the saving platform continued it. The Windows DLL in each
+//! archive must import only DLLs of a stock Windows 10.
 
 mod compare;
 mod host;
@@ -20,9 +22,10 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use crate::fmu::{self, Standard};
 use crate::platform::{self, BinaryFormat, Built, Platform, Tool};
 use crate::util::{self, step};
-use crate::{abi, fmu, python};
+use crate::{abi, python};
 use compare::{Agreement, Sample};
 use host::Host;
 
@@ -50,9 +53,41 @@ const RIGS: [(&str, &[(&str, f64)]); 2] = [
     ),
 ];
 
-/// Steps and sampling interval of the scenarios (h = 1 ms in the host).
-const CLOSED_LOOP: (u32, u32) = (10_000, 100);
-const OPEN_LOOP: (u32, u32) = (4_000, 50);
+/// A scenario of the host that samples its outputs along the way (h = 1 ms in the host).
+struct Sampled {
+    /// Its name on the host's command line (tests/cross/host.c).
+    scenario: &'static str,
+    /// Its name in the report.
+    label: &'static str,
+    steps: u32,
+    /// Sampling interval, in steps.
+    every: u32,
+    /// fmi3DoStep returns early at contact switches: at least [`MIN_SWITCHES`] of its returns
+    /// must be early, or the early return would not be tested.
+    early_return: bool,
+}
+
+const CLOSED_LOOP: Sampled = Sampled {
+    scenario: "closed",
+    label: "closed loop",
+    steps: 10_000,
+    every: 100,
+    early_return: false,
+};
+const OPEN_LOOP: Sampled = Sampled {
+    scenario: "open",
+    label: "open loop",
+    steps: 4_000,
+    every: 50,
+    early_return: false,
+};
+/// The open loop's schedule through FMI 3.0.
+const FMI3_OPEN_LOOP: Sampled = Sampled {
+    scenario: "fmi3",
+    label: "FMI 3.0 open loop",
+    early_return: true,
+    ..OPEN_LOOP
+};
 
 /// A scenario that switches contact fewer times than this would not test the switching.
 const MIN_SWITCHES: u64 = 4;
@@ -111,7 +146,7 @@ pub fn unavailable() -> Option<String> {
 /// The cross-platform test on archives already in target/fmu and the libraries in `built`.
 pub fn test(built: &[Built]) -> Result<(), String> {
     let started = Instant::now();
-    let headers = abi::official_header_dirs()?.remove(0).fmi2;
+    let headers = abi::official_header_dirs()?.remove(0);
     let dir = util::target_dir().join("cross-test");
     step("compiling the test host for every platform (tests/cross/host.c)");
     let hosts = platform::ALL
@@ -121,7 +156,11 @@ pub fn test(built: &[Built]) -> Result<(), String> {
     let mut timer = Timer::default();
     for &id in model_description::model_identifiers() {
         step(&format!("{id}: every platform against linux64"));
-        let model = Model::unpack(id, &dir.join("models").join(id), built)?;
+        let unpack = |standard: &Standard| {
+            Model::unpack(id, standard, &dir.join("models").join(standard.subdir).join(id), built)
+        };
+        let model = unpack(&fmu::FMI2)?;
+        let model3 = unpack(&fmu::FMI3)?;
         for host in &hosts {
             if host.platform.format == BinaryFormat::Pe {
                 let library = model.library(host.platform)?;
@@ -133,8 +172,9 @@ pub fn test(built: &[Built]) -> Result<(), String> {
                 );
             }
         }
-        scenario(&model, &hosts, &mut timer, "closed", CLOSED_LOOP)?;
-        scenario(&model, &hosts, &mut timer, "open", OPEN_LOOP)?;
+        scenario(&model, &hosts, &mut timer, &CLOSED_LOOP)?;
+        scenario(&model, &hosts, &mut timer, &OPEN_LOOP)?;
+        scenario(&model3, &hosts, &mut timer, &FMI3_OPEN_LOOP)?;
         misuse(&model, &hosts, &mut timer)?;
         fmu_state(&model, &hosts, &mut timer)?;
     }
@@ -163,30 +203,31 @@ impl Timer {
     }
 }
 
-/// One model's libraries (from its archive where FMI 2.0 has a folder for the platform), its
-/// guid and the value references of the host's variables.
+/// One model as one standard's archive has it: the libraries (from the archive where the standard
+/// has a folder for the platform, else as built), the guid or instantiation token, and the value
+/// references of the host's variables.
 struct Model {
     id: &'static str,
     dir: PathBuf,
     libraries: Vec<(&'static Platform, PathBuf)>,
-    guid: String,
+    token: String,
     variables: String,
     parameters: String,
 }
 
 impl Model {
-    fn unpack(id: &'static str, dir: &Path, built: &[Built]) -> Result<Model, String> {
+    fn unpack(id: &'static str, standard: &Standard, dir: &Path, built: &[Built]) -> Result<Model, String> {
         if dir.exists() {
             fs::remove_dir_all(dir).map_err(|e| format!("removing {}: {e}", dir.display()))?;
         }
         fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-        let archive = util::fmu_dir().join(format!("{id}.fmu"));
+        let archive = standard.out_dir().join(format!("{id}.fmu"));
         let xml = String::from_utf8(read_entry(&archive, "modelDescription.xml")?)
             .map_err(|_| format!("{}: modelDescription.xml is not UTF-8", archive.display()))?;
         let mut libraries = Vec::new();
         for platform in platform::ALL {
             let file = platform.archive_file(id);
-            let bytes = match platform.fmi2_folder {
+            let bytes = match (standard.folder_of)(platform) {
                 Some(folder) => read_entry(&archive, &format!("binaries/{folder}/{file}"))?,
                 None => {
                     let built = built
@@ -202,12 +243,12 @@ impl Model {
                 .map_err(|e| format!("writing {}: {e}", path.display()))?;
             libraries.push((platform, path));
         }
-        let (guid, variables, parameters) = host_arguments(id, &xml).map_err(|e| format!("{id}: {e}"))?;
+        let (token, variables, parameters) = host_arguments(id, standard, &xml).map_err(|e| format!("{id}: {e}"))?;
         Ok(Model {
             id,
             dir: dir.to_path_buf(),
             libraries,
-            guid,
+            token,
             variables,
             parameters,
         })
@@ -224,7 +265,7 @@ impl Model {
     fn arguments(&self, host: &Host, scenario: &[String]) -> Result<Vec<String>, String> {
         let mut args = vec![
             host.path_argument(self.library(host.platform)?),
-            self.guid.clone(),
+            self.token.clone(),
             self.variables.clone(),
             self.parameters.clone(),
         ];
@@ -245,17 +286,23 @@ fn read_entry(archive: &Path, name: &str) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
-/// From a model description: the guid, `name=vr,...` of the host's variables, and the rig's
-/// parameters as `vr=bits,...` (the exact f64 of each value, as hexadecimal IEEE-754 bits).
-fn host_arguments(id: &str, xml: &str) -> Result<(String, String, String), String> {
+/// From a model description of `standard`: the guid (FMI 2.0) or instantiation token (FMI 3.0),
+/// `name=vr,...` of the host's variables, and the rig's parameters as `vr=bits,...` (the exact
+/// f64 of each value, as hexadecimal IEEE-754 bits).
+fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
-    let guid = doc
+    let token_attribute = match standard.fmi_version {
+        "2.0" => "guid",
+        _ => "instantiationToken",
+    };
+    let token = doc
         .root_element()
-        .attribute("guid")
-        .ok_or("modelDescription.xml has no guid")?;
+        .attribute(token_attribute)
+        .ok_or_else(|| format!("modelDescription.xml has no {token_attribute}"))?;
+    // A variable is a child of ModelVariables: FMI 2.0's ScalarVariable, FMI 3.0's Float64, Int32...
     let value_reference = |name: &str| {
         doc.descendants()
-            .find(|n| n.has_tag_name("ScalarVariable") && n.attribute("name") == Some(name))
+            .find(|n| n.parent().is_some_and(|p| p.has_tag_name("ModelVariables")) && n.attribute("name") == Some(name))
             .and_then(|n| n.attribute("valueReference"))
             .ok_or_else(|| format!("modelDescription.xml has no variable {name}"))
     };
@@ -271,7 +318,7 @@ fn host_arguments(id: &str, xml: &str) -> Result<(String, String, String), Strin
     let parameters = rig
         .map(|(name, value)| value_reference(name).map(|vr| format!("{vr}={:016x}", value.to_bits())))
         .collect::<Result<Vec<_>, _>>()?;
-    Ok((guid.to_string(), variables.join(","), parameters.join(",")))
+    Ok((token.to_string(), variables.join(","), parameters.join(",")))
 }
 
 fn strings(words: &[&str]) -> Vec<String> {
@@ -285,37 +332,51 @@ fn report(model: &Model, what: &str, platform: &Platform, agreement: &Agreement)
     );
 }
 
-/// The reference platform's samples must switch contact, and every other platform must agree.
-fn scenario(
-    model: &Model,
-    hosts: &[Host],
-    timer: &mut Timer,
-    name: &str,
-    (steps, every): (u32, u32),
-) -> Result<(), String> {
+/// The reference platform's samples must switch contact (and return early as often, where
+/// fmi3DoStep may), and every other platform must agree.
+fn scenario(model: &Model, hosts: &[Host], timer: &mut Timer, run: &Sampled) -> Result<(), String> {
+    let Sampled {
+        scenario: name,
+        label,
+        steps,
+        every,
+        early_return,
+    } = *run;
     let args = strings(&[name, &steps.to_string(), &every.to_string()]);
     let mut reference: Option<Vec<Sample>> = None;
     for host in hosts {
         let samples = compare::samples(&timer.run(model, host, &args)?)
-            .map_err(|e| format!("{}, {name}, {}: {e}", model.id, host.platform.name))?;
+            .map_err(|e| format!("{}, {label}, {}: {e}", model.id, host.platform.name))?;
         let Some(reference) = &reference else {
             let switches = samples.last().map_or(0, |s| s.switches);
             if switches < MIN_SWITCHES {
                 return Err(format!(
-                    "{}, {name}: {switches} contact switches, fewer than {MIN_SWITCHES}",
+                    "{}, {label}: {switches} contact switches, fewer than {MIN_SWITCHES}",
                     model.id
                 ));
             }
+            let early = samples.iter().filter(|s| s.early.is_some()).count() as u64;
+            if early_return && early < MIN_SWITCHES {
+                return Err(format!(
+                    "{}, {label}: fmi3DoStep returned early {early} times, fewer than {MIN_SWITCHES}",
+                    model.id
+                ));
+            }
+            let returns = if early_return {
+                format!(", {early} early returns")
+            } else {
+                String::new()
+            };
             println!(
-                "  {:<13} {name} loop: {steps} steps, {switches} contact switches on linux64",
+                "  {:<13} {label}: {steps} steps, {switches} contact switches{returns} on linux64",
                 model.id
             );
             reference = Some(samples);
             continue;
         };
         let agreement = compare::agree(reference, &samples)
-            .map_err(|e| format!("{}, {name} loop, {} against linux64: {e}", model.id, host.platform.name))?;
-        report(model, &format!("{name} loop"), host.platform, &agreement);
+            .map_err(|e| format!("{}, {label}, {} against linux64: {e}", model.id, host.platform.name))?;
+        report(model, label, host.platform, &agreement);
     }
     Ok(())
 }
@@ -379,8 +440,7 @@ fn misuse(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), String
 /// platform restores each of these states into a fresh instance, and its continuation must
 /// agree with the saving platform's own.
 fn fmu_state(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), String> {
-    let (steps, every) = OPEN_LOOP;
-    let (steps, every) = (steps.to_string(), every.to_string());
+    let (steps, every) = (OPEN_LOOP.steps.to_string(), OPEN_LOOP.every.to_string());
     let mut saved: Vec<(&Platform, PathBuf, Vec<Sample>)> = Vec::new();
     for host in hosts {
         let file = model.dir.join(format!("state-{}.bin", host.platform.name));
