@@ -1,6 +1,7 @@
 //! `cargo xtask demo [--short]`: the paper's experiments (Figs. 11–13) reproduced with the
-//! packaged FMUs, and its open design question answered. Builds the FMUs, makes sure the Python
-//! environment exists, writes the design answer to results/design.json, then runs
+//! packaged FMUs, and its open design questions answered. Builds the FMUs, makes sure the Python
+//! environment exists, writes the design answers to results/design.json (load speed, the paper's
+//! rig) and results/design_web.json (web tension, a film line on BacklashBelt's drive), then runs
 //! demo/paper_experiments.py, which writes CSV and PNG files under results/.
 
 use std::fs;
@@ -8,9 +9,9 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
 
-use backlash_fmu::physics::PlantParams;
+use backlash_fmu::physics::{PiGains, PlantParams};
 
-use crate::design::{self as design_cmd, Request};
+use crate::design::{self as design_cmd, web, Form, Request};
 use crate::util::{self, step};
 use crate::{fmu, python};
 
@@ -21,7 +22,9 @@ Reproduces the paper's closed-loop experiments (Figs. 11-13) with BacklashShaft.
 instances (with and without backlash) under a PI speed loop closed through fmpy, for the three
 gaps read as Delta = gap/2 and Delta = gap, with a step and a reversing reference; prints a table
 of max deviation against bound_paper and bound; answers the design question for
-eps = 0.02 m/s. Writes results/*.csv, results/*.png and results/design.json.
+eps = 0.02 m/s, and the web-tension question for a film line on BacklashBelt's drive for
+eps_T = 20 N. Writes results/*.csv, results/*.png, results/design.json and
+results/design_web.json.
 
   --short   shorter horizons (also when the environment has CI=true)";
 
@@ -29,6 +32,9 @@ eps = 0.02 m/s. Writes results/*.csv, results/*.png and results/design.json.
 pub const DEMO_ACCURACY: f64 = 0.02;
 /// Half gap for the stiffness search: the paper's smallest gap, 1.55 mm, read as 2Δ.
 pub const DEMO_DELTA: f64 = 0.775e-3;
+/// Required web-tension accuracy of the web line [N]: near what BacklashBelt's gap gives
+/// (bound_T_sup 17.4 N at Δ = 50 µm), so that Δ_max and the stiffness window are both in view.
+pub const DEMO_TENSION_ACCURACY: f64 = 20.0;
 
 pub fn run(args: &[String]) -> Result<(), String> {
     let mut short = std::env::var("CI").is_ok_and(|v| v == "true" || v == "1");
@@ -67,6 +73,28 @@ pub fn run(args: &[String]) -> Result<(), String> {
     println!(
         "wrote {} ({:.2} s)",
         util::shown(&design_json),
+        started.elapsed().as_secs_f64()
+    );
+
+    step("web line: delta_max and the K_b window for a tension accuracy");
+    let web_answer = web::solve(web::Request {
+        tension_accuracy: DEMO_TENSION_ACCURACY,
+        accuracy: None,
+        drive: design_cmd::default_params(Form::Belt),
+        web: web::Web::FILM_LINE,
+        gains: None,
+        tension_gains: PiGains::default(),
+    })?;
+    println!("{}", web::to_text(&web_answer));
+    let design_web_json = results.join("design_web.json");
+    fs::write(
+        &design_web_json,
+        design_cmd::laid_out(&web::to_json(&web_answer)) + "\n",
+    )
+    .map_err(|e| format!("writing {}: {e}", design_web_json.display()))?;
+    println!(
+        "wrote {} ({:.2} s)",
+        util::shown(&design_web_json),
         started.elapsed().as_secs_f64()
     );
 
