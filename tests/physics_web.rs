@@ -351,3 +351,50 @@ fn twin_web_lines_stay_within_bound_t_and_bound() {
         );
     }
 }
+
+/// The web line's vector field (`Plant::rates` with the web's pull, `Plant::tension_rate`)
+/// against its equations written out here (docs/model.md §8) and against the exact stepper's
+/// motion over a short step, in each contact mode.
+#[test]
+fn the_web_vector_field_is_the_equations_and_the_steppers_motion() {
+    let params = web_line(5e-5);
+    let plant = Plant::new(params).unwrap();
+    let web = *plant.web().unwrap();
+    let (j_l, b_l, r_l, g) = (params.j_l, params.b_l, plant.r_l(), plant.half_gap());
+    let (v_in, t_in, tau_m, tau_l) = (1.9, 40.0, 0.3, -0.1);
+    for u_over_g in [-2.5, 0.4, 3.0] {
+        let theta_m = u_over_g * g / plant.r_m();
+        let state = PlantState::new(&plant, theta_m, 250.0, 0.0, 41.0).with_tension(35.0);
+        let psi = plant.force(state.u);
+        let rates = plant.rates(&state, tau_m, tau_l);
+        let span = web.forcing(v_in, t_in);
+        let t_rate = plant.tension_rate(&state, span);
+        let want_omega_l = (tau_l - b_l * state.omega_l + r_l * psi - web.r_w * state.tension) / j_l;
+        let want_t = (web.ea * (web.r_w * state.omega_l - v_in) + web.v_ref * (t_in - state.tension)) / web.l_w;
+        assert!(
+            (rates[3] - want_omega_l).abs() <= 1e-12 * want_omega_l.abs(),
+            "ω_L' {} vs {want_omega_l}",
+            rates[3]
+        );
+        assert!(
+            (t_rate - want_t).abs() <= 1e-12 * want_t.abs(),
+            "T' {t_rate} vs {want_t}"
+        );
+        // The exact motion over 1e-8 s: (x(h) − x(0))/h is the rate to O(h).
+        let h = 1e-8;
+        let mut stepper = Stepper::new(plant);
+        let mut next = state;
+        let inputs = Inputs {
+            span,
+            ..Inputs::held(tau_m, tau_l)
+        };
+        stepper.step(&mut next, &inputs, h, &mut |_| {}).unwrap();
+        let moved = [(next.omega_l - state.omega_l) / h, (next.tension - state.tension) / h];
+        for (got, want) in moved.iter().zip([want_omega_l, want_t]) {
+            assert!(
+                (got - want).abs() <= 1e-5 * want.abs(),
+                "u/g {u_over_g}: {got} vs {want}"
+            );
+        }
+    }
+}
