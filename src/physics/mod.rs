@@ -1,7 +1,9 @@
-//! The plant of docs/model.md §1–§3 as pure, safe Rust: no FFI, no FMI words.
+//! The plant of docs/model.md §1–§3 and the web line of §8 as pure, safe Rust: no FFI, no FMI
+//! words.
 //!
-//! Data flow: [`PlantParams`] → [`Plant`] (validated generic form) → [`Stepper`] (exact
-//! stepping, switches located to round-off) and [`SpeedErrorBound`] (docs/model.md §3 bounds);
+//! Data flow: [`PlantParams`] → [`Plant`] (validated generic form, with or without a web span)
+//! → [`Stepper`] (exact stepping, switches located to round-off) and [`SpeedErrorBound`]
+//! (docs/model.md §3 bounds), or for a web line [`WebSpeedBound`] and [`WebTensionBound`];
 //! `vector_field` gives the same plant as z' = f(z, τ) for solvers outside (docs/model.md §6).
 
 pub mod bound;
