@@ -32,9 +32,22 @@ pub struct Standard {
     pub folder_of: fn(&Platform) -> Option<&'static str>,
     /// The model description of a model identifier.
     pub description: fn(&str) -> String,
+    /// The root attribute an importer passes back at instantiation: `guid` (FMI 2.0) or
+    /// `instantiationToken` (FMI 3.0).
+    pub token_attribute: &'static str,
 }
 
 impl Standard {
+    /// The guid or instantiation token of a parsed description of this standard.
+    pub fn token<'a>(&self, doc: &'a roxmltree::Document) -> Result<&'a str, String> {
+        doc.root_element().attribute(self.token_attribute).ok_or_else(|| {
+            format!(
+                "the FMI {} modelDescription.xml has no {}",
+                self.fmi_version, self.token_attribute
+            )
+        })
+    }
+
     /// The folder its archives are written to.
     pub fn out_dir(&self) -> PathBuf {
         util::fmu_dir().join(self.subdir)
@@ -47,6 +60,7 @@ pub const FMI2: Standard = Standard {
     subdir: "",
     folder_of: |p| p.fmi2_folder,
     description: model_description::xml::model_description,
+    token_attribute: "guid",
 };
 
 /// FMI 3.0 (§2.5.1.4: platform tuples), beside the FMI 2.0 archives.
@@ -55,6 +69,7 @@ pub const FMI3: Standard = Standard {
     subdir: "fmi3",
     folder_of: |p| Some(p.fmi3_folder),
     description: model_description::xml3::model_description,
+    token_attribute: "instantiationToken",
 };
 
 /// The archives `cargo xtask fmu` writes for every model, in this order.

@@ -11,7 +11,7 @@ use std::time::{Instant, SystemTime};
 use serde::Deserialize;
 
 use super::{Plan, MODEL};
-use crate::{python, util};
+use crate::{fmu, python, util};
 
 /// The `@ key values…` lines of every tool, by key, in order of arrival.
 #[derive(Default)]
@@ -167,14 +167,11 @@ impl Runner {
         let (guid, mut vr_header) = guid_and_vr_header(&xml)?;
         // The FMI 3.0 archive's token, for the FMI 3.0 step of the suite (same library).
         let xml3 = unpack(
-            &util::fmu_dir().join("fmi3").join(format!("{MODEL}.fmu")),
+            &fmu::FMI3.out_dir().join(format!("{MODEL}.fmu")),
             &work.join(format!("{MODEL}-fmi3")),
         )?;
         let doc3 = roxmltree::Document::parse(&xml3).map_err(|e| format!("FMI 3.0 modelDescription.xml: {e}"))?;
-        let token = doc3
-            .root_element()
-            .attribute("instantiationToken")
-            .ok_or("the FMI 3.0 description has no instantiationToken")?;
+        let token = fmu::FMI3.token(&doc3)?;
         vr_header.push_str(&format!("#define INSTANTIATION_TOKEN \"{token}\"\n"));
         fs::write(work.join("bench_vr.h"), vr_header).map_err(|e| format!("writing bench_vr.h: {e}"))?;
         let headers = python::fmpy_header_dir().ok_or("no fmi2Functions.h in .venv (fmpy's c-code)")?;
@@ -447,10 +444,7 @@ fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
 /// ScalarVariable of it.
 fn guid_and_vr_header(xml: &str) -> Result<(String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
-    let guid = doc
-        .root_element()
-        .attribute("guid")
-        .ok_or("modelDescription.xml has no guid")?;
+    let guid = fmu::FMI2.token(&doc)?;
     let mut text = String::from("/* Written by cargo xtask bench from the archive's modelDescription.xml. */\n");
     let mut count = 0;
     for variable in doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")) {

@@ -291,14 +291,7 @@ fn read_entry(archive: &Path, name: &str) -> Result<Vec<u8>, String> {
 /// f64 of each value, as hexadecimal IEEE-754 bits).
 fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
-    let token_attribute = match standard.fmi_version {
-        "2.0" => "guid",
-        _ => "instantiationToken",
-    };
-    let token = doc
-        .root_element()
-        .attribute(token_attribute)
-        .ok_or_else(|| format!("modelDescription.xml has no {token_attribute}"))?;
+    let token = standard.token(&doc)?;
     // A variable is a child of ModelVariables: FMI 2.0's ScalarVariable, FMI 3.0's Float64, Int32...
     let value_reference = |name: &str| {
         doc.descendants()
