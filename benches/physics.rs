@@ -2,7 +2,7 @@
 //! products, a step with a switch under 2 µs; the web line's event-free step within 1.5× the
 //! belt drive's). Run: `cargo bench --bench physics`.
 
-use backlash_fmu::fmu::{adapter, model_by_identifier};
+use backlash_fmu::fmu::adapter;
 use backlash_fmu::physics::{
     ContactMode, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper, WebSpan, WebSpeedBound,
     WebTensionBound,
@@ -74,7 +74,7 @@ fn benches(c: &mut Criterion) {
 fn belt(web: Option<WebSpan>) -> Plant {
     Plant::new(PlantParams {
         web,
-        ..adapter::default_plant_params(model_by_identifier("BacklashBelt").expect("a served model"))
+        ..adapter::default_plant_params("BacklashBelt")
     })
     .expect("valid belt drive")
 }

@@ -1,6 +1,7 @@
-//! The web line of docs/model.md §8 stepped exactly: against the independent reference of
-//! support/web_reference.rs (its own matrices and Taylor integrator), against the belt drive
-//! when the web is decoupled, and its parameters refused by name.
+//! The web line of docs/model.md §8 stepped exactly and bounded: against the independent
+//! reference of support/web_reference.rs (its own matrices and Taylor integrator), against the
+//! belt drive when the web is decoupled, twin lines under PI loops against bound_T(t) and
+//! bound(t), the vector field against its equations, and its parameters refused by name.
 
 mod support;
 
@@ -397,4 +398,42 @@ fn the_web_vector_field_is_the_equations_and_the_steppers_motion() {
             );
         }
     }
+}
+
+/// The span's forcing is an input of the web line only: the web stepper refuses a non-finite
+/// one by name, the drive train's ignores it and names what it does refuse.
+#[test]
+fn a_non_finite_span_forcing_is_refused_by_the_web_line_only() {
+    use backlash_fmu::physics::StepError;
+    let bad = Inputs {
+        span: f64::NAN,
+        ..Inputs::held(0.1, 0.0)
+    };
+    let web = Plant::new(web_line(5e-5)).unwrap();
+    let mut state = PlantState::new(&web, 0.0, 0.0, 0.0, 0.0);
+    let refused = Stepper::new(web).step(&mut state, &bad, 1e-3, &mut |_| {});
+    assert!(
+        matches!(
+            refused,
+            Err(StepError::NonFiniteInput {
+                name: "the web span's forcing w",
+                ..
+            })
+        ),
+        "{refused:?}"
+    );
+    let belt = Plant::new(PlantParams {
+        web: None,
+        ..web_line(5e-5)
+    })
+    .unwrap();
+    let mut stepper = Stepper::new(belt);
+    let mut state = PlantState::new(&belt, 0.0, 0.0, 0.0, 0.0);
+    assert!(stepper.step(&mut state, &bad, 1e-3, &mut |_| {}).is_ok());
+    let mut broken = PlantState {
+        omega_m: f64::NAN,
+        ..state
+    };
+    let refused = stepper.step(&mut broken, &bad, 1e-3, &mut |_| {});
+    assert!(matches!(refused, Err(StepError::NonFiniteState)), "{refused:?}");
 }

@@ -6,7 +6,7 @@
 //! compile error. The rest of `fmu` handles variables only through [`source`].
 
 use super::simulation::Simulation;
-use super::variables::{DriveTrain, ModelInfo, Symbol};
+use super::variables::{model_by_identifier, DriveTrain, ModelInfo, Symbol};
 use crate::physics::{Geometry, Inputs, PiGains, Plant, PlantParams, PlantState};
 
 /// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`].
@@ -190,8 +190,11 @@ pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
     }
 }
 
-/// The plant of `model`'s start values: its default parameters (docs/model.md §4).
-pub fn default_plant_params(model: &ModelInfo) -> PlantParams {
+/// The plant of the start values of the model `identifier`: its default parameters
+/// (docs/model.md §4). Panics if the library serves no such model (for the tests, benches and
+/// tools that name one).
+pub fn default_plant_params(identifier: &str) -> PlantParams {
+    let model = model_by_identifier(identifier).unwrap_or_else(|| panic!("the library serves no model {identifier}"));
     plant_params(model, &start_values(model))
 }
 

@@ -141,7 +141,7 @@ pub(crate) struct Reduced {
 /// ∫_T^∞ |h| ≤ sqrt(1/(2ε)) · sqrt(xᵀ W x), W the observability Gramian of (A + εI, L):
 /// (A + εI)ᵀ W + W (A + εI) = −Lᵀ L. It decays at half the true rate, so it is never loose
 /// by more than the state's own decay. `N` is the loop state's size, `R` the most reduced
-/// coordinates (unused ones are zero rows of the projection and zero entries of W).
+/// coordinates a loop of that size has (those a loop leaves unused are 0, with zero entries of W).
 #[derive(Clone, Debug)]
 pub(crate) struct TailBound<const N: usize, const R: usize> {
     /// W in the reduced coordinates, zero-padded to R×R.
@@ -310,9 +310,7 @@ mod tests {
         use crate::physics::WebSpan;
         let plant = Plant::new(PlantParams {
             web: Some(WebSpan::FILM_LINE),
-            ..crate::fmu::adapter::default_plant_params(
-                crate::fmu::model_by_identifier("BacklashBelt").expect("a served model"),
-            )
+            ..crate::fmu::adapter::default_plant_params("BacklashBelt")
         })
         .unwrap();
         let speed = PiGains { kp: 0.18, ki: 57.6 };

@@ -96,12 +96,12 @@ pub fn mode_matrix<const N: usize>(plant: &Plant, mode: ContactMode) -> AugMatri
 /// piece converge fast and the remainder bounds of `roots` stay tight.
 pub fn fastest_rate(plant: &Plant) -> f64 {
     let p = plant.params();
-    let rate = plant.contact_frequency().max(p.b_m / p.j_m).max(p.b_l / p.j_l);
+    let omega0 = plant.contact_frequency();
+    let rate = omega0.max(p.b_m / p.j_m).max(p.b_l / p.j_l);
     match plant.web() {
         None => rate,
         Some(w) => {
             let web_sq = w.ea * w.r_w * w.r_w / (w.l_w * p.j_l);
-            let omega0 = plant.contact_frequency();
             rate.max((omega0 * omega0 + web_sq).sqrt()).max(w.v_ref / w.l_w)
         }
     }

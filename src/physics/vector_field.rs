@@ -40,7 +40,8 @@ impl Plant {
 
     /// The Jacobian of [`Plant::rates`] in the mode in force at `state`: ∂z'/∂z (rows z', columns
     /// θ_m, ω_m, θ_L, ω_L) and ∂z'/∂τ (columns τ_m, τ_L). Exact inside a mode; on ±g, where ψ has a
-    /// kink, it is the one-sided Jacobian of the mode being entered.
+    /// kink, it is the one-sided Jacobian of the mode being entered. With a web span T is not
+    /// among the columns: ∂ω_L'/∂T = −R_w/J_L is left to the caller.
     pub fn jacobian(&self, state: &PlantState) -> ([[f64; 4]; 4], [[f64; 2]; 4]) {
         let p = self.params();
         let (r_m, r_l) = (self.r_m(), self.r_l());
@@ -90,10 +91,7 @@ mod tests {
     use crate::physics::PlantParams;
 
     fn belt() -> Plant {
-        Plant::new(crate::fmu::adapter::default_plant_params(
-            crate::fmu::model_by_identifier("BacklashBelt").expect("a served model"),
-        ))
-        .unwrap()
+        Plant::new(crate::fmu::adapter::default_plant_params("BacklashBelt")).unwrap()
     }
 
     /// Central differences of `rates` against `jacobian`, away from the kinks.

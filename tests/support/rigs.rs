@@ -1,6 +1,6 @@
 //! Parameter sets shared by the physics tests.
 
-use backlash_fmu::fmu::{adapter, model_by_identifier};
+use backlash_fmu::fmu::adapter;
 use backlash_fmu::physics::{Geometry, PlantParams, WebSpan};
 
 /// The paper's rig (docs/model.md §4) with both viscous coefficients set to `b`.
@@ -52,7 +52,6 @@ pub fn undamped() -> [PlantParams; 4] {
 pub fn web_line(delta: f64) -> PlantParams {
     PlantParams {
         web: Some(WebSpan::FILM_LINE),
-        ..adapter::default_plant_params(model_by_identifier("BacklashBelt").expect("a served model"))
-            .with_half_gap(delta)
+        ..adapter::default_plant_params("BacklashBelt").with_half_gap(delta)
     }
 }

@@ -11,7 +11,7 @@ use serde::Serialize;
 use serde_json::ser::Formatter;
 use serde_json::{json, Value};
 
-use backlash_fmu::fmu::{adapter, variables};
+use backlash_fmu::fmu::adapter;
 use backlash_fmu::physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
 use study::{Crossing, GainDesign, StiffnessStudy};
 
@@ -321,10 +321,7 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
 pub(crate) fn default_params(form: Form) -> PlantParams {
     match form {
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
-        Form::Belt | Form::Web => {
-            let model = variables::model_by_identifier("BacklashBelt").expect("the library serves BacklashBelt");
-            adapter::default_plant_params(model)
-        }
+        Form::Belt | Form::Web => adapter::default_plant_params("BacklashBelt"),
     }
 }
 

@@ -27,8 +27,8 @@ pub struct Sups {
     pub speed: f64,
 }
 
-/// `bound_T_sup` and `bound_sup` of the web line (the plant library's [`WebTensionBound`] and [`WebSpeedBound`], as the
-/// FMU computes them); `DesignError::Unbounded` when the loop is not asymptotically stable.
+/// `bound_T_sup` and `bound_sup` of the web line (the plant library's [`WebTensionBound`] and
+/// [`WebSpeedBound`]); `DesignError::Unbounded` when the loop is not asymptotically stable.
 pub fn sups(drive: &PlantParams, web: &Web, speed: PiGains, tension: PiGains) -> Result<Sups, DesignError> {
     let plant = Plant::new(PlantParams {
         web: Some(*web),
