@@ -120,7 +120,7 @@ fn unknowns(doc: &Fmi3, tag: &str) -> Vec<(u32, Option<Vec<u32>>)> {
 }
 
 fn each_model(check: impl Fn(&'static ModelInfo, &Document, &Document)) {
-    assert_eq!(model_identifiers(), ["BacklashShaft", "BacklashBelt"]);
+    assert_eq!(model_identifiers(), ["BacklashShaft", "BacklashBelt", "BacklashWeb"]);
     for id in model_identifiers() {
         let model = model_by_identifier(id).unwrap();
         let text3 = xml3::model_description(id);
@@ -368,25 +368,27 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
             assert_eq!(vr, vr2);
             let name = model.by_vr(*vr).unwrap().name;
             let mut expected = deps2.clone().unwrap();
-            if matches!(name, "bound" | "bound_paper") {
+            if matches!(name, "bound" | "bound_paper" | "bound_T") {
                 assert!(expected.is_empty(), "{name}");
                 expected.push(0);
             }
             assert_eq!(deps.as_ref(), Some(&expected), "{id} {name}");
         }
 
-        // Derivatives 24..27, in the order of their states, with the FMI 2.0 dependencies.
+        // Derivatives 24..27 (and 33 of T on the web line), in the order of their states, with
+        // the FMI 2.0 dependencies.
+        let web = id == "BacklashWeb";
         let found = unknowns(&d, "ContinuousStateDerivative");
-        assert_eq!(found.iter().map(|u| u.0).collect::<Vec<_>>(), [24, 25, 26, 27], "{id}");
+        let derivatives = [24, 25, 26, 27, 33];
+        let state_names = ["theta_m", "omega_m", "theta_L", "omega_L", "T"];
+        let n = if web { 5 } else { 4 };
+        assert_eq!(found.iter().map(|u| u.0).collect::<Vec<_>>(), derivatives[..n], "{id}");
         assert_eq!(found, fmi2["Derivatives"], "{id}");
         let states: Vec<u32> = found
             .iter()
             .map(|(vr, _)| model.by_vr(*vr).unwrap().derivative_of.unwrap())
             .collect();
-        let expected_states: Vec<u32> = ["theta_m", "omega_m", "theta_L", "omega_L"]
-            .iter()
-            .map(|n| model.vr(n))
-            .collect();
+        let expected_states: Vec<u32> = state_names[..n].iter().map(|n| model.vr(n)).collect();
         assert_eq!(states, expected_states, "{id}");
 
         // Initial unknowns: FMI 2.0's, without the event indicators (FMI 3.0 §2.4.8).

@@ -49,7 +49,7 @@ fn truncated_extended_and_empty_bytes_are_refused() {
         }
         let mut longer = bytes.clone();
         longer.push(0);
-        refused(&f, &longer, "bytes, a version-1 state");
+        refused(&f, &longer, "bytes, a version-2 state");
         // The instance, in state Error now, comes back with fmi2Reset.
         f.reset_and_check();
     }
@@ -80,8 +80,8 @@ fn garbage_and_other_model_bytes_are_refused() {
     refused(&f, &vec![0u8; shaft.len()], "magic");
     refused(&f, &vec![0xffu8; shaft.len()], "magic");
     let mut version = shaft.clone();
-    version[8] = 2;
-    refused(&f, &version, "format version 2");
+    version[8] = 3;
+    refused(&f, &version, "format version 3");
     // A guid length pointing past the end.
     let mut long_guid = shaft.clone();
     long_guid[10..12].copy_from_slice(&u16::MAX.to_le_bytes());
@@ -139,13 +139,16 @@ fn invalid_fields_behind_a_valid_checksum_are_refused() {
         edit(values + 8 * index, &f64::to_le_bytes(x), name);
     }
     edit(values, &f64::NEG_INFINITY.to_le_bytes(), "not finite");
-    for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "u"].iter().enumerate() {
+    for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "T", "u"]
+        .iter()
+        .enumerate()
+    {
         edit(plant + 8 * i, &f64::NAN.to_le_bytes(), &format!("{name} = NaN"));
     }
     let mode = mode_offset(&bytes);
     edit(mode, &[2], "unknown contact mode 2");
     edit(mode, &[0x80], "unknown contact mode");
-    edit(mode + 1, &f64::NAN.to_le_bytes(), "bound elapsed time");
+    edit(mode + 1, &f64::NAN.to_le_bytes(), "a bound's state");
     f.reset_and_check();
 }
 
@@ -157,13 +160,13 @@ fn inconsistent_but_finite_plant_states_never_produce_nan() {
     let (_, bytes) = stepped(SHAFT);
     let plant = plant_offset(&bytes);
     let cases: [(&str, usize, Vec<u8>); 7] = [
-        ("u far outside the gap", plant + 32, 1e3f64.to_le_bytes().to_vec()),
-        ("u inside the gap", plant + 32, 0.0f64.to_le_bytes().to_vec()),
+        ("u far outside the gap", plant + 40, 1e3f64.to_le_bytes().to_vec()),
+        ("u inside the gap", plant + 40, 0.0f64.to_le_bytes().to_vec()),
         ("mode free", mode_offset(&bytes), vec![0]),
         ("mode negative", mode_offset(&bytes), vec![0xff]),
         ("huge omega_m", plant + 8, 1e300f64.to_le_bytes().to_vec()),
         ("huge theta_L", plant + 16, (-f64::MAX).to_le_bytes().to_vec()),
-        ("huge u", plant + 32, f64::MAX.to_le_bytes().to_vec()),
+        ("huge u", plant + 40, f64::MAX.to_le_bytes().to_vec()),
     ];
     for (what, at, new) in cases {
         let f = Fmu::new(SHAFT);

@@ -21,7 +21,7 @@ pub use models::model;
 
 /// The models this crate describes, in a fixed order.
 pub fn model_identifiers() -> &'static [&'static str] {
-    &["BacklashShaft", "BacklashBelt"]
+    &["BacklashShaft", "BacklashBelt", "BacklashWeb"]
 }
 
 /// Scalar type of a variable.
@@ -91,6 +91,8 @@ impl Range {
 pub enum DriveTrain {
     Shaft,
     Belt,
+    /// The belt drive whose load roller pulls a web span (docs/model.md §8).
+    Web,
 }
 
 impl DriveTrain {
@@ -99,7 +101,13 @@ impl DriveTrain {
         match self {
             DriveTrain::Shaft => "Shaft",
             DriveTrain::Belt => "Belt",
+            DriveTrain::Web => "Web",
         }
+    }
+
+    /// Whether the load pulls a web span, whose tension T is a fifth state.
+    pub fn has_web(self) -> bool {
+        self == DriveTrain::Web
     }
 }
 
@@ -175,6 +183,10 @@ pub(crate) const UNITS: &[UnitRow] = &[
     ("N.m.s/rad", [1, 2, -1, -1], &[]),
     ("N.m/rad", [1, 2, -2, -1], &[]),
     ("N/m", [1, 0, -2, 0], &[]),
+    ("m/s", [0, 1, -1, 0], &[]),
+    ("N/s", [1, 1, -3, 0], &[]),
+    ("rad/(s.N)", [-1, -1, 1, 1], &[]),
+    ("rad/(s2.N)", [-1, -1, 0, 1], &[]),
 ];
 
 /// One log category (FMI 2.0 §2.2.4): the Rust variant that names it in the library, its

@@ -39,6 +39,17 @@ const fn var(
 }
 
 fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
+    quantity_input(name, symbol, vr, "N.m", "Torque", description)
+}
+
+fn quantity_input(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
     use Causality::*;
     var(
         name,
@@ -50,8 +61,8 @@ fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'stati
         Initial::Unset,
         Some(0.0),
         Range::Finite,
-        "N.m",
-        "Torque",
+        unit,
+        quantity,
         description,
     )
 }
@@ -195,7 +206,7 @@ fn continuous_local(
 fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
     let unit = match drive_train {
         DriveTrain::Shaft => "rad",
-        DriveTrain::Belt => "m",
+        DriveTrain::Belt | DriveTrain::Web => "m",
     };
     let indicator = |name, symbol, vr, description| continuous_local(name, symbol, vr, unit, "", description);
     [
@@ -260,7 +271,7 @@ fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
     use Causality::*;
     let (psi_unit, psi_quantity, psi_text) = match drive_train {
         DriveTrain::Shaft => ("N.m", "Torque", "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft"),
-        DriveTrain::Belt => (
+        DriveTrain::Belt | DriveTrain::Web => (
             "N",
             "Force",
             "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1",
@@ -421,140 +432,276 @@ pub fn model(identifier: &str) -> Model {
                 variables: v,
             }
         }
-        "BacklashBelt" => {
-            // θ_m nominal g/r_m, θ_L nominal g/r_L, ω nominal ω₀ times those, with g = R_2 Delta/R_g1,
-            // r_m = R_1, r_L = R_2 R_g2/R_g1, ω₀ = sqrt(K_b (r_m²/J_m + r_L²/J_L)).
-            let mut v = common_head(
-                DriveTrain::Belt,
-                [
-                    0.006666666666666668,
-                    7.8202017592614315,
-                    0.0011111111111111113,
-                    1.303366959876905,
-                ],
-            );
-            // A small servo belt drive: 2:1 belt (R_2/R_1), 3:1 gear (R_g2/R_g1), 6:1 overall;
-            // belt-gear natural frequency about 190 Hz, half gap 50 um on the pitch circle.
-            v.extend([
-                parameter(
-                    "J_m",
-                    "JM",
-                    12,
-                    1e-4,
-                    Positive,
-                    "kg.m2",
-                    "MomentOfInertia",
-                    "Motor inertia including the motor pulley (> 0)",
-                ),
-                parameter(
-                    "J_L",
-                    "JL",
-                    13,
-                    5e-3,
-                    Positive,
-                    "kg.m2",
-                    "MomentOfInertia",
-                    "Load inertia including gear 2 (> 0)",
-                ),
-                parameter(
-                    "b_m",
-                    "BM",
-                    14,
-                    1e-4,
-                    NonNegative,
-                    "N.m.s/rad",
-                    "RotationalDampingConstant",
-                    "Motor viscous friction (>= 0)",
-                ),
-                parameter(
-                    "b_L",
-                    "BL",
-                    15,
-                    1e-3,
-                    NonNegative,
-                    "N.m.s/rad",
-                    "RotationalDampingConstant",
-                    "Load viscous friction (>= 0)",
-                ),
-                parameter(
-                    "Delta",
-                    "Delta",
-                    16,
-                    5e-5,
-                    NonNegative,
-                    "m",
-                    "Length",
-                    "Half backlash gap on the pitch circle of the gears (>= 0): total free play is 2*Delta",
-                ),
-            ]);
-            v.extend(pi_gains());
-            v.extend([
-                parameter(
-                    "K_b",
-                    "KB",
-                    19,
-                    2e5,
-                    Positive,
-                    "N/m",
-                    "TranslationalSpringConstant",
-                    "Belt stiffness (> 0)",
-                ),
-                parameter(
-                    "R_1",
-                    "R1",
-                    20,
-                    0.02,
-                    Positive,
-                    "m",
-                    "Length",
-                    "Radius of the motor pulley (> 0)",
-                ),
-                parameter(
-                    "R_2",
-                    "R2",
-                    21,
-                    0.04,
-                    Positive,
-                    "m",
-                    "Length",
-                    "Radius of the driven pulley (> 0)",
-                ),
-                parameter(
-                    "R_g1",
-                    "Rg1",
-                    22,
-                    0.015,
-                    Positive,
-                    "m",
-                    "Length",
-                    "Pitch radius of gear 1, on the driven pulley's shaft (> 0)",
-                ),
-                parameter(
-                    "R_g2",
-                    "Rg2",
-                    23,
-                    0.045,
-                    Positive,
-                    "m",
-                    "Length",
-                    "Pitch radius of gear 2, on the load (> 0)",
-                ),
-            ]);
-            let derivatives = state_derivatives(&v);
-            v.extend(derivatives);
-            v.extend(event_indicators(DriveTrain::Belt));
-            Model {
-                identifier: "BacklashBelt",
-                drive_train: DriveTrain::Belt,
-                description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
-                default_experiment: DefaultExperiment {
-                    start_time: 0.0,
-                    stop_time: 0.2,
-                    step_size: 1e-4,
-                },
-                variables: v,
-            }
-        }
+        "BacklashBelt" => Model {
+            identifier: "BacklashBelt",
+            drive_train: DriveTrain::Belt,
+            description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
+            default_experiment: DefaultExperiment {
+                start_time: 0.0,
+                stop_time: 0.2,
+                step_size: 1e-4,
+            },
+            variables: belt_variables(DriveTrain::Belt),
+        },
+        "BacklashWeb" => Model {
+            identifier: "BacklashWeb",
+            drive_train: DriveTrain::Web,
+            description: "BacklashBelt's drive whose load roller pulls one web span (the paper's future work): span tension T as a fifth state, bounds on load speed and tension, exact stepping with located contact switches",
+            default_experiment: DefaultExperiment {
+                start_time: 0.0,
+                stop_time: 1.0,
+                step_size: 1e-4,
+            },
+            variables: web_variables(),
+        },
         other => panic!("unknown model identifier {other:?}; known: {:?}", model_identifiers()),
     }
+}
+
+/// The belt drive's variables (value references 1–29), of BacklashBelt and of the web line's
+/// drive.
+fn belt_variables(drive_train: DriveTrain) -> Vec<Var> {
+    use Range::*;
+    // θ_m nominal g/r_m, θ_L nominal g/r_L, ω nominal ω₀ times those, with g = R_2 Delta/R_g1,
+    // r_m = R_1, r_L = R_2 R_g2/R_g1, ω₀ = sqrt(K_b (r_m²/J_m + r_L²/J_L)).
+    let mut v = common_head(
+        drive_train,
+        [
+            0.006666666666666668,
+            7.8202017592614315,
+            0.0011111111111111113,
+            1.303366959876905,
+        ],
+    );
+    // A small servo belt drive: 2:1 belt (R_2/R_1), 3:1 gear (R_g2/R_g1), 6:1 overall;
+    // belt-gear natural frequency about 190 Hz, half gap 50 um on the pitch circle.
+    v.extend([
+        parameter(
+            "J_m",
+            "JM",
+            12,
+            1e-4,
+            Positive,
+            "kg.m2",
+            "MomentOfInertia",
+            "Motor inertia including the motor pulley (> 0)",
+        ),
+        parameter(
+            "J_L",
+            "JL",
+            13,
+            5e-3,
+            Positive,
+            "kg.m2",
+            "MomentOfInertia",
+            "Load inertia including gear 2 (> 0)",
+        ),
+        parameter(
+            "b_m",
+            "BM",
+            14,
+            1e-4,
+            NonNegative,
+            "N.m.s/rad",
+            "RotationalDampingConstant",
+            "Motor viscous friction (>= 0)",
+        ),
+        parameter(
+            "b_L",
+            "BL",
+            15,
+            1e-3,
+            NonNegative,
+            "N.m.s/rad",
+            "RotationalDampingConstant",
+            "Load viscous friction (>= 0)",
+        ),
+        parameter(
+            "Delta",
+            "Delta",
+            16,
+            5e-5,
+            NonNegative,
+            "m",
+            "Length",
+            "Half backlash gap on the pitch circle of the gears (>= 0): total free play is 2*Delta",
+        ),
+    ]);
+    v.extend(pi_gains());
+    v.extend([
+        parameter(
+            "K_b",
+            "KB",
+            19,
+            2e5,
+            Positive,
+            "N/m",
+            "TranslationalSpringConstant",
+            "Belt stiffness (> 0)",
+        ),
+        parameter(
+            "R_1",
+            "R1",
+            20,
+            0.02,
+            Positive,
+            "m",
+            "Length",
+            "Radius of the motor pulley (> 0)",
+        ),
+        parameter(
+            "R_2",
+            "R2",
+            21,
+            0.04,
+            Positive,
+            "m",
+            "Length",
+            "Radius of the driven pulley (> 0)",
+        ),
+        parameter(
+            "R_g1",
+            "Rg1",
+            22,
+            0.015,
+            Positive,
+            "m",
+            "Length",
+            "Pitch radius of gear 1, on the driven pulley's shaft (> 0)",
+        ),
+        parameter(
+            "R_g2",
+            "Rg2",
+            23,
+            0.045,
+            Positive,
+            "m",
+            "Length",
+            "Pitch radius of gear 2, on the load (> 0)",
+        ),
+    ]);
+    let derivatives = state_derivatives(&v);
+    v.extend(derivatives);
+    v.extend(event_indicators(drive_train));
+    v
+}
+
+/// BacklashWeb: the belt drive's variables, then the web span's (value references 30–41,
+/// docs/model.md §8). Its defaults are BacklashBelt's drive pulling a film line.
+fn web_variables() -> Vec<Var> {
+    use Causality::*;
+    use Range::*;
+    let mut v = belt_variables(DriveTrain::Web);
+    // T nominal: the tension that balances on the roller the belt force of a gap's stretch,
+    // K_b g r_L/R_w (g = R_2 Delta/R_g1, r_L = R_2 R_g2/R_g1).
+    let tension = state_output(
+        "T",
+        "Tension",
+        32,
+        "N",
+        "Force",
+        64.0,
+        "Web span tension; its start value is the initial state",
+    );
+    let der_tension = state_derivative("der(T)", "DerTension", 33, &tension, "N/s", "");
+    v.extend([
+        quantity_input(
+            "v_in",
+            "VIn",
+            30,
+            "m/s",
+            "Velocity",
+            "Web speed entering the span upstream, held over each communication step, or along a line where input derivatives are set",
+        ),
+        quantity_input(
+            "T_in",
+            "TIn",
+            31,
+            "N",
+            "Force",
+            "Web tension upstream of the span, held over each communication step, or along a line where input derivatives are set",
+        ),
+        tension,
+        der_tension,
+        var(
+            "bound_T",
+            "BoundT",
+            34,
+            Type::Real,
+            Output,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Finite,
+            "N",
+            "Force",
+            "Rigorous bound on |T with backlash - T without backlash| since the start time: K*g*integral of |h_T|",
+        ),
+        var(
+            "bound_T_sup",
+            "BoundTSup",
+            35,
+            Type::Real,
+            CalculatedParameter,
+            Variability::Fixed,
+            Initial::Calculated,
+            None,
+            Finite,
+            "N",
+            "Force",
+            "Supremum of bound_T over all times: K*g*integral of |h_T| to infinity; +inf (with a warning) if the loop is not asymptotically stable",
+        ),
+        parameter(
+            "R_w",
+            "Rw",
+            36,
+            0.05,
+            Positive,
+            "m",
+            "Length",
+            "Radius of the load roller that pulls the web (> 0)",
+        ),
+        parameter("L_w", "Lw", 37, 1.0, Positive, "m", "Length", "Length of the web span (> 0)"),
+        parameter(
+            "EA",
+            "EA",
+            38,
+            1e5,
+            Positive,
+            "N",
+            "Force",
+            "Web stiffness: Young's modulus times cross-section (> 0)",
+        ),
+        parameter(
+            "v_ref",
+            "VRef",
+            39,
+            2.0,
+            Positive,
+            "m/s",
+            "Velocity",
+            "Web speed at which the span's transport term is linearized (> 0)",
+        ),
+        parameter(
+            "Kp_T",
+            "KpT",
+            40,
+            0.0,
+            Finite,
+            "rad/(s.N)",
+            "",
+            "Proportional gain of the outer tension PI, which trims the speed reference by Kp_T*(T_ref - T) + Ki_T*integral(T_ref - T); used by the bounds only (Kp_T = Ki_T = 0: no tension loop)",
+        ),
+        parameter(
+            "Ki_T",
+            "KiT",
+            41,
+            0.0,
+            Finite,
+            "rad/(s2.N)",
+            "",
+            "Integral gain of the outer tension PI; used by the bounds only",
+        ),
+    ]);
+    v
 }

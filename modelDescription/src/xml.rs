@@ -90,7 +90,7 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     x.push_str("    </Outputs>\n    <Derivatives>\n");
     for (i, v) in model.variables.iter().enumerate() {
         if v.derivative_of.is_some() {
-            let deps = index_list(derivative_dependencies(v.name));
+            let deps = index_list(&derivative_dependencies(model.drive_train, v.name));
             let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"{deps}\"/>", i + 1);
         }
     }

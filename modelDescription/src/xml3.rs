@@ -115,7 +115,7 @@ fn xml_with_token(model: &Model, token: &str) -> String {
     }
     for v in &model.variables {
         if v.derivative_of.is_some() {
-            let mut deps = name_list(derivative_dependencies(v.name));
+            let mut deps = name_list(&derivative_dependencies(model.drive_train, v.name));
             let _ = writeln!(
                 x,
                 "    <ContinuousStateDerivative valueReference=\"{}\" dependencies=\"{}\"/>",

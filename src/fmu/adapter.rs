@@ -7,7 +7,7 @@
 
 use super::simulation::Simulation;
 use super::variables::{model_by_identifier, DriveTrain, ModelInfo, Symbol};
-use crate::physics::{Geometry, Inputs, PiGains, Plant, PlantParams, PlantState};
+use crate::physics::{Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, WebSpan};
 
 /// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`].
 pub type Values = [f64; Symbol::COUNT];
@@ -15,7 +15,8 @@ pub type Values = [f64; Symbol::COUNT];
 /// Where a variable's value comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Source {
-    /// An input, stored; its slot among [`Inputs`] (0: τ_m, 1: τ_L) for input derivatives.
+    /// An input, stored; its slot among the input lines (0: τ_m, 1: τ_L, 2: v_in, 3: T_in)
+    /// for input derivatives.
     Input(usize),
     /// A parameter, stored.
     Parameter,
@@ -30,14 +31,25 @@ pub enum Source {
     Contact,
 }
 
-/// The four entries of the state z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1).
+/// The entries of the state z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1), and T on a web line
+/// (§8).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StateEntry {
     ThetaM,
     OmegaM,
     ThetaL,
     OmegaL,
+    Tension,
 }
+
+/// The most state entries of any model: z with a web span's tension.
+pub const MAX_STATES: usize = 5;
+
+/// z of any model, [θ_m, ω_m, θ_L, ω_L, T]; T is 0 for the drive trains.
+pub type StateVector = [f64; MAX_STATES];
+
+/// The most input lines of any model: τ_m, τ_L and a web span's v_in, T_in.
+pub const MAX_INPUTS: usize = 4;
 
 /// The Real variables computed from the physics.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,6 +61,9 @@ pub enum Calculated {
     Bound,
     BoundPaper,
     BoundSup,
+    /// `bound_T`, `bound_T_sup` of a web line (docs/model.md §8).
+    BoundT,
+    BoundTSup,
 }
 
 /// Where `symbol`'s value comes from.
@@ -57,6 +72,12 @@ pub fn source(symbol: Symbol) -> Source {
     match symbol {
         Symbol::TauM => Source::Input(0),
         Symbol::TauL => Source::Input(1),
+        Symbol::VIn => Source::Input(2),
+        Symbol::TIn => Source::Input(3),
+        Symbol::Tension => Source::State(StateEntry::Tension),
+        Symbol::BoundT => Source::Calculated(Calculated::BoundT),
+        Symbol::BoundTSup => Source::Calculated(Calculated::BoundTSup),
+        Symbol::DerTension => Source::Derivative(StateEntry::Tension),
         Symbol::ThetaM => Source::State(StateEntry::ThetaM),
         Symbol::OmegaM => Source::State(StateEntry::OmegaM),
         Symbol::ThetaL => Source::State(StateEntry::ThetaL),
@@ -84,7 +105,13 @@ pub fn source(symbol: Symbol) -> Source {
         | Symbol::R1
         | Symbol::R2
         | Symbol::Rg1
-        | Symbol::Rg2 => Source::Parameter,
+        | Symbol::Rg2
+        | Symbol::Rw
+        | Symbol::Lw
+        | Symbol::EA
+        | Symbol::VRef
+        | Symbol::KpT
+        | Symbol::KiT => Source::Parameter,
     }
 }
 
@@ -96,22 +123,29 @@ impl StateEntry {
             StateEntry::OmegaM => Symbol::OmegaM,
             StateEntry::ThetaL => Symbol::ThetaL,
             StateEntry::OmegaL => Symbol::OmegaL,
+            StateEntry::Tension => Symbol::Tension,
         }
     }
 
-    /// Its index in z = [θ_m, ω_m, θ_L, ω_L].
+    /// Its index in z = [θ_m, ω_m, θ_L, ω_L, T].
     pub fn index(self) -> usize {
         self as usize
     }
 
     /// The entries in the order of z, which is also the order of Model Exchange's continuous
     /// states.
-    pub const ALL: [StateEntry; 4] = [
+    pub const ALL: [StateEntry; MAX_STATES] = [
         StateEntry::ThetaM,
         StateEntry::OmegaM,
         StateEntry::ThetaL,
         StateEntry::OmegaL,
+        StateEntry::Tension,
     ];
+
+    /// The entries of `model`'s state: T only on a web line.
+    pub fn of_model(model: &ModelInfo) -> &'static [StateEntry] {
+        &StateEntry::ALL[..state_count(model)]
+    }
 
     /// Its value in `state`.
     #[inline]
@@ -121,7 +155,17 @@ impl StateEntry {
             StateEntry::OmegaM => state.omega_m,
             StateEntry::ThetaL => state.theta_l,
             StateEntry::OmegaL => state.omega_l,
+            StateEntry::Tension => state.tension,
         }
+    }
+}
+
+/// How many continuous states `model` has: 4, and 5 on a web line.
+pub fn state_count(model: &ModelInfo) -> usize {
+    if model.drive_train.has_web() {
+        MAX_STATES
+    } else {
+        MAX_STATES - 1
     }
 }
 
@@ -136,18 +180,21 @@ impl Calculated {
             Calculated::Bound => sim.bound.bound(),
             Calculated::BoundPaper => sim.bound.bound_paper(),
             Calculated::BoundSup => sim.bound_sup_value(),
+            Calculated::BoundT => sim.bound.bound_t(),
+            Calculated::BoundTSup => sim.bound_t_sup_value(),
         }
     }
 
-    /// Its time derivative, given z' = d/dt [θ_m, ω_m, θ_L, ω_L] in the mode in force; None for
-    /// `bound_sup`, a parameter.
-    pub fn rate(self, sim: &Simulation, z_dot: &[f64; 4]) -> Option<f64> {
+    /// Its time derivative, given z' = d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force; None
+    /// for the suprema, parameters.
+    pub fn rate(self, sim: &Simulation, z_dot: &StateVector) -> Option<f64> {
         match self {
             Calculated::Psi => Some(sim.plant().force_rate(sim.state.mode, z_dot[0], z_dot[2])),
             Calculated::UMinusG | Calculated::UPlusG => Some(sim.plant().transmission(z_dot[0], z_dot[2])),
             Calculated::Bound => Some(sim.bound.bound_rate()),
             Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
-            Calculated::BoundSup => None,
+            Calculated::BoundT => Some(sim.bound.bound_t_rate()),
+            Calculated::BoundSup | Calculated::BoundTSup => None,
         }
     }
 }
@@ -171,7 +218,7 @@ pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
             k: at(Symbol::K),
             delta: at(Symbol::Delta),
         },
-        DriveTrain::Belt => Geometry::Belt {
+        DriveTrain::Belt | DriveTrain::Web => Geometry::Belt {
             k_b: at(Symbol::KB),
             r_1: at(Symbol::R1),
             r_2: at(Symbol::R2),
@@ -186,7 +233,12 @@ pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
         b_m: at(Symbol::BM),
         b_l: at(Symbol::BL),
         geometry,
-        web: None,
+        web: model.drive_train.has_web().then(|| WebSpan {
+            r_w: at(Symbol::Rw),
+            l_w: at(Symbol::Lw),
+            ea: at(Symbol::EA),
+            v_ref: at(Symbol::VRef),
+        }),
     }
 }
 
@@ -198,53 +250,84 @@ pub fn default_plant_params(identifier: &str) -> PlantParams {
     plant_params(model, &start_values(model))
 }
 
-/// The PI gains the bounds assume (docs/model.md §3).
-pub fn gains(v: &Values) -> PiGains {
-    PiGains {
-        kp: v[Symbol::Kp.index()],
-        ki: v[Symbol::Ki.index()],
-    }
+/// The PI gains the bounds assume (docs/model.md §3): the speed loop's, and the tension
+/// loop's of a web line (§8; 0 for the drive trains, which have none).
+pub fn gains(v: &Values) -> (PiGains, PiGains) {
+    let at = |s: Symbol| v[s.index()];
+    let speed = PiGains {
+        kp: at(Symbol::Kp),
+        ki: at(Symbol::Ki),
+    };
+    let tension = PiGains {
+        kp: at(Symbol::KpT),
+        ki: at(Symbol::KiT),
+    };
+    (speed, tension)
 }
 
-/// The inputs with their slopes (set by fmi2SetRealInputDerivatives).
+/// The input lines' slopes, by [`Source::Input`] slot (set by fmi2SetRealInputDerivatives).
+pub type InputSlopes = [f64; MAX_INPUTS];
+
+/// The inputs with their slopes; a web span's forcing w (and its slope) from v_in, T_in
+/// ([`WebSpan::forcing`], linear in both).
 #[inline]
-pub fn inputs(v: &Values, slopes: [f64; 2]) -> Inputs {
+pub fn inputs(plant: &Plant, v: &Values, slopes: &InputSlopes) -> Inputs {
+    let (span, dspan) = plant.web().map_or((0.0, 0.0), |w| {
+        (
+            w.forcing(v[Symbol::VIn.index()], v[Symbol::TIn.index()]),
+            w.forcing(slopes[2], slopes[3]),
+        )
+    });
     Inputs {
         tau_m: v[Symbol::TauM.index()],
         tau_l: v[Symbol::TauL.index()],
         dtau_m: slopes[0],
         dtau_l: slopes[1],
-        span: 0.0,
-        dspan: 0.0,
+        span,
+        dspan,
     }
 }
 
-/// The state from z = [θ_m, ω_m, θ_L, ω_L] (Model Exchange's continuous states); the mode is the
-/// one u lies in.
-pub fn state_of(plant: &Plant, z: &[f64; 4]) -> PlantState {
-    PlantState::new(plant, z[0], z[1], z[2], z[3])
+/// The values of the input lines, by slot.
+#[inline]
+pub fn input_values(v: &Values) -> [f64; MAX_INPUTS] {
+    [Symbol::TauM, Symbol::TauL, Symbol::VIn, Symbol::TIn].map(|s| v[s.index()])
 }
 
-/// z = [θ_m, ω_m, θ_L, ω_L] of `state`.
-pub fn entries_of(state: &PlantState) -> [f64; 4] {
+/// The input lines' names, by slot.
+pub const INPUT_NAMES: [&str; MAX_INPUTS] = ["tau_m", "tau_L", "v_in", "T_in"];
+
+/// The state from z (Model Exchange's continuous states); the mode is the one u lies in.
+pub fn state_of(plant: &Plant, z: &StateVector) -> PlantState {
+    PlantState::new(plant, z[0], z[1], z[2], z[3]).with_tension(z[4])
+}
+
+/// z = [θ_m, ω_m, θ_L, ω_L, T] of `state`.
+pub fn entries_of(state: &PlantState) -> StateVector {
     StateEntry::ALL.map(|e| e.of(state))
 }
 
 /// Stores the input values at the end of a step (the input lines continue from there).
 #[inline]
-pub fn store_inputs(v: &mut Values, tau: [f64; 2]) {
-    v[Symbol::TauM.index()] = tau[0];
-    v[Symbol::TauL.index()] = tau[1];
+pub fn store_inputs(v: &mut Values, lines: &[f64; MAX_INPUTS]) {
+    v[Symbol::TauM.index()] = lines[0];
+    v[Symbol::TauL.index()] = lines[1];
+    v[Symbol::VIn.index()] = lines[2];
+    v[Symbol::TIn.index()] = lines[3];
 }
 
-/// The initial state from the start values of θ and ω.
+/// The initial state from the start values of θ, ω (and T).
 pub fn initial_state(plant: &Plant, v: &Values) -> PlantState {
     let at = |e: StateEntry| v[e.symbol().index()];
-    PlantState::new(
+    let state = PlantState::new(
         plant,
         at(StateEntry::ThetaM),
         at(StateEntry::OmegaM),
         at(StateEntry::ThetaL),
         at(StateEntry::OmegaL),
-    )
+    );
+    match plant.web() {
+        Some(_) => state.with_tension(at(StateEntry::Tension)),
+        None => state,
+    }
 }

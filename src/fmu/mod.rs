@@ -4,6 +4,7 @@
 //! ABI in `crate::ffi` converts pointers and calls [`Instance::run`].
 
 pub mod adapter;
+pub mod bounds;
 pub mod error;
 pub mod instance;
 pub mod logging;

@@ -1,20 +1,21 @@
 //! The physics behind one instance after initialization: plant, exact stepper, state and the
-//! speed-error bound (docs/model.md §1–§3), assembled from the variable values.
+//! bounds (docs/model.md §1–§3, §8), assembled from the variable values.
 
-use super::adapter::{self, Values};
+use super::adapter::{self, StateVector, Values};
+use super::bounds::Bounds;
 use super::error::FmuError;
 use super::variables::{Causality, ModelInfo};
-use crate::physics::{
-    finite, max_step, BoundError, BoundState, Inputs, Plant, PlantState, SpeedErrorBound, Stepper, Unbounded,
-};
+use crate::physics::{finite, max_step, BoundError, Inputs, Plant, PlantState, Stepper, Unbounded};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
     pub stepper: Stepper,
     pub state: PlantState,
-    pub bound: SpeedErrorBound,
+    pub bound: Bounds,
     /// bound_sup, or why it is +∞ (docs/model.md §3).
     pub bound_sup: Result<f64, Unbounded>,
+    /// bound_T_sup of a web line, or why it is +∞ (docs/model.md §8); 0 for the drive trains.
+    pub bound_t_sup: Result<f64, Unbounded>,
     /// The longest step accepted ([`max_step`]).
     pub max_step: f64,
 }
@@ -40,9 +41,13 @@ impl Simulation {
     #[cold]
     pub fn overflow(&self, state: &PlantState, what: std::fmt::Arguments<'_>) -> FmuError {
         let psi = self.plant().force(state.u);
+        let tension = match self.plant().web() {
+            Some(_) => format!(", T = {:e}", state.tension),
+            None => String::new(),
+        };
         FmuError::Overflow(format!(
-            "{what}: theta_m = {:e}, omega_m = {:e}, theta_L = {:e}, omega_L = {:e}, u = {:e}, psi = {psi:e}; \
-             reduce the start values, inputs or parameters",
+            "{what}: theta_m = {:e}, omega_m = {:e}, theta_L = {:e}, omega_L = {:e}{tension}, u = {:e}, psi = \
+             {psi:e}; reduce the start values, inputs or parameters",
             state.theta_m, state.omega_m, state.theta_l, state.omega_l, state.u
         ))
     }
@@ -56,22 +61,24 @@ impl Simulation {
         }
     }
 
-    /// The vector field at `state` with torques τ_m, τ_L, refused unless finite (say `what`
-    /// overflows): the accelerations of huge torques over small inertias leave f64.
+    /// The vector field z' = d/dt [θ_m, ω_m, θ_L, ω_L, T] at `state` under `inputs`, refused unless
+    /// finite (say `what` overflows): the accelerations of huge torques over small inertias
+    /// leave f64. T' is 0 without a web span.
     #[inline]
     pub fn rates(
         &self,
         state: &PlantState,
-        tau_m: f64,
-        tau_l: f64,
+        inputs: &Inputs,
         what: std::fmt::Arguments<'_>,
-    ) -> Result<[f64; 4], FmuError> {
-        let rates = self.plant().rates(state, tau_m, tau_l);
-        // θ' = ω is finite with the state; both accelerations are checked in one branch.
-        if finite(rates[1]) & finite(rates[3]) {
+    ) -> Result<StateVector, FmuError> {
+        let plant = self.plant();
+        let [a, b, c, d] = plant.rates(state, inputs.tau_m, inputs.tau_l);
+        let rates = [a, b, c, d, plant.tension_rate(state, inputs.span)];
+        // θ' = ω is finite with the state; the rest are checked in one branch.
+        if finite(rates[1]) & finite(rates[3]) & finite(rates[4]) {
             return Ok(rates);
         }
-        Err(rates_overflow(rates, tau_m, tau_l, what))
+        Err(rates_overflow(rates, inputs, plant.web().is_some(), what))
     }
 
     /// Advances plant and bound over `h` when the stepper's quiet path applies (see
@@ -92,12 +99,7 @@ impl Simulation {
     }
 
     /// Rebuilds from saved values and continues from a saved plant and bound state.
-    pub fn restore(
-        model: &ModelInfo,
-        v: &Values,
-        state: PlantState,
-        bound: &BoundState,
-    ) -> Result<Simulation, FmuError> {
+    pub fn restore(model: &ModelInfo, v: &Values, state: PlantState, bound: &[f64]) -> Result<Simulation, FmuError> {
         let mut sim = Simulation::build(model, v)?;
         if !state.is_finite() {
             return Err(FmuError::StateRefused("the plant state is not finite".into()));
@@ -149,15 +151,26 @@ impl Simulation {
     pub fn bound_sup_value(&self) -> f64 {
         self.bound_sup.unwrap_or(f64::INFINITY)
     }
+
+    pub fn bound_t_sup_value(&self) -> f64 {
+        self.bound_t_sup.unwrap_or(f64::INFINITY)
+    }
 }
 
 #[cold]
 #[inline(never)]
-fn rates_overflow(rates: [f64; 4], tau_m: f64, tau_l: f64, what: std::fmt::Arguments<'_>) -> FmuError {
+fn rates_overflow(rates: StateVector, inputs: &Inputs, web: bool, what: std::fmt::Arguments<'_>) -> FmuError {
+    let (tension, span) = match web {
+        true => (
+            format!(", der(T) = {:e}", rates[4]),
+            format!(", the span's forcing (v_ref*T_in - EA*v_in)/L_w = {:e}", inputs.span),
+        ),
+        false => (String::new(), String::new()),
+    };
     FmuError::Overflow(format!(
-        "{what}: der(omega_m) = {:e}, der(omega_L) = {:e} with tau_m = {tau_m:e}, tau_L = {tau_l:e}; reduce the \
-         inputs, start values or parameters",
-        rates[1], rates[3]
+        "{what}: der(omega_m) = {:e}, der(omega_L) = {:e}{tension} with tau_m = {:e}, tau_L = {:e}{span}; reduce \
+         the inputs, start values or parameters",
+        rates[1], rates[3], inputs.tau_m, inputs.tau_l
     ))
 }
 
@@ -196,8 +209,9 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     }
     // Built outside the lock: other instances need not wait for it.
     let plant = Plant::new(adapter::plant_params(model, v))?;
-    let bound = SpeedErrorBound::new(&plant, adapter::gains(v))?;
-    let bound_sup = bound.sup();
+    let (speed, tension) = adapter::gains(v);
+    let bound = Bounds::new(&plant, speed, tension)?;
+    let (bound_sup, bound_t_sup) = (bound.sup(), bound.sup_t());
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
     let sim = Simulation {
         max_step: max_step(&plant),
@@ -205,6 +219,7 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         state,
         bound,
         bound_sup,
+        bound_t_sup,
     };
     let mut cache = lock();
     if cache.len() == TEMPLATE_CACHE {

@@ -1,6 +1,6 @@
 //! FMU states (fmi2GetFMUstate) and their pointer-free serialized form.
 //!
-//! Byte format, version 1, all numbers little-endian, f64 as IEEE-754 bits:
+//! Byte format, version 2, all numbers little-endian, f64 as IEEE-754 bits:
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -10,32 +10,34 @@
 //! | 12 | n | guid of the model description (ASCII) |
 //! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error, 6 EventMode, 7 ContinuousTimeMode) |
 //! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present, bit 3 Model Exchange instance, bit 4 FMI 3.0 instance |
-//! | +2 | 2 | number m of stored values (24) |
+//! | +2 | 2 | number m of stored values (one per symbol of all models) |
 //! | +4 | 8·4 | time, startTime, stopTime, tolerance |
 //! | | 8·m | values by symbol: inputs, parameters, start values |
-//! | | 8·2 | dτ_m/dt, dτ_L/dt |
-//! | | 8·6 + 1 | θ_m, ω_m, θ_L, ω_L, u, u', mode (signed byte −1/0/+1) |
-//! | | 8·12 | bound: elapsed, response[5], integral[5], l1 |
+//! | | 8·4 | the input lines' slopes dτ_m/dt, dτ_L/dt, dv_in/dt, dT_in/dt |
+//! | | 8·7 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', mode (signed byte −1/0/+1) |
+//! | | 8·b | bounds: elapsed, response[n], integral[n], l1 of each loop bound; b = 12 for the drive trains (one bound, n = 5), 32 for the web line (speed and tension, n = 7) |
 //! | end−8 | 8 | FNV-1a-64 checksum of all bytes before it |
 //!
 //! Loading checks, in order: length, magic, version, guid (a state of the other model is
 //! refused), exact length, checksum, then every field (phase, finiteness, parameter ranges).
 
-use super::adapter::Values;
+use super::adapter::{InputSlopes, Values, INPUT_NAMES, MAX_INPUTS};
+use super::bounds::Bounds;
 use super::error::FmuError;
 use super::instance::Experiment;
 use super::state_machine::{Flavour, Interface, Phase, Standard};
-use super::variables::{ModelInfo, Symbol};
-use crate::physics::{BoundState, ContactMode, PlantState};
+use super::variables::{model_by_guid, ModelInfo, Symbol};
+use crate::physics::{ContactMode, PlantState};
 
 pub const MAGIC: &[u8; 8] = b"BKLSHFMU";
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 
 /// The plant and bound state of an initialized instance.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PhysicsSnapshot {
     pub plant: PlantState,
-    pub bound: BoundState,
+    /// [`Bounds::words`].
+    pub bound: Vec<f64>,
 }
 
 /// Everything needed to continue an instance bit-identically; derived objects (plant
@@ -48,7 +50,7 @@ pub struct Snapshot {
     pub time: f64,
     pub experiment: Experiment,
     pub values: Values,
-    pub input_slopes: [f64; 2],
+    pub input_slopes: InputSlopes,
     pub physics: Option<PhysicsSnapshot>,
 }
 
@@ -58,9 +60,11 @@ const FLAG_PHYSICS: u8 = 4;
 const FLAG_MODEL_EXCHANGE: u8 = 8;
 const FLAG_FMI3: u8 = 16;
 
-/// Bytes after the guid: phase, flags, count, 4 times, values, slopes, plant, bound, checksum.
-const fn body_len() -> usize {
-    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * 2 + (8 * 6 + 1) + 8 * 12 + 8
+/// Bytes after the guid of a state of `model`: phase, flags, count, 4 times, values, slopes,
+/// plant, bounds, checksum.
+fn body_len(model: &ModelInfo) -> usize {
+    let bounds = Bounds::word_count(model.drive_train.has_web());
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8
 }
 
 fn fnv1a_64(bytes: &[u8]) -> u64 {
@@ -73,8 +77,13 @@ fn fnv1a_64(bytes: &[u8]) -> u64 {
 }
 
 impl Snapshot {
+    /// The model the state belongs to.
+    fn model(&self) -> &'static ModelInfo {
+        model_by_guid(self.guid).expect("a snapshot is taken of a model this library serves")
+    }
+
     pub fn serialized_len(&self) -> usize {
-        8 + 2 + 2 + self.guid.len() + body_len()
+        8 + 2 + 2 + self.guid.len() + body_len(self.model())
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
@@ -109,16 +118,15 @@ impl Snapshot {
         put(self.experiment.tolerance.unwrap_or(0.0));
         self.values.iter().for_each(|x| put(*x));
         self.input_slopes.iter().for_each(|x| put(*x));
-        let (plant, bound) = match &self.physics {
-            Some(p) => (Some(p.plant), p.bound),
-            None => (None, BoundState::default()),
-        };
+        let plant = self.physics.as_ref().map(|p| p.plant);
         let z = plant
-            .map(|s| [s.theta_m, s.omega_m, s.theta_l, s.omega_l, s.u, s.du])
-            .unwrap_or([0.0; 6]);
+            .map(|s| [s.theta_m, s.omega_m, s.theta_l, s.omega_l, s.tension, s.u, s.du])
+            .unwrap_or([0.0; 7]);
         z.iter().for_each(|x| put(*x));
-        let mode = plant.map(|s| s.mode.as_i32() as i8).unwrap_or(0);
-        put_bound(&mut b, mode, &bound);
+        b.push(plant.map(|s| s.mode.as_i32() as i8).unwrap_or(0) as u8);
+        let no_bounds = vec![0.0; Bounds::word_count(self.model().drive_train.has_web())];
+        let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
+        bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
         let checksum = fnv1a_64(&b);
         b.extend_from_slice(&checksum.to_le_bytes());
         debug_assert_eq!(b.len(), self.serialized_len());
@@ -147,7 +155,7 @@ impl Snapshot {
             ));
         }
         let guid_len = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
-        let expected = 12 + guid_len + body_len();
+        let expected = 12 + guid_len + body_len(model);
         if bytes.len() < 12 + guid_len {
             return refuse(format!(
                 "truncated: {} bytes, the guid alone needs {}",
@@ -229,29 +237,24 @@ impl Snapshot {
                 return refuse(format!("{} = {x} is not {}", v.name, v.range.describe()));
             }
         }
-        let input_slopes = [r.finite("dtau_m/dt")?, r.finite("dtau_L/dt")?];
-        let z = [
-            r.finite("theta_m")?,
-            r.finite("omega_m")?,
-            r.finite("theta_L")?,
-            r.finite("omega_L")?,
-            r.finite("u")?,
-            r.finite("du/dt")?,
-        ];
+        let mut input_slopes = [0.0; MAX_INPUTS];
+        for (slope, name) in input_slopes.iter_mut().zip(INPUT_NAMES) {
+            *slope = r.finite(&format!("d{name}/dt"))?;
+        }
+        let mut z = [0.0; 7];
+        for (x, name) in z
+            .iter_mut()
+            .zip(["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt"])
+        {
+            *x = r.finite(name)?;
+        }
         let mode_code = r.u8() as i8 as i32;
         let mode = ContactMode::from_i32(mode_code)
             .ok_or_else(|| FmuError::StateRefused(format!("unknown contact mode {mode_code}")))?;
-        let mut bound = BoundState {
-            elapsed: r.finite("bound elapsed time")?,
-            ..BoundState::default()
-        };
-        for x in bound.response.iter_mut() {
-            *x = r.finite("bound response")?;
+        let mut bound = vec![0.0; Bounds::word_count(model.drive_train.has_web())];
+        for x in bound.iter_mut() {
+            *x = r.finite("a bound's state")?;
         }
-        for x in bound.integral.iter_mut() {
-            *x = r.finite("bound integral")?;
-        }
-        bound.l1 = r.finite("bound l1")?;
         debug_assert_eq!(r.at, payload.len());
 
         let has_physics = flags & FLAG_PHYSICS != 0;
@@ -273,10 +276,10 @@ impl Snapshot {
                 omega_m: z[1],
                 theta_l: z[2],
                 omega_l: z[3],
-                u: z[4],
-                du: z[5],
+                tension: z[4],
+                u: z[5],
+                du: z[6],
                 mode,
-                tension: 0.0,
             },
             bound,
         });
@@ -291,15 +294,6 @@ impl Snapshot {
             physics,
         })
     }
-}
-
-fn put_bound(b: &mut Vec<u8>, mode: i8, bound: &BoundState) {
-    b.push(mode as u8);
-    let mut put = |x: f64| b.extend_from_slice(&x.to_le_bytes());
-    put(bound.elapsed);
-    bound.response.iter().for_each(|x| put(*x));
-    bound.integral.iter().for_each(|x| put(*x));
-    put(bound.l1);
 }
 
 /// Reads fields from a buffer whose length was checked beforehand.

@@ -318,9 +318,10 @@ impl Stepper {
         }
     }
 
-    /// The `order`-th time derivative (order ≥ 1) of [θ_m, ω_m, θ_L, ω_L] at `state` under the
-    /// mode in force (at a switch instant: the mode being entered, i.e. the right derivative).
-    pub fn time_derivative(&self, state: &PlantState, inputs: &Inputs, order: u32) -> [f64; 4] {
+    /// The `order`-th time derivative (order ≥ 1) of [θ_m, ω_m, θ_L, ω_L, T] at `state` under the
+    /// mode in force (at a switch instant: the mode being entered, i.e. the right derivative);
+    /// T's is 0 without a web span.
+    pub fn time_derivative(&self, state: &PlantState, inputs: &Inputs, order: u32) -> [f64; 5] {
         match self {
             Stepper::Drive(s) => s.time_derivative(state, inputs, order),
             Stepper::Web(s) => s.time_derivative(state, inputs, order),
@@ -751,9 +752,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         best
     }
 
-    /// The `order`-th time derivative (order ≥ 1) of [θ_m, ω_m, θ_L, ω_L] at `state` under the
+    /// The `order`-th time derivative (order ≥ 1) of [θ_m, ω_m, θ_L, ω_L, T] at `state` under the
     /// mode in force (at a switch instant: the mode being entered, i.e. the right derivative).
-    pub fn time_derivative(&self, state: &PlantState, inputs: &Inputs, order: u32) -> [f64; 4] {
+    pub fn time_derivative(&self, state: &PlantState, inputs: &Inputs, order: u32) -> [f64; 5] {
         let m = &self.modes[state.mode.index()].m;
         let mut y = augmented(state, inputs, 0.0);
         for _ in 0..order {
@@ -764,6 +765,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             self.motor_speed(y[linear::V], y[linear::OMEGA_L]),
             y[linear::DTHETA_L],
             y[linear::OMEGA_L],
+            if N == WEB_AUG { y[linear::TENSION] } else { 0.0 },
         ]
     }
 

@@ -38,11 +38,12 @@ impl Plant {
         })
     }
 
-    /// The Jacobian of [`Plant::rates`] in the mode in force at `state`: ∂z'/∂z (rows z', columns
-    /// θ_m, ω_m, θ_L, ω_L) and ∂z'/∂τ (columns τ_m, τ_L). Exact inside a mode; on ±g, where ψ has a
-    /// kink, it is the one-sided Jacobian of the mode being entered. With a web span T is not
-    /// among the columns: ∂ω_L'/∂T = −R_w/J_L is left to the caller.
-    pub fn jacobian(&self, state: &PlantState) -> ([[f64; 4]; 4], [[f64; 2]; 4]) {
+    /// The Jacobian of the vector field z' = d/dt [θ_m, ω_m, θ_L, ω_L, T] ([`Plant::rates`] and
+    /// [`Plant::tension_rate`]) in the mode in force at `state`: ∂z'/∂z (rows z', columns θ_m,
+    /// ω_m, θ_L, ω_L, T) and ∂z'/∂(τ_m, τ_L, w) with w the span's forcing. Without a web span T's
+    /// row and column are 0. Exact inside a mode; on ±g, where ψ has a kink, it is the one-sided
+    /// Jacobian of the mode being entered.
+    pub fn jacobian(&self, state: &PlantState) -> ([[f64; 5]; 5], [[f64; 3]; 5]) {
         let p = self.params();
         let (r_m, r_l) = (self.r_m(), self.r_l());
         // ∂ψ/∂u: K on a flank, 0 in the gap.
@@ -50,14 +51,31 @@ impl Plant {
             ContactMode::Free => 0.0,
             ContactMode::Positive | ContactMode::Negative => self.stiffness(),
         };
+        // L_w T' = EA R_w ω_L − v_ref T + L_w w.
+        let (pull, stretch, relax, forced) = self.web().map_or((0.0, 0.0, 0.0, 0.0), |w| {
+            (w.r_w / p.j_l, w.ea * w.r_w / w.l_w, w.v_ref / w.l_w, 1.0)
+        });
         let dz = [
-            [0.0, 1.0, 0.0, 0.0],
-            [-r_m * k * r_m / p.j_m, -p.b_m / p.j_m, r_m * k * r_l / p.j_m, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [r_l * k * r_m / p.j_l, 0.0, -r_l * k * r_l / p.j_l, -p.b_l / p.j_l],
+            [0.0, 1.0, 0.0, 0.0, 0.0],
+            [-r_m * k * r_m / p.j_m, -p.b_m / p.j_m, r_m * k * r_l / p.j_m, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0, 0.0],
+            [
+                r_l * k * r_m / p.j_l,
+                0.0,
+                -r_l * k * r_l / p.j_l,
+                -p.b_l / p.j_l,
+                -pull,
+            ],
+            [0.0, 0.0, 0.0, stretch, -relax],
         ];
-        let dtau = [[0.0, 0.0], [1.0 / p.j_m, 0.0], [0.0, 0.0], [0.0, 1.0 / p.j_l]];
-        (dz, dtau)
+        let dinputs = [
+            [0.0, 0.0, 0.0],
+            [1.0 / p.j_m, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.0, 1.0 / p.j_l, 0.0],
+            [0.0, 0.0, forced],
+        ];
+        (dz, dinputs)
     }
 
     /// The event indicators [u − g, u + g]: a contact switch is a sign change of one of them.
@@ -68,9 +86,11 @@ impl Plant {
     }
 
     /// The scale each state moves on (docs/model.md §6): each angle at the gap it must resolve,
-    /// g/r (1e-4 rad without a gap), each speed at that angle per contact period, ω₀ g/r.
-    /// Importers derive absolute tolerances from these.
-    pub fn state_nominals(&self) -> [f64; 4] {
+    /// g/r (1e-4 rad without a gap), each speed at that angle per contact period, ω₀ g/r, and a
+    /// web span's tension at the force that balances on the roller the belt force of the load
+    /// angle's scale, K (θ_L r_L) r_L/R_w (1 without a web). Importers derive absolute tolerances
+    /// from these.
+    pub fn state_nominals(&self) -> [f64; 5] {
         let angle = |r: f64| {
             let g = self.half_gap();
             if g > 0.0 {
@@ -81,7 +101,10 @@ impl Plant {
         };
         let (theta_m, theta_l) = (angle(self.r_m()), angle(self.r_l()));
         let omega0 = self.contact_frequency();
-        [theta_m, omega0 * theta_m, theta_l, omega0 * theta_l]
+        let tension = self
+            .web()
+            .map_or(1.0, |w| self.stiffness() * theta_l * self.r_l() * self.r_l() / w.r_w);
+        [theta_m, omega0 * theta_m, theta_l, omega0 * theta_l, tension]
     }
 }
 

@@ -538,13 +538,13 @@ pub fn phase_offset(bytes: &[u8]) -> usize {
     12 + u16::from_le_bytes([bytes[10], bytes[11]]) as usize
 }
 
-/// Offset of the first f64 of the plant state (θ_m, ω_m, θ_L, ω_L, u, ...).
+/// Offset of the first f64 of the plant state (θ_m, ω_m, θ_L, ω_L, T, u, u').
 pub fn plant_offset(bytes: &[u8]) -> usize {
-    phase_offset(bytes) + 4 + 8 * 4 + 8 * backlash_fmu::fmu::Symbol::COUNT + 8 * 2
+    phase_offset(bytes) + 4 + 8 * 4 + 8 * backlash_fmu::fmu::Symbol::COUNT + 8 * 4
 }
 
-/// Offset of the contact-mode byte: counted from the end, before the bound (12 f64) and the
-/// checksum (8 bytes).
+/// Offset of the contact-mode byte of a drive train's state: counted from the end, before the
+/// bound (12 f64) and the checksum (8 bytes).
 pub fn mode_offset(bytes: &[u8]) -> usize {
     bytes.len() - 8 - 8 * 12 - 1
 }

@@ -18,7 +18,7 @@ impl Instance {
             input_slopes: self.input_slopes,
             physics: self.sim.as_ref().map(|sim| PhysicsSnapshot {
                 plant: sim.state,
-                bound: sim.bound.state(),
+                bound: sim.bound.words(),
             }),
         }
     }

@@ -20,7 +20,7 @@ use super::snapshot::Snapshot;
 use super::state_machine::{Flavour, Function, Interface, Phase, Standard};
 use super::variables::{model_by_guid, ModelInfo, MODELS};
 
-/// Relative slack of bound_sup (see `SpeedErrorBound::sup_slack`) above which
+/// Relative slack of bound_sup or bound_T_sup (see `LoopBound::sup_slack`) above which
 /// exitInitializationMode warns.
 const SUP_SLACK_WARNING: f64 = 1e-9;
 
@@ -72,8 +72,9 @@ pub struct Instance {
     phase: Phase,
     /// Inputs, parameters and start values (θ, ω before initialization), by [`Symbol`].
     values: Values,
-    /// dτ_m/dt, dτ_L/dt set by fmi2SetRealInputDerivatives (order 1).
-    input_slopes: [f64; 2],
+    /// The input lines' slopes (dτ_m/dt, dτ_L/dt, and dv_in/dt, dT_in/dt on a web line) set by
+    /// fmi2SetRealInputDerivatives (order 1).
+    input_slopes: adapter::InputSlopes,
     experiment: Experiment,
     /// Co-Simulation: the communication point; Model Exchange: the time set by fmi2SetTime.
     time: f64,
@@ -119,7 +120,7 @@ impl Instance {
             options,
             phase: Phase::Instantiated,
             values: adapter::start_values(model),
-            input_slopes: [0.0; 2],
+            input_slopes: [0.0; adapter::MAX_INPUTS],
             experiment: Experiment::default(),
             time: 0.0,
             sim: None,
@@ -419,15 +420,14 @@ impl Instance {
             None => Simulation::build(self.model, &self.values)?,
         };
         // Every output, the state derivatives included, must be finite from here on.
-        let inputs = adapter::inputs(&self.values, self.input_slopes);
-        sim.rates(
-            &sim.state,
-            inputs.tau_m,
-            inputs.tau_l,
-            format_args!("the initial accelerations overflow"),
-        )?;
-        let unbounded = sim.bound_sup.err();
-        let slack = sim.bound.sup_slack().unwrap_or(0.0);
+        let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
+        sim.rates(&sim.state, &inputs, format_args!("the initial accelerations overflow"))?;
+        let unbounded = match (sim.bound_sup, sim.bound_t_sup) {
+            (Err(why), _) => Some(("bound_sup", why)),
+            (_, Err(why)) => Some(("bound_T_sup", why)),
+            _ => None,
+        };
+        let slack = sim.bound.sup_slack();
         self.sim = Some(sim);
         self.time = self.experiment.start_time;
         self.phase = match self.flavour.interface {
@@ -438,7 +438,7 @@ impl Instance {
             None if slack > SUP_SLACK_WARNING => {
                 self.log.emit(Status::Warning, LogCategory::Warnings, || {
                     format!(
-                        "bound_sup is an upper bound that may exceed K*g*integral(|h|) by {:.2e} (relative): \
+                        "the suprema are upper bounds that may exceed K*g*integral(|h|) by {:.2e} (relative): \
                          the loop decays too slowly for the integration horizon",
                         slack
                     )
@@ -446,9 +446,9 @@ impl Instance {
                 Ok(Status::Warning)
             }
             None => Ok(Status::Ok),
-            Some(why) => {
+            Some((name, why)) => {
                 self.log.emit(Status::Warning, LogCategory::Warnings, || {
-                    format!("bound_sup = +inf: {why}")
+                    format!("{name} = +inf: {why}")
                 });
                 Ok(Status::Warning)
             }
@@ -465,7 +465,7 @@ impl Instance {
     pub(crate) fn reset_body(&mut self) -> Result<Status, FmuError> {
         self.phase = Phase::Instantiated;
         self.values = adapter::start_values(self.model);
-        self.input_slopes = [0.0; 2];
+        self.input_slopes = [0.0; adapter::MAX_INPUTS];
         self.experiment = Experiment::default();
         self.time = 0.0;
         self.sim = None;

@@ -1,10 +1,11 @@
 //! The Model Exchange calls (FMI 2.0.4 §3.2): the importer's solver sets time and the
-//! continuous states z = [θ_m, ω_m, θ_L, ω_L] and reads the vector field, the event indicators
+//! continuous states z = [θ_m, ω_m, θ_L, ω_L] (and T on a web line) and reads the vector field,
+//! the event indicators
 //! [u − g, u + g], the states' nominal values and the exact Jacobian of the mode in force
 //! (docs/model.md §6). There are no discrete states and no time events: modes follow u.
 
 use super::Instance;
-use crate::fmu::adapter::{self, Calculated, Source, StateEntry};
+use crate::fmu::adapter::{self, Calculated, Source, StateEntry, StateVector, MAX_INPUTS, MAX_STATES};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::state_machine::{Function, Interface, Phase};
 use crate::fmu::variables::VarType;
@@ -20,8 +21,7 @@ pub struct EventInfo {
     pub next_event_time: Option<f64>,
 }
 
-/// Number of continuous states and of event indicators.
-const STATES: usize = StateEntry::ALL.len();
+/// Number of event indicators.
 const EVENT_INDICATORS: usize = 2;
 
 impl Instance {
@@ -64,11 +64,7 @@ impl Instance {
 
     /// The number of continuous states (FMI 3.0 asks; FMI 2.0 descriptions say).
     pub(crate) fn continuous_state_count(&self) -> usize {
-        self.model
-            .variables
-            .iter()
-            .filter(|v| v.derivative_of.is_some())
-            .count()
+        adapter::state_count(self.model)
     }
 
     /// The number of event indicators: u − g and u + g.
@@ -121,14 +117,13 @@ impl Instance {
         Ok(Status::Ok)
     }
 
-    /// x as z = [θ_m, ω_m, θ_L, ω_L], refused unless of length 4 and finite.
-    fn state_vector(&self, x: &[f64]) -> Result<[f64; STATES], FmuError> {
-        let z: [f64; STATES] = x.try_into().map_err(|_| FmuError::LengthMismatch {
-            what: "continuous states",
-            length: x.len(),
-            expected: STATES,
-        })?;
-        if let Some((i, value)) = z.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+    /// x as z = [θ_m, ω_m, θ_L, ω_L, T] (T = 0 for the drive trains), refused unless of the
+    /// model's length and finite.
+    fn state_vector(&self, x: &[f64]) -> Result<StateVector, FmuError> {
+        Self::same_length("continuous states", x.len(), self.continuous_state_count())?;
+        let mut z = [0.0; MAX_STATES];
+        z[..x.len()].copy_from_slice(x);
+        if let Some((i, value)) = x.iter().enumerate().find(|(_, x)| !x.is_finite()) {
             return Err(FmuError::InvalidArgument(format!(
                 "continuous state {} ({}) is {value}; states must be finite",
                 i + 1,
@@ -150,16 +145,18 @@ impl Instance {
     }
 
     pub(crate) fn get_continuous_states_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let n = self.continuous_state_count();
         let z = adapter::entries_of(&self.physics()?.state);
-        Self::fill(out, "continuous states", &z)
+        Self::fill(out, "continuous states", &z[..n])
     }
 
     /// The solver's most frequent call: `rates` has checked the values already.
     #[inline]
     pub(crate) fn get_derivatives_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
-        Self::same_length("derivatives", out.len(), STATES)?;
+        let n = self.continuous_state_count();
+        Self::same_length("derivatives", out.len(), n)?;
         let rates = self.rates()?;
-        out.copy_from_slice(&rates);
+        out.copy_from_slice(&rates[..n]);
         Ok(Status::Ok)
     }
 
@@ -170,8 +167,9 @@ impl Instance {
     }
 
     pub(crate) fn get_nominals_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let n = self.continuous_state_count();
         let nominals = self.physics()?.plant().state_nominals();
-        Self::fill(out, "nominals of the continuous states", &nominals)
+        Self::fill(out, "nominals of the continuous states", &nominals[..n])
     }
 
     /// Model Exchange only (providesDirectionalDerivative is false for Co-Simulation).
@@ -201,9 +199,9 @@ impl Instance {
             dv_unknown.len(),
             unknowns.len(),
         )?;
-        // The seed as a change of z and of the inputs.
-        let mut dz = [0.0; STATES];
-        let mut dtau = [0.0; 2];
+        // The seed as a change of z and of the input lines.
+        let mut dz = [0.0; MAX_STATES];
+        let mut dinput = [0.0; MAX_INPUTS];
         for (vr, dv) in knowns.iter().zip(dv_known) {
             let v = self.typed_variable(*vr, VarType::Real)?;
             if !dv.is_finite() {
@@ -215,7 +213,7 @@ impl Instance {
             }
             match adapter::source(v.symbol) {
                 Source::State(entry) => dz[entry.index()] += dv,
-                Source::Input(slot) => dtau[slot] += dv,
+                Source::Input(slot) => dinput[slot] += dv,
                 _ => {
                     return Err(FmuError::InvalidArgument(format!(
                         "{} is not a known of the Jacobian: the knowns are the continuous states and the inputs",
@@ -235,7 +233,8 @@ impl Instance {
                     | Calculated::UMinusG
                     | Calculated::UPlusG
                     | Calculated::Bound
-                    | Calculated::BoundPaper,
+                    | Calculated::BoundPaper
+                    | Calculated::BoundT,
                 ) => rows.push(adapter::source(v.symbol)),
                 _ => {
                     return Err(FmuError::InvalidArgument(format!(
@@ -247,20 +246,26 @@ impl Instance {
         }
         let sim = self.physics()?;
         let plant = sim.plant();
-        let (jz, jtau) = plant.jacobian(&sim.state);
-        let psi_rate = |dz: &[f64; STATES]| plant.force_rate(sim.state.mode, dz[0], dz[2]);
+        let (jz, jinputs) = plant.jacobian(&sim.state);
+        // The span's forcing w is linear in v_in and T_in.
+        let dw = plant.web().map_or(0.0, |w| w.forcing(dinput[2], dinput[3]));
+        let dforcing = [dinput[0], dinput[1], dw];
+        let psi_rate = |dz: &StateVector| plant.force_rate(sim.state.mode, dz[0], dz[2]);
         // Computed in full before anything is written: a refusal leaves dvUnknown as it was.
         let mut values = Vec::with_capacity(rows.len());
         for row in rows {
             let value = match row {
                 Source::Derivative(entry) => {
                     let i = entry.index();
-                    (0..STATES).map(|j| jz[i][j] * dz[j]).sum::<f64>() + jtau[i][0] * dtau[0] + jtau[i][1] * dtau[1]
+                    (0..MAX_STATES).map(|j| jz[i][j] * dz[j]).sum::<f64>()
+                        + jinputs[i][0] * dforcing[0]
+                        + jinputs[i][1] * dforcing[1]
+                        + jinputs[i][2] * dforcing[2]
                 }
                 Source::State(entry) => dz[entry.index()],
                 Source::Calculated(Calculated::Psi) => psi_rate(&dz),
                 Source::Calculated(Calculated::UMinusG | Calculated::UPlusG) => plant.transmission(dz[0], dz[2]),
-                // bound and bound_paper: functions of time alone.
+                // The bounds: functions of time alone.
                 _ => 0.0,
             };
             if !value.is_finite() {

@@ -2,7 +2,7 @@
 //! general step with located contact switches, which in FMI 3.0 may stop at the first one.
 
 use super::Instance;
-use crate::fmu::adapter;
+use crate::fmu::adapter::{self, INPUT_NAMES, MAX_INPUTS};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::logging::LogCategory;
 use crate::physics::{finite, BoundError, Inputs, MAX_PERIODS_PER_STEP};
@@ -42,10 +42,6 @@ impl Instance {
     /// The step; returns whether it stopped early at a contact switch (only when `early_return`).
     #[inline]
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
-        let inputs = adapter::inputs(&self.values, self.input_slopes);
-        // The input lines at the end of the step (see below); refused before stepping if they
-        // leave f64, so that a refused step changes nothing.
-        let tau_end = [inputs.tau_m + h * inputs.dtau_m, inputs.tau_l + h * inputs.dtau_l];
         let end = communication_point + h;
         let now = self.time;
         // Where steps must end: finite, so that time stays finite.
@@ -56,6 +52,11 @@ impl Instance {
         let Some(sim) = self.sim.as_mut() else {
             unreachable!("StepComplete implies a simulation")
         };
+        let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
+        // The input lines at the end of the step (see below); refused before stepping if they
+        // leave f64, so that a refused step changes nothing.
+        let lines = adapter::input_values(&self.values);
+        let lines_end: [f64; MAX_INPUTS] = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
         // All argument checks in one branch (non-short-circuit `&`, each false on NaN); the
         // reason is sorted out by `step_refusal` only when one fails. `max_step` is finite.
         let accepted = finite(communication_point)
@@ -64,28 +65,22 @@ impl Instance {
             & ((communication_point - now).abs() <= TIME_TOLERANCE * now.abs().max(1.0))
             & (end > communication_point)
             & (end <= limit)
-            & finite(tau_end[0])
-            & finite(tau_end[1]);
+            & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
         if !accepted {
-            return Err(self.step_refusal(communication_point, h, tau_end));
+            return Err(self.step_refusal(communication_point, h, &lines_end));
         }
         if !sim.quiet_step(&inputs, h) {
             if let Some(offset) = self.general_step(communication_point, &inputs, h, early_return)? {
                 // Stopped at a switch: the input lines and the time move to it.
-                adapter::store_inputs(
-                    &mut self.values,
-                    [
-                        inputs.tau_m + offset * inputs.dtau_m,
-                        inputs.tau_l + offset * inputs.dtau_l,
-                    ],
-                );
+                let at_switch = std::array::from_fn(|i| lines[i] + offset * self.input_slopes[i]);
+                adapter::store_inputs(&mut self.values, &at_switch);
                 self.time = communication_point + offset;
                 return Ok(true);
             }
         }
         // The input lines continue over the next step unless set again (see
         // `set_real_input_derivatives_body`).
-        adapter::store_inputs(&mut self.values, tau_end);
+        adapter::store_inputs(&mut self.values, &lines_end);
         // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
         self.time = end;
         Ok(false)
@@ -94,7 +89,7 @@ impl Instance {
     /// Why `do_step_body` refuses its arguments (called only when it does).
     #[cold]
     #[inline(never)]
-    fn step_refusal(&self, communication_point: f64, h: f64, tau_end: [f64; 2]) -> FmuError {
+    fn step_refusal(&self, communication_point: f64, h: f64, lines_end: &[f64; MAX_INPUTS]) -> FmuError {
         let bad = FmuError::InvalidArgument;
         if !communication_point.is_finite() {
             return bad(format!("currentCommunicationPoint {communication_point} is not finite"));
@@ -127,10 +122,10 @@ impl Instance {
                 "the step from {communication_point} by {h} leaves the range of f64"
             ));
         }
-        if !tau_end.iter().all(|x| x.is_finite()) {
+        if let Some(i) = lines_end.iter().position(|x| !x.is_finite()) {
             return FmuError::Overflow(format!(
-                "the input ramps reach tau_m = {:e}, tau_L = {:e} at the end of the step",
-                tau_end[0], tau_end[1]
+                "the input ramp of {} reaches {:e} at the end of the step",
+                INPUT_NAMES[i], lines_end[i]
             ));
         }
         let max_step = self.sim.as_ref().map_or(f64::NAN, |sim| sim.max_step);

@@ -65,7 +65,7 @@ impl Instance {
                 Some(sim) => entry.of(&sim.state),
                 None => self.values[v.symbol.index()],
             },
-            Source::Calculated(quantity @ (Calculated::Bound | Calculated::BoundPaper)) => {
+            Source::Calculated(quantity @ (Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT)) => {
                 self.bound_to_time()?;
                 quantity.of(self.physics()?)
             }
@@ -75,17 +75,13 @@ impl Instance {
         })
     }
 
-    /// d/dt [θ_m, ω_m, θ_L, ω_L] of the vector field at the state in force and the current
-    /// inputs (docs/model.md §1).
-    pub(super) fn rates(&mut self) -> Result<[f64; 4], FmuError> {
-        let inputs = adapter::inputs(&self.values, self.input_slopes);
+    /// d/dt [θ_m, ω_m, θ_L, ω_L, T] of the vector field at the state in force and the current
+    /// inputs (docs/model.md §1, §8).
+    pub(super) fn rates(&mut self) -> Result<adapter::StateVector, FmuError> {
+        let (values, slopes) = (self.values, self.input_slopes);
         let sim = self.physics()?;
-        sim.rates(
-            &sim.state,
-            inputs.tau_m,
-            inputs.tau_l,
-            format_args!("the state derivatives overflow"),
-        )
+        let inputs = adapter::inputs(sim.plant(), &values, &slopes);
+        sim.rates(&sim.state, &inputs, format_args!("the state derivatives overflow"))
     }
 
     /// The refusal of a `requested` access to `v` of another type.
@@ -107,10 +103,13 @@ impl Instance {
             }
             let v = self.typed_variable(*vr, VarType::Real)?;
             let x = self.real_value(v)?;
-            // bound_sup is +∞ by definition when the loop is unstable (docs/model.md §4); nothing else
-            // may leave the FMU as ∞ or NaN.
-            if x.is_nan() || (x.is_infinite() && adapter::source(v.symbol) != Source::Calculated(Calculated::BoundSup))
-            {
+            // The suprema are +∞ by definition when the loop is unstable (docs/model.md §4); nothing
+            // else may leave the FMU as ∞ or NaN.
+            let supremum = matches!(
+                adapter::source(v.symbol),
+                Source::Calculated(Calculated::BoundSup | Calculated::BoundTSup)
+            );
+            if x.is_nan() || (x.is_infinite() && !supremum) {
                 return Err(FmuError::Overflow(format!("{} evaluates to {x}", v.name)));
             }
             *slot = x;
@@ -279,13 +278,13 @@ impl Instance {
     ) -> Result<Status, FmuError> {
         Self::same_length("fmi2GetRealOutputDerivatives orders", orders.len(), vrs.len())?;
         Self::same_length("fmi2GetRealOutputDerivatives values", out.len(), vrs.len())?;
-        let inputs = adapter::inputs(&self.values, self.input_slopes);
         let Some(sim) = &self.sim else {
             return Err(FmuError::InvalidArgument(
                 "no output derivatives before initialization has ended".into(),
             ));
         };
-        let mut rates: Option<[f64; 4]> = None;
+        let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
+        let mut rates: Option<adapter::StateVector> = None;
         for ((vr, order), slot) in vrs.iter().zip(orders).zip(out.iter_mut()) {
             let v = self.typed_variable(*vr, VarType::Real)?;
             if v.causality != Causality::Output {
@@ -297,7 +296,7 @@ impl Instance {
                     v.name
                 )));
             }
-            // d/dt [θ_m, ω_m, θ_L, ω_L] in the mode in force (at a switch: the mode entered).
+            // d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (at a switch: the mode entered).
             let z_dot = *rates.get_or_insert_with(|| sim.stepper.time_derivative(&sim.state, &inputs, 1));
             let rate = match adapter::source(v.symbol) {
                 Source::State(entry) => Some(z_dot[entry.index()]),

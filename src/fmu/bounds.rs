@@ -1,0 +1,202 @@
+//! The bounds an instance reports, by model: the speed-error bound of docs/model.md §3 for the
+//! drive trains, and for the web line (§8) the pair of bounds of its loop, on load speed and on
+//! span tension, advanced together.
+
+use crate::physics::{
+    BoundError, BoundState, PiGains, Plant, SpeedErrorBound, Unbounded, WebSpeedBound, WebTensionBound,
+};
+
+#[derive(Clone, Debug)]
+pub enum Bounds {
+    /// `bound`, `bound_paper`, `bound_sup` of a drive train under the speed PI.
+    Speed(SpeedErrorBound),
+    /// The web line's: `bound`, `bound_paper`, `bound_sup` on its load speed, `bound_T`,
+    /// `bound_T_sup` on its tension.
+    Web(Box<WebBounds>),
+}
+
+#[derive(Clone, Debug)]
+pub struct WebBounds {
+    speed: WebSpeedBound,
+    tension: WebTensionBound,
+}
+
+/// The words of one saved loop-bound state: elapsed, response, integral, l1.
+const fn words<const N: usize>() -> usize {
+    2 * N + 2
+}
+
+fn put<const N: usize>(out: &mut Vec<f64>, s: &BoundState<N>) {
+    out.push(s.elapsed);
+    out.extend_from_slice(&s.response);
+    out.extend_from_slice(&s.integral);
+    out.push(s.l1);
+}
+
+fn take<const N: usize>(words: &[f64]) -> BoundState<N> {
+    let mut s = BoundState::<N> {
+        elapsed: words[0],
+        l1: words[2 * N + 1],
+        ..BoundState::default()
+    };
+    s.response.copy_from_slice(&words[1..=N]);
+    s.integral.copy_from_slice(&words[N + 1..=2 * N]);
+    s
+}
+
+impl Bounds {
+    /// The bounds of `plant`'s loop: the speed PI `speed`, and with a web span the tension PI
+    /// `tension` as well (both gains 0: no tension loop).
+    pub fn new(plant: &Plant, speed: PiGains, tension: PiGains) -> Result<Bounds, BoundError> {
+        Ok(match plant.web() {
+            None => Bounds::Speed(SpeedErrorBound::new(plant, speed)?),
+            Some(_) => Bounds::Web(Box::new(WebBounds {
+                speed: WebSpeedBound::new(plant, speed, tension)?,
+                tension: WebTensionBound::new(plant, speed, tension)?,
+            })),
+        })
+    }
+
+    /// How many numbers [`Bounds::words`] holds for a plant with (`web`) or without a web span.
+    pub const fn word_count(web: bool) -> usize {
+        if web {
+            2 * words::<{ crate::physics::closed_loop::WEB_CL }>()
+        } else {
+            words::<{ crate::physics::closed_loop::CL }>()
+        }
+    }
+
+    /// Advances every bound by `h`; on error none has changed.
+    #[inline]
+    pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
+        match self {
+            Bounds::Speed(b) => b.advance(h),
+            Bounds::Web(w) => {
+                let before = w.speed.state();
+                w.speed.advance(h)?;
+                w.tension.advance(h).inspect_err(|_| {
+                    w.speed.restore(&before).expect("a state the bound had is valid");
+                })
+            }
+        }
+    }
+
+    pub fn reset(&mut self) {
+        match self {
+            Bounds::Speed(b) => b.reset(),
+            Bounds::Web(w) => {
+                w.speed.reset();
+                w.tension.reset();
+            }
+        }
+    }
+
+    pub fn elapsed(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.elapsed(),
+            Bounds::Web(w) => w.speed.elapsed(),
+        }
+    }
+
+    pub fn bound(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.bound(),
+            Bounds::Web(w) => w.speed.bound(),
+        }
+    }
+
+    pub fn bound_paper(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.bound_paper(),
+            Bounds::Web(w) => w.speed.bound_paper(),
+        }
+    }
+
+    pub fn bound_rate(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.bound_rate(),
+            Bounds::Web(w) => w.speed.bound_rate(),
+        }
+    }
+
+    pub fn bound_paper_rate(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.bound_paper_rate(),
+            Bounds::Web(w) => w.speed.bound_paper_rate(),
+        }
+    }
+
+    /// `bound_T` (0 without a web span, which has no such variable).
+    pub fn bound_t(&self) -> f64 {
+        match self {
+            Bounds::Speed(_) => 0.0,
+            Bounds::Web(w) => w.tension.bound(),
+        }
+    }
+
+    pub fn bound_t_rate(&self) -> f64 {
+        match self {
+            Bounds::Speed(_) => 0.0,
+            Bounds::Web(w) => w.tension.bound_rate(),
+        }
+    }
+
+    /// `bound_sup`, or why it is +∞.
+    pub fn sup(&self) -> Result<f64, Unbounded> {
+        match self {
+            Bounds::Speed(b) => b.sup(),
+            Bounds::Web(w) => w.speed.sup(),
+        }
+    }
+
+    /// `bound_T_sup`, or why it is +∞ (0 without a web span).
+    pub fn sup_t(&self) -> Result<f64, Unbounded> {
+        match self {
+            Bounds::Speed(_) => Ok(0.0),
+            Bounds::Web(w) => w.tension.sup(),
+        }
+    }
+
+    /// The largest relative slack of the suprema (see `LoopBound::sup_slack`).
+    pub fn sup_slack(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.sup_slack().unwrap_or(0.0),
+            Bounds::Web(w) => {
+                let slack = |s: Option<f64>| s.unwrap_or(0.0);
+                slack(w.speed.sup_slack()).max(slack(w.tension.sup_slack()))
+            }
+        }
+    }
+
+    /// The evolving state as plain numbers, [`Bounds::word_count`] of them (FMU states).
+    pub fn words(&self) -> Vec<f64> {
+        let mut out = Vec::with_capacity(Self::word_count(matches!(self, Bounds::Web(_))));
+        match self {
+            Bounds::Speed(b) => put(&mut out, &b.state()),
+            Bounds::Web(w) => {
+                put(&mut out, &w.speed.state());
+                put(&mut out, &w.tension.state());
+            }
+        }
+        out
+    }
+
+    /// Restores [`Bounds::words`] (validated; both bounds of the web line at the same time).
+    pub fn restore(&mut self, saved: &[f64]) -> Result<(), BoundError> {
+        if saved.len() != Self::word_count(matches!(self, Bounds::Web(_))) {
+            return Err(BoundError::BadState);
+        }
+        match self {
+            Bounds::Speed(b) => b.restore(&take(saved)),
+            Bounds::Web(w) => {
+                let (speed, tension) = saved.split_at(saved.len() / 2);
+                let (speed, tension) = (take(speed), take(tension));
+                if speed.elapsed != tension.elapsed {
+                    return Err(BoundError::BadState);
+                }
+                w.speed.restore(&speed)?;
+                w.tension.restore(&tension)
+            }
+        }
+    }
+}
