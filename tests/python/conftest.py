@@ -15,7 +15,7 @@ import fmu_driver  # noqa: E402
 
 
 def pytest_sessionstart(session):
-    """Both archives must exist: skipping the tests that need them would let an unbuilt tree pass."""
+    """Every archive must exist: skipping the tests that need them would let an unbuilt tree pass."""
     missing = [str(path) for path in map(fmu_driver.fmu_path, fmu_driver.MODELS) if not path.is_file()]
     if missing:
         pytest.exit(f"FMU archive not found: {', '.join(missing)} (build with `cargo xtask fmu`)", returncode=1)
@@ -34,5 +34,5 @@ def shaft() -> fmu_driver.Extracted:
 
 @pytest.fixture(scope="session", params=fmu_driver.MODELS)
 def fmu(request) -> fmu_driver.Extracted:
-    """Each of the two FMUs in turn."""
+    """Each of the FMUs in turn."""
     return fmu_driver.require(request.param)

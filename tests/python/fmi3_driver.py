@@ -189,8 +189,9 @@ class Model3(_Logged):
         )
         self.model.instantiate(logMessage=self._init_log())
         self.c = self.model.component
-        self._x = (ctypes.c_double * NX)()
-        self._dx = (ctypes.c_double * NX)()
+        self.nx = len(fmu.md.derivatives)
+        self._x = (ctypes.c_double * self.nx)()
+        self._dx = (ctypes.c_double * self.nx)()
         self._z = (ctypes.c_double * NZ)()
         self._u = (ctypes.c_double * 2)()
         self._in = (ctypes.c_uint * 2)(self.vr["tau_m"], self.vr["tau_L"])
@@ -216,15 +217,17 @@ class Model3(_Logged):
         self.model.fmi3SetFloat64(self.c, self._in, 2, self._u, 2)
 
     def set_state(self, t: float, x):
+        """Sets the drive train's states x[:4]; a web line's T is 0 (as me_driver)."""
         self.model.fmi3SetTime(self.c, t)
-        self.x_view[:] = x[:NX]
-        self.model.fmi3SetContinuousStates(self.c, self._x, NX)
+        self.x_view[:NX] = x[:NX]
+        self.model.fmi3SetContinuousStates(self.c, self._x, self.nx)
 
     def derivatives(self, t: float, x, tau_m: float, tau_L: float) -> np.ndarray:
+        """The drive train's derivatives at x[:4] (a web line's T at 0)."""
         self.set_state(t, x)
         self.set_inputs(tau_m, tau_L)
-        self.model.fmi3GetContinuousStateDerivatives(self.c, self._dx, NX)
-        return np.array(self._dx)
+        self.model.fmi3GetContinuousStateDerivatives(self.c, self._dx, self.nx)
+        return np.array(self._dx[:NX])
 
     def indicators(self, t: float, x) -> np.ndarray:
         self.set_state(t, x)
@@ -232,9 +235,10 @@ class Model3(_Logged):
         return np.array(self._z)
 
     def nominals(self) -> np.ndarray:
-        out = (ctypes.c_double * NX)()
-        self.model.getNominalsOfContinuousStates(out, NX)
-        return np.array(out)
+        """The drive train's nominals."""
+        out = (ctypes.c_double * self.nx)()
+        self.model.getNominalsOfContinuousStates(out, self.nx)
+        return np.array(out[:NX])
 
     def free(self):
         self.model.freeInstance()

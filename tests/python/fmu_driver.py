@@ -15,7 +15,7 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-MODELS = ("BacklashShaft", "BacklashBelt")
+MODELS = ("BacklashShaft", "BacklashBelt", "BacklashWeb")
 REPO = Path(__file__).resolve().parents[2]
 STATE_OUTPUTS = ("theta_m", "omega_m", "theta_L", "omega_L")
 

@@ -198,3 +198,174 @@ def dominant_frequency(A: np.ndarray, d: np.ndarray, c: np.ndarray) -> float:
     w = np.logspace(-1, 5, 3000)
     gain = [abs(c @ np.linalg.solve(1j * wi * np.eye(len(d)) - A, d)) for wi in w]
     return float(w[int(np.argmax(gain))])
+
+
+# --- Additions for test_web.py (the BacklashWeb FMU); the functions above are unchanged. ---
+
+
+def reduced_loop(p: dict, Kp: float, Ki: float, Kp_T: float = 0.0, Ki_T: float = 0.0):
+    """loop_matrices without the speed integrator x_c when Ki = 0: nothing reads it then, and its
+    eigenvalue 0 would make the loop look unstable (docs/model.md §3, "Which modes count")."""
+    A, d, c_T, c_w = loop_matrices(p, Kp, Ki, Kp_T, Ki_T)
+    if Ki == 0.0:
+        A, d, c_T, c_w = np.delete(np.delete(A, 3, 0), 3, 1), np.delete(d, 3), np.delete(c_T, 3), np.delete(c_w, 3)
+    return A, d, c_T, c_w
+
+
+def l1_until(A: np.ndarray, d: np.ndarray, c: np.ndarray, times) -> np.ndarray:
+    """int_0^t |c e^{As} d| ds at each of the (non-negative) times, by the exact antiderivative of
+    l1_norm: H(s) = c A^-1 e^{As} d (A invertible, not necessarily Hurwitz) has H' = h, so with
+    the sign changes r_1 < r_2 < ... of h in [0, t] (r_0 = 0)
+        int_0^t |h| = sum_i |H(r_i) - H(r_i-1)| + |H(t) - H(r_last)|.
+    The sign changes are searched on a grid of e^{A delta} steps split at the extrema of h, as
+    in l1_norm; H at the roots and at t comes from expm of the root's time."""
+    times = np.asarray(times, dtype=float)
+    lam = np.linalg.eigvals(A)
+    delta = 0.05 / np.max(np.abs(lam))
+    n = int(np.ceil(np.max(times) / delta)) + 1
+    step = expm(A * delta)
+    c_int, c_der = np.linalg.solve(A.T, c), A.T @ c
+    vs = np.empty((n + 1, len(d)))
+    vs[0] = d
+    for k in range(n):
+        vs[k + 1] = step @ vs[k]
+    h, dh = vs @ c, vs @ c_der
+    roots = []
+    for k in np.nonzero((h[:-1] * h[1:] < 0.0) | (dh[:-1] * dh[1:] < 0.0))[0]:
+        f = lambda x, v=vs[k]: c @ expm(A * x) @ v  # noqa: E731
+        cuts = [0.0, delta]
+        if dh[k] * dh[k + 1] < 0.0:
+            cuts.insert(1, brentq(lambda x, v=vs[k]: c_der @ expm(A * x) @ v, 0.0, delta, xtol=1e-300, rtol=1e-15))
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            fa, fb = (h[k] if a == 0.0 else f(a)), (h[k + 1] if b == delta else f(b))
+            if fa * fb < 0.0:
+                r = brentq(f, a, b, xtol=1e-300, rtol=1e-15)
+                roots.append((k * delta + r, c_int @ expm(A * r) @ vs[k]))
+    r_times = np.array([0.0] + [r for r, _ in roots])
+    r_H = np.array([c_int @ d] + [H for _, H in roots])
+    cumulative = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(r_H)))])
+    out = np.empty(len(times))
+    for j, t in enumerate(times):
+        i = int(np.searchsorted(r_times, t, side="right")) - 1  # last root at or before t
+        out[j] = cumulative[i] + abs(c_int @ expm(A * t) @ d - r_H[i])
+    return out
+
+
+def bounds_until(p: dict, gains: tuple[float, float, float, float], times) -> tuple[np.ndarray, np.ndarray]:
+    """(bound_T(t) [N], bound(t) [rad/s]) = K g int_0^t |h_T|, K g int_0^t |h| at the times."""
+    _, _, K, g = transmission(p)
+    A, d, c_T, c_w = reduced_loop(p, *gains)
+    return K * g * l1_until(A, d, c_T, times), K * g * l1_until(A, d, c_w, times)
+
+
+# Contact modes, numbered as the FMU's `contact` output (docs/model.md §4).
+FREE, PLUS, MINUS = 0, 1, -1
+
+
+class OpenLoop:
+    """The web plant with backlash in open loop: inputs (tau_m, tau_L, v_in, T_in) held over each
+    communication step, event-located DOP853 as in `simulate` (a terminal event at each switch
+    u = +-g, restarted in the mode entered with u set exactly on +-g).
+
+    State x = [u, omega_m, omega_L, T, theta_m, theta_L]: u is integrated itself (not recovered
+    from the angles), so that the error control acts on what decides the contact."""
+
+    def __init__(self, p: dict, z0: dict | None = None, rtol: float = 1e-12, atol=None):
+        z0 = {"theta_m": 0.0, "omega_m": 0.0, "theta_L": 0.0, "omega_L": 0.0, "T": 0.0, **(z0 or {})}
+        self.p = p
+        self.r_m, self.r_L, self.K, self.g = transmission(p)
+        u0 = self.r_m * z0["theta_m"] - self.r_L * z0["theta_L"]
+        self.x = np.array([u0, z0["omega_m"], z0["omega_L"], z0["T"], z0["theta_m"], z0["theta_L"]])
+        self.t = 0.0
+        self.rtol = rtol
+        # u at ~1e-4 m must be resolved far below the gap; T, speeds and angles at their scales.
+        self.atol = np.array([1e-19, 1e-14, 1e-15, 1e-13, 1e-16, 1e-17]) if atol is None else atol
+        self.mode = self._initial_mode()
+        self.switches: list[tuple[float, int, int]] = []  # (time, from, to)
+
+    def rhs(self, mode: int, tau_m: float, tau_L: float, v_in: float, T_in: float):
+        p, r_m, r_L, K = self.p, self.r_m, self.r_L, self.K
+        J_m, J_L, b_m, b_L = p["J_m"], p["J_L"], p["b_m"], p["b_L"]
+        R_w, L_w, EA, v_ref = p["R_w"], p["L_w"], p["EA"], p["v_ref"]
+        offset = {FREE: None, PLUS: -self.g, MINUS: self.g}[mode]
+
+        def f(_s, x):
+            u, w_m, w_L, T = x[0], x[1], x[2], x[3]
+            psi = 0.0 if offset is None else K * (u + offset)
+            return [
+                r_m * w_m - r_L * w_L,
+                (tau_m - b_m * w_m - r_m * psi) / J_m,
+                (tau_L - b_L * w_L + r_L * psi - R_w * T) / J_L,
+                (EA * (R_w * w_L - v_in) + v_ref * (T_in - T)) / L_w,
+                w_m,
+                w_L,
+            ]
+
+        return f
+
+    def _events(self):
+        g = self.g
+
+        def upper(_s, x):
+            return x[0] - g
+
+        def lower(_s, x):
+            return x[0] + g
+
+        upper.terminal = lower.terminal = True
+        if self.mode == FREE:
+            upper.direction, lower.direction = 1.0, -1.0
+            return [upper, lower], [PLUS, MINUS], [g, -g]
+        if self.mode == PLUS:
+            upper.direction = -1.0
+            return [upper], [FREE], [g]
+        lower.direction = 1.0
+        return [lower], [FREE], [-g]
+
+    def _initial_mode(self) -> int:
+        u, du = self.x[0], self.r_m * self.x[1] - self.r_L * self.x[2]
+        if self.g == 0.0:
+            return PLUS  # psi = K u on both flanks: one linear mode
+        if u > self.g or (u == self.g and du > 0.0):
+            return PLUS
+        if u < -self.g or (u == -self.g and du < 0.0):
+            return MINUS
+        return FREE
+
+    def step(self, h: float, tau_m: float, tau_L: float, v_in: float, T_in: float) -> None:
+        s, s_end, x, stalls = self.t, self.t + h, self.x, 0
+        while s < s_end:
+            events, targets, levels = ([], [], []) if self.g == 0.0 else self._events()
+            sol = solve_ivp(
+                self.rhs(self.mode, tau_m, tau_L, v_in, T_in), (s, s_end), x, method="DOP853",
+                rtol=self.rtol, atol=self.atol, events=events or None,
+            )
+            if sol.status == -1:
+                raise RuntimeError(sol.message)
+            if sol.status == 1:
+                hit = next(i for i, te in enumerate(sol.t_events) if len(te))
+                s_ev = float(sol.t_events[hit][0])
+                stalls = stalls + 1 if s_ev == s else 0
+                if stalls > 3:
+                    raise RuntimeError(f"switch events do not advance at t = {s}")
+                x = sol.y_events[hit][0].copy()
+                x[0] = levels[hit]
+                self.switches.append((s_ev, self.mode, targets[hit]))
+                self.mode, s = targets[hit], s_ev
+            else:
+                s, x = s_end, sol.y[:, -1].copy()
+        self.t, self.x = s_end, x
+
+    def outputs(self) -> dict:
+        u, w_m, w_L, T, th_m, th_L = self.x
+        return {"theta_m": th_m, "omega_m": w_m, "theta_L": th_L, "omega_L": w_L, "T": T, "u": u, "contact": self.mode}
+
+
+def run_open_loop(p: dict, inputs: np.ndarray, h: float, z0: dict | None = None, **kw) -> tuple[dict, OpenLoop]:
+    """Outputs at t_0..t_N under inputs[k] = (tau_m, tau_L, v_in, T_in) held over step k."""
+    ref = OpenLoop(p, z0, **kw)
+    rows = [ref.outputs()]
+    for tm, tl, vi, ti in inputs:
+        ref.step(h, tm, tl, vi, ti)
+        rows.append(ref.outputs())
+    return {name: np.array([r[name] for r in rows]) for name in rows[0]}, ref

@@ -19,7 +19,7 @@ OPEN_LOOP_CASES = {
     "coarse": (0.25, 32, (0.0, 0.0, 0.0, 0.0)),
     "moving-start": (0.02, 250, (0.01, 1.0, 0.0, -0.5)),
 }
-TORQUE = {"BacklashShaft": (1.5, 0.6), "BacklashBelt": (1.5, 0.6)}
+TORQUE = {"BacklashShaft": (1.5, 0.6), "BacklashBelt": (1.5, 0.6), "BacklashWeb": (1.5, 0.6)}
 
 
 @functools.cache

@@ -187,7 +187,7 @@ def test_cosimulation_without_early_return_is_the_fmi2_step(model, loop):
 # --- 3. early return at the contact switches ---------------------------------------------------------
 
 EARLY_STEPS = 40
-EARLY_TORQUE = {"BacklashShaft": 2.0, "BacklashBelt": 20.0}  # N.m; the belt's lever r_m = 0.1 m
+EARLY_TORQUE = {"BacklashShaft": 2.0, "BacklashBelt": 20.0, "BacklashWeb": 20.0}  # N.m; the belts' lever r_m = 0.1 m
 SWITCH_TIME_TOL = 1e-12  # s
 ROUND_OFF_TOL = 1e-11  # relative, see test
 
@@ -523,7 +523,7 @@ def test_fmi2_state_is_refused_and_fmi3_state_continues_bit_for_bit(model):
     fmu2, fmu3 = fmu_driver.require(model), f3.require(model)
     names = float64_names(fmu3)
     tau_m, tau_L = reversing_torques(STATE_N, STATE_H, 1.5, 0.6)
-    if model == "BacklashBelt":
+    if model != "BacklashShaft":
         tau_m = tau_m * 10.0  # the belt's motor acts through r_m = 0.1 m
 
     # FMI 2.0 state -> FMI 3.0 instance

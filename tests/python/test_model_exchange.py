@@ -188,11 +188,14 @@ def test_model_description_declares_model_exchange(fmu):
     assert me.providesDirectionalDerivative and me.canGetAndSetFMUstate and me.canSerializeFMUstate
     assert md.numberOfEventIndicators == 2
     derivatives = [d.variable for d in md.derivatives]  # <ModelStructure><Derivatives>, in order
-    assert [d.name for d in derivatives] == list(DERIVATIVES)
-    for der, state, vr in zip(derivatives, STATES, (24, 25, 26, 27)):
+    # The web line's span tension T is its fifth state (docs/model.md §8).
+    web = fmu.model == "BacklashWeb"
+    states = (*STATES, "T") if web else STATES
+    assert [d.name for d in derivatives] == [f"der({s})" for s in states]
+    for der, state, vr in zip(derivatives, states, (24, 25, 26, 27, 33), strict=False):
         assert der.valueReference == vr and der.causality == "local" and der.type == "Real"
         assert der.derivative is fmu.variables[state]
-    assert [fmu.vr[s] for s in STATES] == [3, 4, 5, 6]
+    assert [fmu.vr[s] for s in states] == [3, 4, 5, 6, 32][: len(states)]
 
 
 def test_fmpy_validation_finds_no_problem(fmu):
@@ -496,21 +499,24 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
 
     # name: (call, words the logged reason must contain)
     cases = {}
-    for j in range(NX):
+    nx = len(fmu.md.derivatives)
+    names = [u.variable.derivative.name for u in fmu.md.derivatives]
+    for j in range(nx):
         for bad in (math.nan, math.inf, -math.inf):
-            x = z.copy()
+            x = np.zeros(nx)
+            x[:NX] = z
             x[j] = bad
             cases[f"state {j} = {bad}"] = (
-                lambda inst, x=x: inst.model.fmi2SetContinuousStates(inst.c, (ctypes.c_double * NX)(*x), NX),
-                (STATES[j],),
+                lambda inst, x=x: inst.model.fmi2SetContinuousStates(inst.c, (ctypes.c_double * nx)(*x), nx),
+                (names[j],),
             )
     for bad in (math.nan, math.inf, -math.inf):
         cases[f"time {bad}"] = (lambda inst, bad=bad: inst.model.setTime(bad), ("time",))
         cases[f"tau_m {bad}"] = (lambda inst, bad=bad: inst.set_inputs(bad, 0.0), ("tau_m",))
         cases[f"tau_L {bad}"] = (lambda inst, bad=bad: inst.set_inputs(0.0, bad), ("tau_L",))
     buffer = (ctypes.c_double * 8)(*([0.1] * 8))
-    for n in (3, 5, 0):
-        lengths = (str(n), str(NX))
+    for n in (nx - 1, nx + 1, 0):
+        lengths = (str(n), str(nx))
         cases[f"set states n={n}"] = (lambda inst, n=n: inst.model.fmi2SetContinuousStates(inst.c, buffer, n), lengths)
         cases[f"get states n={n}"] = (lambda inst, n=n: inst.model.fmi2GetContinuousStates(inst.c, buffer, n), lengths)
         cases[f"derivatives n={n}"] = (lambda inst, n=n: inst.model.fmi2GetDerivatives(inst.c, buffer, n), lengths)

@@ -42,6 +42,21 @@ SPECIFIC = {
         "Delta": ("parameter", "Real", "m"),
     },
 }
+# The web line (docs/model.md §8): the belt drive's interface and its span's.
+SPECIFIC["BacklashWeb"] = {
+    **SPECIFIC["BacklashBelt"],
+    "v_in": ("input", "Real", "m/s"),
+    "T_in": ("input", "Real", "N"),
+    "T": ("output", "Real", "N"),
+    "bound_T": ("output", "Real", "N"),
+    "bound_T_sup": ("calculatedParameter", "Real", "N"),
+    "R_w": ("parameter", "Real", "m"),
+    "L_w": ("parameter", "Real", "m"),
+    "EA": ("parameter", "Real", "N"),
+    "v_ref": ("parameter", "Real", "m/s"),
+    "Kp_T": ("parameter", "Real", "rad/(s.N)"),
+    "Ki_T": ("parameter", "Real", "rad/(s2.N)"),
+}
 # SI base-unit exponents (kg, m, s, rad) of every unit the interface uses.
 BASE = {
     "N.m": (1, 2, -2, 0),
@@ -54,6 +69,10 @@ BASE = {
     "N.m/rad": (1, 2, -2, -1),
     "N/m": (1, 0, -2, 0),
     "m": (0, 1, 0, 0),
+    "m/s": (0, 1, -1, 0),
+    "N/s": (1, 1, -3, 0),
+    "rad/(s.N)": (-1, -1, 1, 1),
+    "rad/(s2.N)": (-1, -1, 0, 1),
 }
 # Display units users expect (docs/model.md §4): value_display = factor * value_SI.
 DISPLAY = {"rad/s": ("rpm", 30.0 / math.pi), "rad": ("deg", 180.0 / math.pi), "m": ("mm", 1000.0)}
@@ -100,6 +119,6 @@ def test_units_are_defined_with_base_units_and_display_units(fmu):
         assert display in shown, f"{name} lacks display unit {display}"
         assert shown[display].factor == pytest.approx(factor, rel=1e-15)
         assert shown[display].offset == 0.0
-    # Each FMU has lengths to show in mm only if it has lengths at all: the belt does.
-    if fmu.model == "BacklashBelt":
+    # Each FMU has lengths to show in mm only if it has lengths at all: the belt drives do.
+    if fmu.model != "BacklashShaft":
         assert "m" in used
