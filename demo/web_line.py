@@ -272,11 +272,11 @@ def plot(path: Path, run: WebRun, delta: float) -> None:
         ax.plot(run.t, dev, color="C0", lw=1.2, label=f"{dev_label} (FMU twins)")
         ax.plot(run.t, bound, color="C2", lw=1.6, label=f"{bound_label} (rigorous, §8)")
         ax.axhline(sup, color="k", lw=0.9, ls=":", label=f"{sup_label} = {sup:.4g}")
-        ax.set_ylim(0, 1.12 * max(sup, dev.max()))
+        ax.set_ylim(0, 1.4 * max(sup, dev.max()))
         ax.set_ylabel(ylabel)
         ax.set_title(f"max {dev_label} / {bound_label} = {worst_ratio(dev, bound):.3f}", fontsize=10)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="lower right", framealpha=0.85)
+        ax.legend(fontsize=8, loc="upper center", ncol=4, framealpha=0.85)
     ax_w.set_xlabel("time [s]")
     fig.suptitle(f"Web line (BacklashWeb.fmu), Δ = {delta * 1e3:g} mm against Δ = 0: speed PI and tension PI "
                  f"closed through fmpy (h = {H * 1e3:g} ms)\nmotor-speed reference {SPEED_AMPLITUDE:g} rad/s sine at "

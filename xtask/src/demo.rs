@@ -2,10 +2,18 @@
 //! packaged FMUs, and its open design questions answered. Builds the FMUs, makes sure the Python
 //! environment exists, writes the design answers to results/design.json (load speed, the paper's
 //! rig) and results/design_web.json (web tension, a film line on BacklashBelt's drive), then runs
-//! demo/paper_experiments.py, which writes CSV and PNG files under results/.
+//! through fmpy
+//!
+//! - demo/paper_experiments.py on BacklashShaft.fmu: results/run_*.csv, results/summary.csv,
+//!   results/sampling.csv, results/design_bound_sup.csv and the figures results/fig11–13_*.png,
+//!   results/design_bound_sup.png;
+//! - demo/web_line.py on BacklashWeb.fmu: twin web lines (Δ and Δ = 0) under the speed and
+//!   tension PI loops, results/web_line.csv (T^b, T^0, |ΔT| against bound_T; ω_L^b, ω_L^0,
+//!   |Δω_L| against bound) and results/web_line.png, and design_web.json's answer read back
+//!   through the FMU's bound_T_sup.
 
 use std::fs;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
@@ -23,8 +31,9 @@ instances (with and without backlash) under a PI speed loop closed through fmpy,
 gaps read as Delta = gap/2 and Delta = gap, with a step and a reversing reference; prints a table
 of max deviation against bound_paper and bound; answers the design question for
 eps = 0.02 m/s, and the web-tension question for a film line on BacklashBelt's drive for
-eps_T = 20 N. Writes results/*.csv, results/*.png, results/design.json and
-results/design_web.json.
+eps_T = 20 N. Then runs twin BacklashWeb.fmu web lines (Delta and Delta = 0) under speed and
+tension PI loops closed through fmpy and compares |T^b - T^0| with bound_T. Writes
+results/*.csv, results/*.png, results/design.json and results/design_web.json.
 
   --short   shorter horizons (also when the environment has CI=true)";
 
@@ -99,24 +108,31 @@ pub fn run(args: &[String]) -> Result<(), String> {
     );
 
     step("paper experiments through fmpy");
-    let python = python::venv_python();
-    let script: PathBuf = util::repo_root().join("demo").join("paper_experiments.py");
-    let mut cmd = Command::new(python);
-    cmd.current_dir(util::repo_root())
-        .arg(&script)
-        .arg("--fmu")
-        .arg(util::fmu_dir().join("BacklashShaft.fmu"))
-        .arg("--design")
-        .arg(&design_json)
-        .arg("--out")
-        .arg(&results);
-    if short {
-        cmd.arg("--short");
-    }
-    util::run(&mut cmd)?;
+    run_script("paper_experiments.py", "BacklashShaft", &design_json, &results, short)?;
+    step("web line through fmpy: twin runs against bound_T, the design answer through the FMU");
+    run_script("web_line.py", "BacklashWeb", &design_web_json, &results, short)?;
     println!(
         "\ndemo finished in {:.1} s after the build",
         started.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// Runs demo/`script` in the project's venv on target/fmu/`model`.fmu with the design answer
+/// `design`, writing under `out` (`--short`: shorter horizons).
+fn run_script(script: &str, model: &str, design: &Path, out: &Path, short: bool) -> Result<(), String> {
+    let script: PathBuf = util::repo_root().join("demo").join(script);
+    let mut cmd = Command::new(python::venv_python());
+    cmd.current_dir(util::repo_root())
+        .arg(&script)
+        .arg("--fmu")
+        .arg(util::fmu_dir().join(format!("{model}.fmu")))
+        .arg("--design")
+        .arg(design)
+        .arg("--out")
+        .arg(out);
+    if short {
+        cmd.arg("--short");
+    }
+    util::run(&mut cmd)
 }
