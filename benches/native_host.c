@@ -4,11 +4,16 @@
  *
  *     @ <key> <value> [<value> ...]
  *
- * Built and run by `cargo xtask bench` (xtask/src/bench.rs), which also writes bench_vr.h (the
- * value references, read from the archive's modelDescription.xml) and passes the guid.
+ * Built and run by `cargo xtask bench` (xtask/src/bench/), which also writes bench_vr.h (the
+ * value references, read from each archive's modelDescription.xml: VR_<name> of BacklashShaft,
+ * VR_<model>_<name> of the others) and passes the guids.
  *
  * usage: native_host <lib.so> <guid> <resource-uri> <mode> [args]
- *   suite <batches> <steps-per-batch>   per-call costs (medians over batches) and their floors
+ *   suite <batches> <steps-per-batch> <belt.so> <belt-guid> <belt-resource-uri>
+ *         <web.so> <web-guid> <web-resource-uri>
+ *                                       per-call costs (medians over batches) and their floors;
+ *                                       beside them the event-free steps of BacklashBelt and
+ *                                       BacklashWeb, each loaded from its own archive
  *   scale <steps>                       one long event-free run: time and peak RSS
  *   instances <count> <batches> <instance-steps-per-batch>
  *                                       many instances stepped round-robin
@@ -59,6 +64,7 @@ typedef struct {
     fmi3FreeInstanceTYPE *free_instance3;
 } Api;
 
+/* BacklashShaft's library (the first argument), which every mode but the belt and web rows uses. */
 static Api api;
 static const char *guid, *resources;
 
@@ -78,32 +84,33 @@ static void *symbol(void *lib, const char *name) {
     return f;
 }
 
-static void load(const char *path) {
+/* Resolves the functions of the library at `path` into `a`. */
+static void load(Api *a, const char *path) {
     void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!lib) die("dlopen %s: %s", path, dlerror());
-    api.instantiate = (fmi2InstantiateTYPE *)symbol(lib, "fmi2Instantiate");
-    api.free_instance = (fmi2FreeInstanceTYPE *)symbol(lib, "fmi2FreeInstance");
-    api.set_debug_logging = (fmi2SetDebugLoggingTYPE *)symbol(lib, "fmi2SetDebugLogging");
-    api.setup_experiment = (fmi2SetupExperimentTYPE *)symbol(lib, "fmi2SetupExperiment");
-    api.enter_init = (fmi2EnterInitializationModeTYPE *)symbol(lib, "fmi2EnterInitializationMode");
-    api.exit_init = (fmi2ExitInitializationModeTYPE *)symbol(lib, "fmi2ExitInitializationMode");
-    api.terminate = (fmi2TerminateTYPE *)symbol(lib, "fmi2Terminate");
-    api.set_real = (fmi2SetRealTYPE *)symbol(lib, "fmi2SetReal");
-    api.get_real = (fmi2GetRealTYPE *)symbol(lib, "fmi2GetReal");
-    api.get_integer = (fmi2GetIntegerTYPE *)symbol(lib, "fmi2GetInteger");
-    api.do_step = (fmi2DoStepTYPE *)symbol(lib, "fmi2DoStep");
-    api.new_discrete_states = (fmi2NewDiscreteStatesTYPE *)symbol(lib, "fmi2NewDiscreteStates");
-    api.enter_continuous_time_mode = (fmi2EnterContinuousTimeModeTYPE *)symbol(lib, "fmi2EnterContinuousTimeMode");
-    api.set_time = (fmi2SetTimeTYPE *)symbol(lib, "fmi2SetTime");
-    api.set_continuous_states = (fmi2SetContinuousStatesTYPE *)symbol(lib, "fmi2SetContinuousStates");
-    api.get_derivatives = (fmi2GetDerivativesTYPE *)symbol(lib, "fmi2GetDerivatives");
-    api.get_event_indicators = (fmi2GetEventIndicatorsTYPE *)symbol(lib, "fmi2GetEventIndicators");
-    api.instantiate3 = (fmi3InstantiateCoSimulationTYPE *)symbol(lib, "fmi3InstantiateCoSimulation");
-    api.enter_init3 = (fmi3EnterInitializationModeTYPE *)symbol(lib, "fmi3EnterInitializationMode");
-    api.exit_init3 = (fmi3ExitInitializationModeTYPE *)symbol(lib, "fmi3ExitInitializationMode");
-    api.set_float64 = (fmi3SetFloat64TYPE *)symbol(lib, "fmi3SetFloat64");
-    api.do_step3 = (fmi3DoStepTYPE *)symbol(lib, "fmi3DoStep");
-    api.free_instance3 = (fmi3FreeInstanceTYPE *)symbol(lib, "fmi3FreeInstance");
+    a->instantiate = (fmi2InstantiateTYPE *)symbol(lib, "fmi2Instantiate");
+    a->free_instance = (fmi2FreeInstanceTYPE *)symbol(lib, "fmi2FreeInstance");
+    a->set_debug_logging = (fmi2SetDebugLoggingTYPE *)symbol(lib, "fmi2SetDebugLogging");
+    a->setup_experiment = (fmi2SetupExperimentTYPE *)symbol(lib, "fmi2SetupExperiment");
+    a->enter_init = (fmi2EnterInitializationModeTYPE *)symbol(lib, "fmi2EnterInitializationMode");
+    a->exit_init = (fmi2ExitInitializationModeTYPE *)symbol(lib, "fmi2ExitInitializationMode");
+    a->terminate = (fmi2TerminateTYPE *)symbol(lib, "fmi2Terminate");
+    a->set_real = (fmi2SetRealTYPE *)symbol(lib, "fmi2SetReal");
+    a->get_real = (fmi2GetRealTYPE *)symbol(lib, "fmi2GetReal");
+    a->get_integer = (fmi2GetIntegerTYPE *)symbol(lib, "fmi2GetInteger");
+    a->do_step = (fmi2DoStepTYPE *)symbol(lib, "fmi2DoStep");
+    a->new_discrete_states = (fmi2NewDiscreteStatesTYPE *)symbol(lib, "fmi2NewDiscreteStates");
+    a->enter_continuous_time_mode = (fmi2EnterContinuousTimeModeTYPE *)symbol(lib, "fmi2EnterContinuousTimeMode");
+    a->set_time = (fmi2SetTimeTYPE *)symbol(lib, "fmi2SetTime");
+    a->set_continuous_states = (fmi2SetContinuousStatesTYPE *)symbol(lib, "fmi2SetContinuousStates");
+    a->get_derivatives = (fmi2GetDerivativesTYPE *)symbol(lib, "fmi2GetDerivatives");
+    a->get_event_indicators = (fmi2GetEventIndicatorsTYPE *)symbol(lib, "fmi2GetEventIndicators");
+    a->instantiate3 = (fmi3InstantiateCoSimulationTYPE *)symbol(lib, "fmi3InstantiateCoSimulation");
+    a->enter_init3 = (fmi3EnterInitializationModeTYPE *)symbol(lib, "fmi3EnterInitializationMode");
+    a->exit_init3 = (fmi3ExitInitializationModeTYPE *)symbol(lib, "fmi3ExitInitializationMode");
+    a->set_float64 = (fmi3SetFloat64TYPE *)symbol(lib, "fmi3SetFloat64");
+    a->do_step3 = (fmi3DoStepTYPE *)symbol(lib, "fmi3DoStep");
+    a->free_instance3 = (fmi3FreeInstanceTYPE *)symbol(lib, "fmi3FreeInstance");
 }
 
 static void check3(fmi3Status s, const char *what) {
@@ -619,7 +626,7 @@ static void piloop(double seconds, int repeats) {
 
 int main(int argc, char **argv) {
     if (argc < 5) die("usage: native_host <lib.so> <guid> <resource-uri> suite|scale|instances|piloop [args]");
-    load(argv[1]);
+    load(&api, argv[1]);
     guid = argv[2];
     resources = argv[3];
     const char *mode = argv[4];

@@ -6,6 +6,9 @@ use crate::physics::{
     BoundError, BoundState, PiGains, Plant, SpeedErrorBound, Unbounded, WebSpeedBound, WebTensionBound,
 };
 
+// The drive trains' bound stays inline, out of reach of an indirection on the hot path of every
+// step (as the stepper's); the web line's pair is boxed.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Bounds {
     /// `bound`, `bound_paper`, `bound_sup` of a drive train under the speed PI.

@@ -283,14 +283,17 @@ class OpenLoop:
         self.mode = self._initial_mode()
         self.switches: list[tuple[float, int, int]] = []  # (time, from, to)
 
-    def rhs(self, mode: int, tau_m: float, tau_L: float, v_in: float, T_in: float):
+    def rhs(self, mode: int, inputs, slopes, t0: float):
+        """The vector field in `mode` with the inputs (tau_m, tau_L, v_in, T_in) = inputs +
+        (s - t0) slopes."""
         p, r_m, r_L, K = self.p, self.r_m, self.r_L, self.K
         J_m, J_L, b_m, b_L = p["J_m"], p["J_L"], p["b_m"], p["b_L"]
         R_w, L_w, EA, v_ref = p["R_w"], p["L_w"], p["EA"], p["v_ref"]
         offset = {FREE: None, PLUS: -self.g, MINUS: self.g}[mode]
 
-        def f(_s, x):
+        def f(s, x):
             u, w_m, w_L, T = x[0], x[1], x[2], x[3]
+            tau_m, tau_L, v_in, T_in = (inputs[i] + (s - t0) * slopes[i] for i in range(4))
             psi = 0.0 if offset is None else K * (u + offset)
             return [
                 r_m * w_m - r_L * w_L,
@@ -332,12 +335,15 @@ class OpenLoop:
             return MINUS
         return FREE
 
-    def step(self, h: float, tau_m: float, tau_L: float, v_in: float, T_in: float) -> None:
+    def step(self, h: float, inputs, slopes=(0.0, 0.0, 0.0, 0.0)) -> None:
+        """Advance by h under (tau_m, tau_L, v_in, T_in) = inputs, held (zero slopes) or along
+        the lines inputs + (s - t) slopes (fmi2SetRealInputDerivatives, docs/model.md §2)."""
+        t0 = self.t
         s, s_end, x, stalls = self.t, self.t + h, self.x, 0
         while s < s_end:
             events, targets, levels = ([], [], []) if self.g == 0.0 else self._events()
             sol = solve_ivp(
-                self.rhs(self.mode, tau_m, tau_L, v_in, T_in), (s, s_end), x, method="DOP853",
+                self.rhs(self.mode, inputs, slopes, t0), (s, s_end), x, method="DOP853",
                 rtol=self.rtol, atol=self.atol, events=events or None,
             )
             if sol.status == -1:
@@ -361,11 +367,14 @@ class OpenLoop:
         return {"theta_m": th_m, "omega_m": w_m, "theta_L": th_L, "omega_L": w_L, "T": T, "u": u, "contact": self.mode}
 
 
-def run_open_loop(p: dict, inputs: np.ndarray, h: float, z0: dict | None = None, **kw) -> tuple[dict, OpenLoop]:
-    """Outputs at t_0..t_N under inputs[k] = (tau_m, tau_L, v_in, T_in) held over step k."""
+def run_open_loop(
+    p: dict, inputs: np.ndarray, h: float, z0: dict | None = None, slopes: np.ndarray | None = None, **kw
+) -> tuple[dict, OpenLoop]:
+    """Outputs at t_0..t_N under inputs[k] = (tau_m, tau_L, v_in, T_in) over step k, held, or
+    along lines of slopes[k] from t_k."""
     ref = OpenLoop(p, z0, **kw)
     rows = [ref.outputs()]
-    for tm, tl, vi, ti in inputs:
-        ref.step(h, tm, tl, vi, ti)
+    for k in range(len(inputs)):
+        ref.step(h, inputs[k], (0.0, 0.0, 0.0, 0.0) if slopes is None else slopes[k])
         rows.append(ref.outputs())
     return {name: np.array([r[name] for r in rows]) for name in rows[0]}, ref
