@@ -310,8 +310,9 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     fmu = WebFmu(args.fmu)
     try:
-        print(f"web line: BacklashBelt's drive, Δ = {delta * 1e3:g} mm, pulling a span with R_w = {params['R_w']:g} m, "
-              f"L_w = {params['L_w']:g} m, EA = {params['EA']:g} N, v_ref = {params['v_ref']:g} m/s")
+        print(f"web line: BacklashBelt's drive, Δ = {delta * 1e3:g} mm, pulling a span with "
+              f"R_w = {params['R_w']:g} m, L_w = {params['L_w']:g} m, EA = {params['EA']:g} N, "
+              f"v_ref = {params['v_ref']:g} m/s")
         print(f"speed PI ({design['gain_rule']}): Kp = {kp:.6f} N.m.s/rad, Ki = {ki:.6f} N.m/rad; "
               f"tension PI: Kp_T = {KP_T:g} rad/(s.N), Ki_T = {KI_T:g} rad/(s2.N), T_ref = {T_REF:g} N")
         print(f"loops closed through fmpy at every communication point, h = {H * 1e3:g} ms; horizon {horizon:g} s"
