@@ -197,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     short = args.short or os.environ.get("CI", "") in ("true", "1")
     horizon = HORIZON_SHORT if short else HORIZON_FULL
     started = time.perf_counter()
+    started_at = time.time() - 1.0  # files written by this run are newer (1 s for coarse clocks)
 
     design = json.loads(args.design.read_text())
     p = design["plant"]
@@ -322,7 +323,10 @@ def main(argv: list[str] | None = None) -> int:
             w.writerow([k, s, None if s is None else s / p["Delta"]])
     plot_design(args.out / "design_bound_sup.png", design, checks)
 
-    print(f"\nwrote {len(list(args.out.glob('*.csv')))} CSV and {len(list(args.out.glob('*.png')))} PNG files "
+    def written(pattern: str) -> int:
+        return sum(1 for path in args.out.glob(pattern) if path.stat().st_mtime >= started_at)
+
+    print(f"\nwrote {written('*.csv')} CSV and {written('*.png')} PNG files "
           f"under {args.out} in {time.perf_counter() - started:.1f} s")
     return 0
 
