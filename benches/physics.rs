@@ -71,6 +71,11 @@ fn benches(c: &mut Criterion) {
 }
 
 /// BacklashBelt's start values, pulling the film line's web span or not.
+/// BacklashWeb.fmu's web span: a film line.
+fn film_line() -> Option<WebSpan> {
+    adapter::default_plant_params("BacklashWeb").web
+}
+
 fn belt(web: Option<WebSpan>) -> Plant {
     Plant::new(PlantParams {
         web,
@@ -84,10 +89,7 @@ fn belt(web: Option<WebSpan>) -> Plant {
 /// step's update of the web line's two bounds.
 fn web_benches(c: &mut Criterion) {
     const H_BELT: f64 = 1e-4;
-    for (name, web) in [
-        ("belt_quiet_step_100us", None),
-        ("web_quiet_step_100us", Some(WebSpan::FILM_LINE)),
-    ] {
+    for (name, web) in [("belt_quiet_step_100us", None), ("web_quiet_step_100us", film_line())] {
         let plant = belt(web);
         let mut stepper = Stepper::new(plant);
         let pressed = PlantState::new(&plant, (plant.half_gap() + 1e-4) / plant.r_m(), 0.0, 0.0, 0.0).with_tension(5.0);
@@ -104,7 +106,7 @@ fn web_benches(c: &mut Criterion) {
             b.iter(|| stepper.quiet_step(black_box(&pressed), &inputs, H_BELT))
         });
     }
-    let plant = belt(Some(WebSpan::FILM_LINE));
+    let plant = belt(film_line());
     let speed = PiGains { kp: 0.18, ki: 57.6 };
     let tension = PiGains { kp: 0.01, ki: 0.05 };
     let mut speed_bound = WebSpeedBound::new(&plant, speed, tension).expect("valid gains");

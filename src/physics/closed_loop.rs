@@ -307,12 +307,7 @@ mod tests {
 
     #[test]
     fn the_web_loop_and_its_reduced_form_commute() {
-        use crate::physics::WebSpan;
-        let plant = Plant::new(PlantParams {
-            web: Some(WebSpan::FILM_LINE),
-            ..crate::fmu::adapter::default_plant_params("BacklashBelt")
-        })
-        .unwrap();
+        let plant = Plant::new(crate::fmu::adapter::default_plant_params("BacklashWeb")).unwrap();
         let speed = PiGains { kp: 0.18, ki: 57.6 };
         for tension in [
             PiGains::default(),

@@ -46,14 +46,6 @@ pub struct WebSpan {
 }
 
 impl WebSpan {
-    /// A film line: 50 mm roller, 1 m span, EA = 1e5 N (e.g. 50 µm PET, 0.5 m wide), 2 m/s.
-    pub const FILM_LINE: WebSpan = WebSpan {
-        r_w: 0.05,
-        l_w: 1.0,
-        ea: 1e5,
-        v_ref: 2.0,
-    };
-
     /// The parameters by their names (docs/model.md §8).
     pub fn named(&self) -> [(&'static str, f64); 4] {
         [

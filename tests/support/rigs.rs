@@ -1,7 +1,7 @@
 //! Parameter sets shared by the physics tests.
 
 use backlash_fmu::fmu::adapter;
-use backlash_fmu::physics::{Geometry, PlantParams, WebSpan};
+use backlash_fmu::physics::{Geometry, PlantParams};
 
 /// The paper's rig (docs/model.md §4) with both viscous coefficients set to `b`.
 pub fn rig(delta: f64, b: f64) -> PlantParams {
@@ -50,8 +50,5 @@ pub fn undamped() -> [PlantParams; 4] {
 /// The belt drive of BacklashBelt's start values pulling the film line's web span (docs/model.md
 /// §8).
 pub fn web_line(delta: f64) -> PlantParams {
-    PlantParams {
-        web: Some(WebSpan::FILM_LINE),
-        ..adapter::default_plant_params("BacklashBelt").with_half_gap(delta)
-    }
+    adapter::default_plant_params("BacklashWeb").with_half_gap(delta)
 }

@@ -89,8 +89,8 @@ pub fn run(args: &[String]) -> Result<(), String> {
     let web_answer = web::solve(web::Request {
         tension_accuracy: DEMO_TENSION_ACCURACY,
         accuracy: None,
-        drive: design_cmd::default_params(Form::Belt),
-        web: web::Web::FILM_LINE,
+        drive: design_cmd::default_params(Form::Web),
+        web: web::film_line(),
         gains: None,
         tension_gains: PiGains::default(),
     })?;

@@ -152,7 +152,7 @@ pub fn parse(args: &[String]) -> Result<Option<(Command, bool)>, String> {
     let mut accuracy = None;
     let mut tension_accuracy = None;
     let mut params = default_params(form);
-    let mut line = web::Web::FILM_LINE;
+    let mut line = web::film_line();
     let (mut kp, mut ki) = (None, None);
     let mut tension_gains = PiGains::default();
     let mut json = false;
@@ -316,12 +316,17 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
     Ok(found.unwrap_or(Form::Shaft))
 }
 
-/// The default plant of each form: the paper's rig (shaft, Δ = 0.775 mm read as rad), and
-/// BacklashBelt.fmu's parameter start values (belt).
+/// The default drive of each form: the paper's rig (shaft, Δ = 0.775 mm read as rad),
+/// BacklashBelt.fmu's parameter start values (belt), and BacklashWeb.fmu's drive (the same belt
+/// drive; its span is `web::film_line`).
 pub(crate) fn default_params(form: Form) -> PlantParams {
     match form {
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
-        Form::Belt | Form::Web => adapter::default_plant_params("BacklashBelt"),
+        Form::Belt => adapter::default_plant_params("BacklashBelt"),
+        Form::Web => PlantParams {
+            web: None,
+            ..adapter::default_plant_params("BacklashWeb")
+        },
     }
 }
 

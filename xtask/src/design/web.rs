@@ -18,6 +18,14 @@ use super::study::{self, DesignError, StiffnessScan, StiffnessStudy};
 /// The web span and roller driven by the belt drive (docs/model.md §8).
 pub use backlash_fmu::physics::WebSpan as Web;
 
+/// BacklashWeb.fmu's web span (its parameters' start values): a film line, 50 mm roller, 1 m
+/// span, EA = 1e5 N (e.g. 50 µm PET, 0.5 m wide), 2 m/s.
+pub fn film_line() -> Web {
+    backlash_fmu::fmu::adapter::default_plant_params("BacklashWeb")
+        .web
+        .expect("BacklashWeb pulls a web span")
+}
+
 /// Both suprema for one parameter set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sups {
