@@ -97,7 +97,7 @@ fn shaft_free_run_matches_the_closed_form_motor_response() {
 /// docs/model.md §4 fixes the names and causalities; the importer's own parser must find them all.
 #[test]
 #[ignore = "needs target/fmu/*.fmu: run by `cargo xtask test`"]
-fn both_descriptions_carry_the_documented_interface() {
+fn every_description_carries_the_documented_interface() {
     let common = [
         ("tau_m", Causality::Input),
         ("tau_L", Causality::Input),
@@ -118,9 +118,13 @@ fn both_descriptions_carry_the_documented_interface() {
         ("Kp", Causality::Parameter),
         ("Ki", Causality::Parameter),
     ];
-    let specific: [(&str, &[&str]); 2] = [
+    let specific: [(&str, &[&str]); 3] = [
         ("BacklashShaft", &["k"]),
         ("BacklashBelt", &["K_b", "R_1", "R_2", "R_g1", "R_g2"]),
+        (
+            "BacklashWeb",
+            &["K_b", "R_1", "R_2", "R_g1", "R_g2", "R_w", "L_w", "EA", "v_ref", "Kp_T", "Ki_T"],
+        ),
     ];
     for (identifier, own) in specific {
         let import = load(identifier);
