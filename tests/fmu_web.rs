@@ -308,7 +308,32 @@ fn bad_web_inputs_are_refused_by_name() {
     assert!(inst.do_step(0.0, 10.0).is_err());
     let message = last(&log);
     assert!(message.contains("T_in"), "{message}");
+    // Finite upstream values whose motion leaves f64 within the step: refused, naming the inputs.
+    let mut inst = instance(Interface::CoSimulation, &[], Some(log.clone()));
+    inst.exit_initialization_mode().unwrap();
+    set(&mut inst, &[("v_in", 1e300)]);
+    assert!(inst.do_step(0.0, 1e-3).is_err());
+    let message = last(&log);
+    assert!(message.contains("v_in = 1e300") && message.contains("overflows"), "{message}");
     // The drive trains have no such inputs.
     let belt = MODELS.iter().find(|m| m.identifier == "BacklashBelt").unwrap();
     assert!(belt.by_name("v_in").is_none() && belt.by_vr(30).is_none());
+}
+
+/// With the speed loop open the tension PI cannot act (it trims the speed reference): its gains
+/// change neither bound, and the integrator x_T leaves the suprema finite.
+#[test]
+fn tension_gains_without_a_speed_loop_change_no_bound() {
+    let bounds = |tension: &[(&str, f64)]| {
+        let mut inst = instance(Interface::CoSimulation, tension, None);
+        inst.exit_initialization_mode().unwrap();
+        for k in 0..50 {
+            inst.do_step(k as f64 * 1e-3, 1e-3).unwrap();
+        }
+        get(&mut inst, &["bound_T", "bound", "bound_paper", "bound_T_sup", "bound_sup"])
+    };
+    let without = bounds(&[]);
+    let with = bounds(&[("Kp_T", 0.01), ("Ki_T", 0.05)]);
+    assert!(without.iter().all(|x| x.is_finite() && *x > 0.0), "{without:?}");
+    assert_eq!(with, without);
 }

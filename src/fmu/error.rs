@@ -64,7 +64,7 @@ pub enum FmuError {
     Parameter(#[from] ParamError),
     #[error("the step failed: {0}")]
     Step(#[from] StepError),
-    #[error("the speed-error bound failed: {0}")]
+    #[error("the bounds failed: {0}")]
     Bound(#[from] BoundError),
     #[error("invalid argument: {0}")]
     InvalidArgument(String),

@@ -109,14 +109,17 @@ pub fn web_loop(plant: &Plant, speed: PiGains, tension: PiGains) -> SMatrix<f64,
     // e's dependence on T and x_T, through τ_m and x_c.
     a[(1, TENSION)] = -speed.kp * tension.kp / p.j_m;
     a[(1, X_T)] = speed.kp * tension.ki / p.j_m;
-    if speed.kp != 0.0 || speed.ki != 0.0 {
+    // The tension PI acts through the speed PI only; with the speed loop open its integrator,
+    // like one without gain, stays 0.
+    let speed_closed = speed.kp != 0.0 || speed.ki != 0.0;
+    if speed_closed {
         a[(4, TENSION)] = -tension.kp;
         a[(4, X_T)] = tension.ki;
     }
     a[(OMEGA_L, TENSION)] = -web.r_w / p.j_l;
     a[(TENSION, OMEGA_L)] = web.ea * web.r_w / web.l_w;
     a[(TENSION, TENSION)] = -web.v_ref / web.l_w;
-    if tension.kp != 0.0 || tension.ki != 0.0 {
+    if speed_closed && (tension.kp != 0.0 || tension.ki != 0.0) {
         a[(X_T, TENSION)] = -1.0;
     }
     a
@@ -214,7 +217,8 @@ impl Reduced {
         if speed.ki != 0.0 {
             kept.push(4);
         }
-        if tension.ki != 0.0 {
+        // x_T feeds back only through the speed PI (see `web_loop`).
+        if tension.ki != 0.0 && (speed.kp != 0.0 || speed.ki != 0.0) {
             kept.push(X_T);
         }
         let n = 1 + kept.len();

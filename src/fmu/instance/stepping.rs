@@ -5,7 +5,7 @@ use super::Instance;
 use crate::fmu::adapter::{self, INPUT_NAMES, MAX_INPUTS};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::logging::LogCategory;
-use crate::physics::{finite, BoundError, Inputs, MAX_PERIODS_PER_STEP};
+use crate::physics::{finite, BoundError, Inputs, StepError, MAX_PERIODS_PER_STEP};
 
 /// Relative tolerance for "the communication point equals the current time": steps are
 /// accumulated by the importer in floating point, so they drift by a few ulps per step.
@@ -148,6 +148,21 @@ impl Instance {
         h: f64,
         early_return: bool,
     ) -> Result<Option<f64>, FmuError> {
+        // Named in the refusal of a step whose state overflows.
+        let lines = adapter::input_values(&self.values);
+        let inputs_named = || {
+            let n = if self.model.drive_train.has_web() { MAX_INPUTS } else { 2 };
+            let named: Vec<String> = (0..n).map(|i| format!("{} = {:e}", INPUT_NAMES[i], lines[i])).collect();
+            named.join(", ")
+        };
+        let overflow = |e: StepError| match e {
+            StepError::Overflow => FmuError::Overflow(format!(
+                "the step from t = {communication_point} overflows with the inputs at its start {}; reduce the \
+                 inputs, start values or parameters",
+                inputs_named()
+            )),
+            e => e.into(),
+        };
         let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
         // The plant steps a copy of its state, and the bound fails (on a bad h, excluded above)
         // before changing anything: a failed step leaves the instance as it was.
@@ -162,9 +177,12 @@ impl Instance {
                 }
             };
             if early_return {
-                stopped = sim.stepper.step_to_first_switch(&mut state, inputs, h, &mut record)?;
+                stopped = sim
+                    .stepper
+                    .step_to_first_switch(&mut state, inputs, h, &mut record)
+                    .map_err(overflow)?;
             } else {
-                sim.stepper.step(&mut state, inputs, h, &mut record)?;
+                sim.stepper.step(&mut state, inputs, h, &mut record).map_err(overflow)?;
             }
         }
         // A switch that does not move time (on the step's start, or at its end to round-off) is
@@ -176,11 +194,13 @@ impl Instance {
             stopped = None;
             state = sim.state;
             switches.clear();
-            sim.stepper.step(&mut state, inputs, h, &mut |event| {
-                if want_switches {
-                    switches.push(event)
-                }
-            })?;
+            sim.stepper
+                .step(&mut state, inputs, h, &mut |event| {
+                    if want_switches {
+                        switches.push(event)
+                    }
+                })
+                .map_err(overflow)?;
         }
         let advanced = stopped.unwrap_or(h);
         let end = communication_point + advanced;
