@@ -15,6 +15,11 @@ H(s) = c A^-1 e^{As} d has H' = h and H(inf) = 0, so between consecutive sign ch
 r_i < r_i+1 of h, int |h| = |H(r_i+1) - H(r_i)|. Only the sign changes are searched for
 (on a grid of e^{A delta} steps, split at the extrema of h, then brentq); the sum stops when
 the eigen-decomposition's envelope of the tail is below 1e-13 of the sum.
+
+For test_web.py (the BacklashWeb FMU), below `simulate`: `l1_until` and `bounds_until`, the same
+L1 integral to finite times; `reduced_loop` (the loop without x_c when Ki = 0); the open-loop
+plant under held or ramped inputs by event-located DOP853 (`OpenLoop`) and by matrix
+exponentials (`ExactOpenLoop`), both through `run_open_loop`.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 from scipy.integrate import solve_ivp
-from scipy.linalg import expm
+from scipy.linalg import expm, matrix_balance
 from scipy.optimize import brentq
 
 # Drive: BacklashBelt's parameter start values. Web span: docs/model.md §8 design defaults.
@@ -264,13 +269,13 @@ FREE, PLUS, MINUS = 0, 1, -1
 
 class OpenLoop:
     """The web plant with backlash in open loop: inputs (tau_m, tau_L, v_in, T_in) held over each
-    communication step, event-located DOP853 as in `simulate` (a terminal event at each switch
-    u = +-g, restarted in the mode entered with u set exactly on +-g).
+    communication step or along a line, event-located DOP853 as in `simulate` (a terminal event
+    at each switch u = +-g, restarted in the mode entered with u set exactly on +-g).
 
     State x = [u, omega_m, omega_L, T, theta_m, theta_L]: u is integrated itself (not recovered
     from the angles), so that the error control acts on what decides the contact."""
 
-    def __init__(self, p: dict, z0: dict | None = None, rtol: float = 1e-12, atol=None):
+    def __init__(self, p: dict, z0: dict | None = None, rtol: float = 1e-13, atol=None):
         z0 = {"theta_m": 0.0, "omega_m": 0.0, "theta_L": 0.0, "omega_L": 0.0, "T": 0.0, **(z0 or {})}
         self.p = p
         self.r_m, self.r_L, self.K, self.g = transmission(p)
@@ -278,8 +283,10 @@ class OpenLoop:
         self.x = np.array([u0, z0["omega_m"], z0["omega_L"], z0["T"], z0["theta_m"], z0["theta_L"]])
         self.t = 0.0
         self.rtol = rtol
-        # u at ~1e-4 m must be resolved far below the gap; T, speeds and angles at their scales.
-        self.atol = np.array([1e-19, 1e-14, 1e-15, 1e-13, 1e-16, 1e-17]) if atol is None else atol
+        # Far below round-off of each state at its scale (u ~ 1e-4 m, speeds ~ 1 rad/s, T ~ 10 N):
+        # rtol governs. Measured on a 0.2 s open loop of test_web.py against the exact solution:
+        # rtol 1e-12 / 1e-13 / 3e-14 left 3.6e-9 / 1.1e-10 / 2.2e-10 relative: 1e-13 is the floor.
+        self.atol = np.array([1e-21, 1e-16, 1e-17, 1e-15, 1e-18, 1e-19]) if atol is None else atol
         self.mode = self._initial_mode()
         self.switches: list[tuple[float, int, int]] = []  # (time, from, to)
 
@@ -368,13 +375,136 @@ class OpenLoop:
 
 
 def run_open_loop(
-    p: dict, inputs: np.ndarray, h: float, z0: dict | None = None, slopes: np.ndarray | None = None, **kw
-) -> tuple[dict, OpenLoop]:
+    p: dict,
+    inputs: np.ndarray,
+    h: float,
+    z0: dict | None = None,
+    slopes: np.ndarray | None = None,
+    method: str = "dop853",
+    **kw,
+):
     """Outputs at t_0..t_N under inputs[k] = (tau_m, tau_L, v_in, T_in) over step k, held, or
-    along lines of slopes[k] from t_k."""
-    ref = OpenLoop(p, z0, **kw)
+    along lines of slopes[k] from t_k; by OpenLoop ("dop853") or ExactOpenLoop ("expm")."""
+    ref = ExactOpenLoop(p, z0) if method == "expm" else OpenLoop(p, z0, **kw)
     rows = [ref.outputs()]
     for k in range(len(inputs)):
         ref.step(h, inputs[k], (0.0, 0.0, 0.0, 0.0) if slopes is None else slopes[k])
         rows.append(ref.outputs())
     return {name: np.array([r[name] for r in rows]) for name in rows[0]}, ref
+
+
+class ExactOpenLoop:
+    """The open loop of OpenLoop solved by matrix exponentials instead of DOP853: in one contact
+    mode the web plant with inputs along lines is y' = M y for
+        y = [u, omega_m, omega_L, T, theta_m, theta_L, tau_m, tau_L, v_in, T_in, (their 4 slopes), 1],
+    so y(s) = e^{M s} y(0) (scipy's Pade expm, on M balanced by a diagonal similarity of powers
+    of 2 so that u ~ 1e-4 m and T ~ 10 N keep their own round-off). Switches: each step is cut
+    into pieces of at most 0.05/rho (rho the largest |eigenvalue|, about 1/125 of the fastest
+    period, so u has at most one extremum per piece); a piece holds a switch where u - level
+    changes sign in the mode's direction, or where it has an extremum beyond the level (a graze),
+    and the first such instant is found by brentq on the exact e^{M s} y."""
+
+    N = 15
+
+    def __init__(self, p: dict, z0: dict | None = None):
+        self.ode = OpenLoop(p, z0)  # its initial state, mode and parameters
+        self.p, self.g = p, self.ode.g
+        self.mats = {mode: self._matrix(mode) for mode in (FREE, PLUS, MINUS)}
+        _, (scale, _) = matrix_balance(self.mats[PLUS], permute=False, separate=True)
+        self.scale = scale  # y = scale * z
+        self.scaled = {m: M * (1.0 / scale)[:, None] * scale[None, :] for m, M in self.mats.items()}
+        rho = max(np.max(np.abs(np.linalg.eigvals(M[:6, :6]))) for M in self.mats.values())
+        self.piece = 0.05 / rho
+        self.cache: dict = {}
+        y = np.zeros(self.N)
+        y[:6], y[-1] = self.ode.x, 1.0
+        self.z = y / scale
+        self.t, self.mode = 0.0, self.ode.mode
+        self.switches: list[tuple[float, int, int]] = []
+
+    def _matrix(self, mode: int) -> np.ndarray:
+        p = self.p
+        r_m, r_L, K, g = transmission(p)
+        J_m, J_L, b_m, b_L = p["J_m"], p["J_L"], p["b_m"], p["b_L"]
+        R_w, L_w, EA, v_ref = p["R_w"], p["L_w"], p["EA"], p["v_ref"]
+        M = np.zeros((self.N, self.N))
+        M[0, 1], M[0, 2] = r_m, -r_L
+        M[1, 1], M[1, 6] = -b_m / J_m, 1.0 / J_m
+        M[2, 2], M[2, 3], M[2, 7] = -b_L / J_L, -R_w / J_L, 1.0 / J_L
+        M[3, 2], M[3, 3], M[3, 8], M[3, 9] = EA * R_w / L_w, -v_ref / L_w, -EA / L_w, v_ref / L_w
+        M[4, 1], M[5, 2] = 1.0, 1.0
+        M[6:10, 10:14] = np.eye(4)
+        if mode != FREE:  # psi = K (u + offset)
+            offset = -g if mode == PLUS else g
+            M[1, 0], M[1, -1] = -r_m * K / J_m, -r_m * K * offset / J_m
+            M[2, 0], M[2, -1] = r_L * K / J_L, r_L * K * offset / J_L
+        return M
+
+    def _expm(self, mode: int, s: float) -> np.ndarray:
+        key = (mode, s)
+        if key not in self.cache:
+            self.cache[key] = expm(self.scaled[mode] * s)
+        return self.cache[key]
+
+    def _events(self):
+        """(level, direction, target) of the mode's switches: crossed when direction (u - level)
+        goes from <= 0 to > 0."""
+        g = self.g
+        if self.mode == FREE:
+            return [(g, 1.0, PLUS), (-g, -1.0, MINUS)]
+        return [(g, -1.0, FREE)] if self.mode == PLUS else [(-g, 1.0, FREE)]
+
+    def _first_switch(self, z0: np.ndarray, z1: np.ndarray, length: float):
+        """(s, level, target) of the first switch in a piece from z0 to z1, or None."""
+        sc = self.scale
+        u = lambda s: sc[0] * (expm(self.scaled[self.mode] * s) @ z0)[0]  # noqa: E731
+        du = lambda s: sc[0] * (self.scaled[self.mode] @ expm(self.scaled[self.mode] * s) @ z0)[0]  # noqa: E731
+        u0, u1 = sc[0] * z0[0], sc[0] * z1[0]
+        du0, du1 = sc[0] * (self.scaled[self.mode] @ z0)[0], sc[0] * (self.scaled[self.mode] @ z1)[0]
+        first = None
+        for level, direction, target in self._events():
+            f0, f1 = direction * (u0 - level), direction * (u1 - level)
+            end = None
+            if f0 <= 0.0 < f1:
+                end = length
+            elif direction * du0 > 0.0 > direction * du1:  # an extremum of f inside: a graze?
+                s_x = brentq(du, 0.0, length, xtol=1e-20, rtol=8.9e-16)
+                if direction * (u(s_x) - level) > 0.0:
+                    end = s_x
+            if end is None:
+                continue
+            s = brentq(lambda s: u(s) - level, 0.0, end, xtol=1e-20, rtol=8.9e-16)
+            while s < end and direction * (u(s) - level) <= 0.0:  # the side beyond the level
+                s = np.nextafter(s, end)
+            if first is None or s < first[0]:
+                first = (s, level, target)
+        return first
+
+    def step(self, h: float, inputs, slopes=(0.0, 0.0, 0.0, 0.0)) -> None:
+        """Advance by h under inputs + (s - t) slopes; the inputs move along their lines inside y."""
+        self.z[6:10] = np.asarray(inputs, dtype=float) / self.scale[6:10]
+        self.z[10:14] = np.asarray(slopes, dtype=float) / self.scale[10:14]
+        n = max(1, int(np.ceil(h / self.piece)))
+        k, s, on_grid = 0, 0.0, True  # piece k ends at (k + 1) h / n; s since the step's start
+        while k < n:
+            end = (k + 1) * h / n
+            length = h / n if on_grid else end - s
+            step = self._expm(self.mode, length) if on_grid else expm(self.scaled[self.mode] * length)
+            z1 = step @ self.z
+            hit = None if self.g == 0.0 else self._first_switch(self.z, z1, length)
+            if hit is None:
+                self.z, s, k, on_grid = z1, end, k + 1, True
+                continue
+            ds, level, target = hit
+            self.z = expm(self.scaled[self.mode] * ds) @ self.z
+            self.z[0] = level / self.scale[0]
+            self.switches.append((self.t + s + ds, self.mode, target))
+            self.mode, s, on_grid = target, s + ds, False
+        self.t += h
+
+    def outputs(self) -> dict:
+        y = self.z * self.scale
+        return {
+            "theta_m": y[4], "omega_m": y[1], "theta_L": y[5], "omega_L": y[2], "T": y[3], "u": y[0],
+            "contact": self.mode,
+        }
