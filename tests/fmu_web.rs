@@ -314,7 +314,10 @@ fn bad_web_inputs_are_refused_by_name() {
     set(&mut inst, &[("v_in", 1e300)]);
     assert!(inst.do_step(0.0, 1e-3).is_err());
     let message = last(&log);
-    assert!(message.contains("v_in = 1e300") && message.contains("overflows"), "{message}");
+    assert!(
+        message.contains("v_in = 1e300") && message.contains("overflows"),
+        "{message}"
+    );
     // The drive trains have no such inputs.
     let belt = MODELS.iter().find(|m| m.identifier == "BacklashBelt").unwrap();
     assert!(belt.by_name("v_in").is_none() && belt.by_vr(30).is_none());
@@ -330,7 +333,10 @@ fn tension_gains_without_a_speed_loop_change_no_bound() {
         for k in 0..50 {
             inst.do_step(k as f64 * 1e-3, 1e-3).unwrap();
         }
-        get(&mut inst, &["bound_T", "bound", "bound_paper", "bound_T_sup", "bound_sup"])
+        get(
+            &mut inst,
+            &["bound_T", "bound", "bound_paper", "bound_T_sup", "bound_sup"],
+        )
     };
     let without = bounds(&[]);
     let with = bounds(&[("Kp_T", 0.01), ("Ki_T", 0.05)]);

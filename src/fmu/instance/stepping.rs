@@ -151,7 +151,11 @@ impl Instance {
         // Named in the refusal of a step whose state overflows.
         let lines = adapter::input_values(&self.values);
         let inputs_named = || {
-            let n = if self.model.drive_train.has_web() { MAX_INPUTS } else { 2 };
+            let n = if self.model.drive_train.has_web() {
+                MAX_INPUTS
+            } else {
+                2
+            };
             let named: Vec<String> = (0..n).map(|i| format!("{} = {:e}", INPUT_NAMES[i], lines[i])).collect();
             named.join(", ")
         };

@@ -123,7 +123,9 @@ fn every_description_carries_the_documented_interface() {
         ("BacklashBelt", &["K_b", "R_1", "R_2", "R_g1", "R_g2"]),
         (
             "BacklashWeb",
-            &["K_b", "R_1", "R_2", "R_g1", "R_g2", "R_w", "L_w", "EA", "v_ref", "Kp_T", "Ki_T"],
+            &[
+                "K_b", "R_1", "R_2", "R_g1", "R_g2", "R_w", "L_w", "EA", "v_ref", "Kp_T", "Ki_T",
+            ],
         ),
     ];
     for (identifier, own) in specific {
