@@ -8,6 +8,7 @@
 mod robustness_common;
 
 use backlash_fmu::ffi::*;
+use backlash_fmu::fmu::MODELS;
 use robustness_common::*;
 use std::ptr::null_mut;
 
@@ -40,7 +41,7 @@ fn refused(f: &Fmu, bytes: &[u8], reason: &str) {
 
 #[test]
 fn truncated_extended_and_empty_bytes_are_refused() {
-    for model in [SHAFT, BELT] {
+    for model in 0..MODELS.len() {
         let (_, bytes) = stepped(model);
         let f = Fmu::new(model);
         refused(&f, &[], "empty");
@@ -57,26 +58,36 @@ fn truncated_extended_and_empty_bytes_are_refused() {
 
 #[test]
 fn every_single_bit_flip_is_refused() {
-    let (_, bytes) = stepped(SHAFT);
-    let f = Fmu::new(SHAFT);
-    for i in 0..bytes.len() {
-        for bit in [0x01u8, 0x80] {
-            let mut b = bytes.clone();
-            b[i] ^= bit;
-            refused(&f, &b, "");
+    for model in 0..MODELS.len() {
+        let (_, bytes) = stepped(model);
+        let f = Fmu::new(model);
+        for i in 0..bytes.len() {
+            for bit in [0x01u8, 0x80] {
+                let mut b = bytes.clone();
+                b[i] ^= bit;
+                refused(&f, &b, "");
+            }
         }
+        f.reset_and_check();
     }
-    f.reset_and_check();
 }
 
 #[test]
 fn garbage_and_other_model_bytes_are_refused() {
-    let (_, shaft) = stepped(SHAFT);
-    let (_, belt) = stepped(BELT);
+    // A state of each model is refused by each other model.
+    let states: Vec<Vec<u8>> = (0..MODELS.len()).map(|model| stepped(model).1).collect();
+    for (model, bytes) in states.iter().enumerate() {
+        let f = Fmu::new(model);
+        for other in (0..MODELS.len()).filter(|other| *other != model) {
+            refused(&f, &states[other], "saved by the model with guid");
+        }
+        // Its own model's state is accepted (also in state Error, which it leaves).
+        assert_eq!(load(&f, bytes), (OK, OK));
+        f.assert_all_finite(MODELS[model].identifier);
+        f.reset_and_check();
+    }
+    let shaft = &states[SHAFT];
     let f = Fmu::new(SHAFT);
-    refused(&f, &belt, "saved by the model with guid");
-    let g = Fmu::new(BELT);
-    refused(&g, &shaft, "saved by the model with guid");
     refused(&f, &vec![0u8; shaft.len()], "magic");
     refused(&f, &vec![0xffu8; shaft.len()], "magic");
     let mut version = shaft.clone();
@@ -104,7 +115,6 @@ fn garbage_and_other_model_bytes_are_refused() {
         refused(&f, &b, "");
     }
     f.reset_and_check();
-    g.reset_and_check();
     fresh_instance_works(SHAFT);
 }
 
@@ -112,11 +122,18 @@ fn garbage_and_other_model_bytes_are_refused() {
 /// checksum must catch them.
 #[test]
 fn invalid_fields_behind_a_valid_checksum_are_refused() {
-    let (_, bytes) = stepped(SHAFT);
+    for model in 0..MODELS.len() {
+        invalid_fields_are_refused(model);
+    }
+}
+
+fn invalid_fields_are_refused(model: usize) {
+    let m = &MODELS[model];
+    let (_, bytes) = stepped(model);
     let phase = phase_offset(&bytes);
     let values = phase + 4 + 8 * 4;
     let plant = plant_offset(&bytes);
-    let f = Fmu::new(SHAFT);
+    let f = Fmu::new(model);
     let edit = |at: usize, new: &[u8], reason: &str| {
         let mut b = bytes.clone();
         b[at..at + new.len()].copy_from_slice(new);
@@ -134,9 +151,22 @@ fn invalid_fields_behind_a_valid_checksum_are_refused() {
     edit(phase, &[0], "does not match");
     edit(phase + 4, &f64::NAN.to_le_bytes(), "time = NaN");
     edit(phase + 4 + 8, &f64::INFINITY.to_le_bytes(), "startTime = inf");
-    for (name, x) in [("J_m", -1.0), ("J_m", 0.0), ("b_L", -1e-9), ("Delta", -0.5), ("k", 0.0)] {
-        let index = backlash_fmu::fmu::MODELS[SHAFT].by_name(name).unwrap().symbol.index();
-        edit(values + 8 * index, &f64::to_le_bytes(x), name);
+    // Parameters out of range: the drive train's, and a web span's where there is one.
+    let parameters = [
+        ("J_m", -1.0),
+        ("J_m", 0.0),
+        ("b_L", -1e-9),
+        ("Delta", -0.5),
+        ("k", 0.0),
+        ("K_b", -2.0),
+        ("R_w", 0.0),
+        ("EA", -1.0),
+        ("v_ref", -0.0),
+    ];
+    for (name, x) in parameters {
+        if let Some(v) = m.by_name(name) {
+            edit(values + 8 * v.symbol.index(), &f64::to_le_bytes(x), name);
+        }
     }
     edit(values, &f64::NEG_INFINITY.to_le_bytes(), "not finite");
     for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "T", "u"]
@@ -148,7 +178,10 @@ fn invalid_fields_behind_a_valid_checksum_are_refused() {
     let mode = mode_offset(&bytes);
     edit(mode, &[2], "unknown contact mode 2");
     edit(mode, &[0x80], "unknown contact mode");
+    // The first and the last word of the bound part.
     edit(mode + 1, &f64::NAN.to_le_bytes(), "a bound's state");
+    let last = mode + 1 + 8 * (bound_words(m) - 1);
+    edit(last, &f64::NAN.to_le_bytes(), "a bound's state");
     f.reset_and_check();
 }
 

@@ -7,10 +7,14 @@
 //!
 //!     FUZZ_SECONDS=180 cargo test --release --test robustness_fuzz -- --nocapture
 //!     FUZZ_SEED=12345 cargo test --test robustness_fuzz   # replay one seed
-//!     FUZZ_SEED=12345 FUZZ_CO_SIMULATION_ONLY=1 cargo test --test robustness_fuzz   # one of SLOW_SEEDS
+//!     # one of SLOW_SEEDS, with the driver of their time:
+//!     FUZZ_SEED=12345 FUZZ_CO_SIMULATION_ONLY=1 FUZZ_EXTREME=1 FUZZ_MODELS=2 cargo test --test robustness_fuzz
 //!
+//! Instances are drawn from every model; FUZZ_MODELS=n draws them from the first n only.
 //! Every run first replays `SLOW_SEEDS` and `SLOW_MODEL_EXCHANGE_SEEDS`, seeds that once hung
-//! a call.
+//! a call, with the driver of their time: BacklashShaft and BacklashBelt only
+//! (`MODELS_BEFORE_WEB`), so that they make the sequences that hung. A failing seed is
+//! reported with the command that replays it.
 //!
 //! FUZZ_EXTREME=1 also gives parameters extreme finite magnitudes (1e±300, f64::MAX), which
 //! the plant refuses by scale (tests/robustness_extremes.rs); off by default to keep most calls
@@ -24,9 +28,11 @@
 
 mod robustness_common;
 
+use backlash_fmu::fmu::MODELS;
 use robustness_common::fuzz::{Driver, Prng};
 use robustness_common::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// Calls per seed: long enough to reach stepping (Co-Simulation) or Continuous-Time Mode (Model
@@ -35,25 +41,47 @@ const CALLS_PER_SEED: u64 = 800;
 /// As it was before Model Exchange, for `SLOW_SEEDS` (Co-Simulation only).
 const CO_SIMULATION_CALLS_PER_SEED: u64 = 400;
 
+/// The models the driver drew instances from before BacklashWeb existed: BacklashShaft and
+/// BacklashBelt, the first two.
+const MODELS_BEFORE_WEB: usize = 2;
+
 static PANICS: AtomicUsize = AtomicUsize::new(0);
 static PROGRESS: AtomicU64 = AtomicU64::new(0);
 /// The seed being run, for the watchdog's message.
-static CURRENT_SEED: AtomicU64 = AtomicU64::new(0);
-/// Whether that seed runs the Co-Simulation-only driver.
-static CURRENT_CO_SIMULATION_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+static CURRENT: Mutex<Option<Run>> = Mutex::new(None);
 
-/// How to replay `seed` (with the same FUZZ_EXTREME and FUZZ_FAR_TIMES, if they were set).
-fn replay_hint(seed: u64, co_simulation_only: bool) -> String {
-    let mut hint = format!("FUZZ_SEED={seed}");
-    if co_simulation_only {
-        hint += " FUZZ_CO_SIMULATION_ONLY=1";
-    }
-    for flag in ["FUZZ_EXTREME", "FUZZ_FAR_TIMES"] {
-        if std::env::var(flag).is_ok_and(|v| v == "1") {
-            hint += &format!(" {flag}=1");
+/// One seed and the driver it runs with.
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    seed: u64,
+    /// Parameters of extreme magnitude ([`Driver::extreme_parameters`]).
+    extreme: bool,
+    /// [`Driver::far_times`].
+    far_times: bool,
+    /// Off: the Co-Simulation-only driver of `SLOW_SEEDS` ([`Driver::model_exchange`]).
+    model_exchange: bool,
+    /// [`Driver::models`].
+    models: usize,
+}
+
+impl Run {
+    /// The environment that replays this run.
+    fn replay_hint(&self) -> String {
+        let mut hint = format!("FUZZ_SEED={}", self.seed);
+        for (flag, set) in [
+            ("FUZZ_CO_SIMULATION_ONLY", !self.model_exchange),
+            ("FUZZ_EXTREME", self.extreme),
+            ("FUZZ_FAR_TIMES", self.far_times),
+        ] {
+            if set {
+                hint += &format!(" {flag}=1");
+            }
         }
+        if self.models < MODELS.len() {
+            hint += &format!(" FUZZ_MODELS={}", self.models);
+        }
+        hint
     }
-    hint
 }
 
 /// Counts every panic, including those the FMU's guard catches: a panic inside the FMU is a
@@ -71,9 +99,15 @@ fn instrument() {
             std::thread::sleep(Duration::from_secs(60));
             let now = PROGRESS.load(Ordering::SeqCst);
             if now == last {
-                let seed = CURRENT_SEED.load(Ordering::SeqCst);
-                let hint = replay_hint(seed, CURRENT_CO_SIMULATION_ONLY.load(Ordering::SeqCst));
-                eprintln!("fuzz: seed {seed} did not finish within 60 s: a call hangs (replay with {hint})");
+                let run = *CURRENT.lock().unwrap_or_else(|p| p.into_inner());
+                match run {
+                    Some(run) => eprintln!(
+                        "fuzz: seed {} did not finish within 60 s: a call hangs (replay with {})",
+                        run.seed,
+                        run.replay_hint()
+                    ),
+                    None => eprintln!("fuzz: no seed finished within 60 s: a call hangs"),
+                }
                 std::process::abort();
             }
             last = now;
@@ -84,7 +118,7 @@ fn instrument() {
 /// Seeds that once made a call run for minutes, all with extreme parameters: a sign-change
 /// search on a signal hovering at zero through thousands of pieces per step (fixed by a
 /// resolution floor on bisection and a work budget per step). Replayed on every run, with the
-/// driver of their time: Co-Simulation only, 400 calls.
+/// driver of their time: Co-Simulation only, 400 calls, `MODELS_BEFORE_WEB`.
 const SLOW_SEEDS: [u64; 4] = [
     3158627156007275700,
     1036976658639528566,
@@ -96,7 +130,7 @@ const SLOW_SEEDS: [u64; 4] = [
 /// minutes: a bound read after fmi2SetTime advanced a loop whose pieces last 3e-45 s through a
 /// million pieces, its sign-change searches giving up one by one on an h hovering at zero
 /// (fixed by capping the searches' budget, `roots::work_budget`, and the advances one read may
-/// make). Replayed on every run.
+/// make). Replayed on every run with the driver of its time: `MODELS_BEFORE_WEB`.
 const SLOW_MODEL_EXCHANGE_SEEDS: [u64; 1] = [16743667580223936308];
 
 /// What one seed did.
@@ -116,19 +150,23 @@ fn splitmix64(seed: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Runs one seed; `model_exchange` false: the Co-Simulation-only driver of `SLOW_SEEDS`.
-fn run_seed(seed: u64, extreme: bool, far_times: bool, model_exchange: bool) -> Counts {
-    CURRENT_SEED.store(seed, Ordering::SeqCst);
-    CURRENT_CO_SIMULATION_ONLY.store(!model_exchange, Ordering::SeqCst);
+/// Runs one seed.
+fn run_seed(run: Run) -> Counts {
+    *CURRENT.lock().unwrap_or_else(|p| p.into_inner()) = Some(run);
     let result = std::panic::catch_unwind(|| {
         // The Co-Simulation-only driver as it always was (where seeds 2k and 2k + 1 coincide);
         // otherwise every seed its own sequence.
-        let state = if model_exchange { splitmix64(seed) | 1 } else { seed | 1 };
+        let state = if run.model_exchange {
+            splitmix64(run.seed) | 1
+        } else {
+            run.seed | 1
+        };
         let mut d = Driver::new(Prng(state));
-        d.extreme_parameters = extreme;
-        d.far_times = far_times;
-        d.model_exchange = model_exchange;
-        d.run(if model_exchange {
+        d.extreme_parameters = run.extreme;
+        d.far_times = run.far_times;
+        d.model_exchange = run.model_exchange;
+        d.models = run.models;
+        d.run(if run.model_exchange {
             CALLS_PER_SEED
         } else {
             CO_SIMULATION_CALLS_PER_SEED
@@ -144,8 +182,9 @@ fn run_seed(seed: u64, extreme: bool, far_times: bool, model_exchange: bool) -> 
     match result {
         Ok(counts) => counts,
         Err(e) => std::panic::resume_unwind(Box::new(format!(
-            "fuzz seed {seed} failed (replay with {}): {}",
-            replay_hint(seed, !model_exchange),
+            "fuzz seed {} failed (replay with {}): {}",
+            run.seed,
+            run.replay_hint(),
             e.downcast_ref::<String>()
                 .cloned()
                 .or(e.downcast_ref::<&str>().map(|s| s.to_string()))
@@ -162,13 +201,26 @@ fn random_call_sequences_keep_every_invariant() {
     let extreme = std::env::var("FUZZ_EXTREME").is_ok_and(|v| v == "1");
     let far_times = std::env::var("FUZZ_FAR_TIMES").is_ok_and(|v| v == "1");
     let model_exchange = !std::env::var("FUZZ_CO_SIMULATION_ONLY").is_ok_and(|v| v == "1");
+    let models = std::env::var("FUZZ_MODELS").map_or(MODELS.len(), |v| {
+        v.parse::<usize>()
+            .ok()
+            .filter(|n| (1..=MODELS.len()).contains(n))
+            .unwrap_or_else(|| panic!("FUZZ_MODELS is a number of models, 1 to {}", MODELS.len()))
+    });
     let replay = std::env::var("FUZZ_SEED").ok();
     if replay.is_none() {
+        let slow = |seed, model_exchange| Run {
+            seed,
+            extreme: true,
+            far_times,
+            model_exchange,
+            models: MODELS_BEFORE_WEB,
+        };
         for seed in SLOW_SEEDS {
-            run_seed(seed, true, far_times, false);
+            run_seed(slow(seed, false));
         }
         for seed in SLOW_MODEL_EXCHANGE_SEEDS {
-            run_seed(seed, true, far_times, true);
+            run_seed(slow(seed, true));
         }
     }
     let seeds: Box<dyn Iterator<Item = u64>> = match (replay.clone(), budget) {
@@ -186,7 +238,13 @@ fn random_call_sequences_keep_every_invariant() {
     let (mut seeds_run, mut total) = (0, Counts::default());
     for seed in seeds {
         let t = Instant::now();
-        let c = run_seed(seed, extreme, far_times, model_exchange);
+        let c = run_seed(Run {
+            seed,
+            extreme,
+            far_times,
+            model_exchange,
+            models,
+        });
         if t.elapsed() > Duration::from_secs(2) {
             eprintln!("fuzz: seed {seed} took {:.1} s", t.elapsed().as_secs_f64());
         }
@@ -225,8 +283,5 @@ fn random_call_sequences_keep_every_invariant() {
         "only {} successful fmi2SetContinuousStates in {seeds_run} seeds",
         total.ok_state_sets
     );
-    fresh_instance_works(SHAFT);
-    fresh_instance_works(BELT);
-    fresh_me_instance_works(SHAFT);
-    fresh_me_instance_works(BELT);
+    fresh_instances_of_every_model_work();
 }

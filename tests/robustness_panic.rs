@@ -146,8 +146,9 @@ fn a_panic_in_a_model_exchange_function_is_caught_and_leaves_error() {
         (Function::EnterEventMode, "ContinuousTimeMode"),
         (Function::GetDirectionalDerivative, "Terminated"),
     ];
-    let other = Fmu::me_continuous(BELT);
-    let twin = Fmu::me_continuous(BELT);
+    // Bystanders of another model with another number of continuous states.
+    let other = Fmu::me_continuous(WEB);
+    let twin = Fmu::me_continuous(WEB);
     for (k, (function, phase)) in cases.into_iter().enumerate() {
         let f = match phase {
             "Instantiated" => Fmu::new_model_exchange(SHAFT),
@@ -171,7 +172,7 @@ fn a_panic_in_a_model_exchange_function_is_caught_and_leaves_error() {
         f.assert_all_finite(&format!("after a panic in {}", function.c_name()));
         f.reset_and_check();
         // Another instance integrating alongside is untouched: it matches its twin bit for bit.
-        let x = [1e-4 * k as f64, 0.1, 0.0, 0.05];
+        let x = states(WEB, [1e-4 * k as f64, 0.1, 0.0, 0.05], 5.0 * k as f64);
         for g in [&other, &twin] {
             assert_eq!(fmi2SetTime(g.c, 0.01 * k as f64), OK);
             assert_eq!(g.set_continuous_states(&x), OK);

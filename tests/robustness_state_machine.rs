@@ -1,6 +1,7 @@
 //! Every C function in every state of the FMI 2.0 state machines, through the C ABI, against
 //! the standard's tables of allowed calls written out here independently of
-//! `src/fmu/state_machine.rs`: Co-Simulation (FMI 2.0.4 §4.2.4) and Model Exchange (§3.2.3).
+//! `src/fmu/state_machine.rs`: Co-Simulation (FMI 2.0.4 §4.2.4) and Model Exchange (§3.2.3), the
+//! latter on every model (their continuous states differ in number).
 //! StepFailed, which this FMU never enters by itself, is reached through an FMU state. An
 //! illegal call must return fmi2Error, log "not allowed in state X" (or, for a function of the
 //! other interface, "belongs to FMI for ...") and leave the instance in state Error; a legal one
@@ -250,8 +251,11 @@ const ME_COLUMNS: [(&str, usize); 7] = [
     ("Error before initialization", 5),
 ];
 
-/// The continuous states the table's fmi2SetContinuousStates sets, and the donor's states.
-const X: [f64; NX] = [1e-4, 0.2, -1e-4, 0.1];
+/// The continuous states of `model` the table's fmi2SetContinuousStates sets, and the donor's
+/// states (a web span's tension 30 N).
+fn table_states(model: usize) -> Vec<f64> {
+    states(model, [1e-4, 0.2, -1e-4, 0.1], 30.0)
+}
 
 fn in_me_phase(model: usize, phase: &str) -> Fmu {
     match phase {
@@ -285,26 +289,38 @@ fn in_me_phase(model: usize, phase: &str) -> Fmu {
 /// What a legal call must have done, checked right after it with further calls.
 type Effect = fn(&Fmu, &str);
 
+/// A call of one function on the instance passed, with valid arguments for its model.
+type MeCall = fn(&Fmu) -> fmi2Status;
+
 struct MeCase {
     name: &'static str,
-    call: Call,
+    call: MeCall,
     /// Legal in [Instantiated, InitializationMode, EventMode, ContinuousTimeMode, Terminated, Error].
     legal: [bool; 6],
     when_legal: fmi2Status,
     effect: Option<Effect>,
 }
 
-/// An ME instance in Continuous-Time Mode at t = 0.3 with the states `X`: the source of the
-/// FMU state the table's fmi2SetFMUstate loads.
-fn me_donor() -> Fmu {
-    let donor = Fmu::me_continuous(SHAFT);
+/// An ME instance of `model` in Continuous-Time Mode at t = 0.3 with the states
+/// [`table_states`]: the source of the FMU state the table's fmi2SetFMUstate loads.
+fn me_donor(model: usize) -> Fmu {
+    let donor = Fmu::me_continuous(model);
     assert_eq!(fmi2SetTime(donor.c, 0.3), OK);
-    assert_eq!(donor.set_continuous_states(&X), OK);
+    assert_eq!(donor.set_continuous_states(&table_states(model)), OK);
     donor
 }
 
-fn bits<const N: usize>(x: [f64; N]) -> [u64; N] {
-    x.map(f64::to_bits)
+fn bits(x: &[f64]) -> Vec<u64> {
+    x.iter().map(|x| x.to_bits()).collect()
+}
+
+/// The variables `name_of` each state variable of `f`'s model (itself, or its derivative), read
+/// one by one by name, in the order of the continuous states.
+fn read_by_name(f: &Fmu, name_of: fn(&str) -> String) -> Vec<f64> {
+    state_names(f.model_index())
+        .iter()
+        .map(|state| f.get_real(&name_of(state)).1)
+        .collect()
 }
 
 /// The Model Exchange table of FMI 2.0.4 §3.2.3 ("x": the call is allowed in that state), one
@@ -320,24 +336,24 @@ fn me_table() -> Vec<MeCase> {
     const N: [bool; 6] = [false, false, false, true, false, false];
     const V_N: [bool; 6] = [false, false, true, true, false, false];
     const READ: [bool; 6] = [false, true, true, true, true, true];
-    fn case(name: &'static str, call: Call, legal: [bool; 6], when_legal: fmi2Status, effect: Option<Effect>) -> MeCase {
+    fn case(name: &'static str, call: MeCall, legal: [bool; 6], when_legal: fmi2Status, effect: Option<Effect>) -> MeCase {
         MeCase { name, call, legal, when_legal, effect }
     }
     // SAFETY (every entry): pointers to locals or statics of the announced length.
     unsafe {
         vec![
-            case("fmi2SetDebugLogging", |c| fmi2SetDebugLogging(c, 1, 1, [c"logCalls".as_ptr()].as_ptr()), ALL, OK, None),
+            case("fmi2SetDebugLogging", |f| fmi2SetDebugLogging(f.c, 1, 1, [c"logCalls".as_ptr()].as_ptr()), ALL, OK, None),
             // Start time 0.5: an earlier time is refused afterwards.
-            case("fmi2SetupExperiment", |c| fmi2SetupExperiment(c, 1, 1e-6, 0.5, 1, 10.0), I, OK, Some(|f, _| {
+            case("fmi2SetupExperiment", |f| fmi2SetupExperiment(f.c, 1, 1e-6, 0.5, 1, 10.0), I, OK, Some(|f, _| {
                 assert_eq!(fmi2EnterInitializationMode(f.c), OK);
                 assert_eq!(fmi2ExitInitializationMode(f.c), OK);
                 f.refuses("start time 0.5", |c| fmi2SetTime(c, 0.25));
             })),
-            case("fmi2EnterInitializationMode", |c| fmi2EnterInitializationMode(c), I, OK, Some(|f, _| {
+            case("fmi2EnterInitializationMode", |f| fmi2EnterInitializationMode(f.c), I, OK, Some(|f, _| {
                 assert_eq!(f.get_real("theta_m"), (OK, 0.0));
                 f.refuses("not allowed in state InitializationMode", |c| fmi2EnterEventMode(c));
             })),
-            case("fmi2ExitInitializationMode", |c| fmi2ExitInitializationMode(c), M, OK, Some(|f, _| {
+            case("fmi2ExitInitializationMode", |f| fmi2ExitInitializationMode(f.c), M, OK, Some(|f, _| {
                 // Event Mode: the event iteration, then Continuous-Time Mode.
                 let mut info = event_info();
                 assert_eq!(fmi2NewDiscreteStates(f.c, &mut info), OK);
@@ -345,22 +361,22 @@ fn me_table() -> Vec<MeCase> {
                 assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
                 assert_eq!(fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1), OK);
             })),
-            case("fmi2Terminate", |c| fmi2Terminate(c), V_N, OK, Some(|f, _| {
+            case("fmi2Terminate", |f| fmi2Terminate(f.c), V_N, OK, Some(|f, _| {
                 f.assert_all_finite("after fmi2Terminate");
                 assert_eq!(f.derivatives().0, OK);
                 f.refuses("not allowed in state Terminated", |c| fmi2EnterEventMode(c));
             })),
-            case("fmi2Reset", |c| fmi2Reset(c), ALL, OK, Some(|f, _| {
-                f.refuses("not allowed in state Instantiated", |c| fmi2GetReal(c, vr("theta_m").as_ptr(), 1, [0.0].as_mut_ptr()));
+            case("fmi2Reset", |f| fmi2Reset(f.c), ALL, OK, Some(|f, _| {
+                f.refuses("not allowed in state Instantiated", |c| fmi2GetReal(c, [f.vr("theta_m")].as_ptr(), 1, [0.0].as_mut_ptr()));
                 f.reset_and_check();
             })),
-            case("fmi2GetReal", |c| fmi2GetReal(c, vr("theta_m").as_ptr(), 1, [0.0].as_mut_ptr()), READ, OK, Some(|f, _| {
+            case("fmi2GetReal", |f| fmi2GetReal(f.c, [f.vr("theta_m")].as_ptr(), 1, [0.0].as_mut_ptr()), READ, OK, Some(|f, _| {
                 f.assert_all_finite("fmi2GetReal of every variable");
             })),
-            case("fmi2GetInteger", |c| fmi2GetInteger(c, vr("contact").as_ptr(), 1, [0].as_mut_ptr()), READ, OK, None),
-            case("fmi2GetBoolean", |c| fmi2GetBoolean(c, null(), 0, null_mut()), READ, OK, None),
-            case("fmi2GetString", |c| fmi2GetString(c, null(), 0, null_mut()), READ, OK, None),
-            case("fmi2SetReal", |c| fmi2SetReal(c, vr("tau_m").as_ptr(), 1, [0.5].as_ptr()), [true, true, true, true, false, false], OK, Some(|f, phase| {
+            case("fmi2GetInteger", |f| fmi2GetInteger(f.c, [f.vr("contact")].as_ptr(), 1, [0].as_mut_ptr()), READ, OK, None),
+            case("fmi2GetBoolean", |f| fmi2GetBoolean(f.c, null(), 0, null_mut()), READ, OK, None),
+            case("fmi2GetString", |f| fmi2GetString(f.c, null(), 0, null_mut()), READ, OK, None),
+            case("fmi2SetReal", |f| fmi2SetReal(f.c, [f.vr("tau_m")].as_ptr(), 1, [0.5].as_ptr()), [true, true, true, true, false, false], OK, Some(|f, phase| {
                 if phase == "Instantiated" {
                     assert_eq!(fmi2EnterInitializationMode(f.c), OK);
                 }
@@ -368,79 +384,80 @@ fn me_table() -> Vec<MeCase> {
                 // der(omega_m) = (tau_m - b_m omega_m - psi) / J_m, from rest at theta = 0.
                 assert_eq!(f.get_real("der(omega_m)"), (OK, 0.5 / f.get_real("J_m").1));
             })),
-            case("fmi2SetInteger", |c| fmi2SetInteger(c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
-            case("fmi2SetBoolean", |c| fmi2SetBoolean(c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
-            case("fmi2SetString", |c| fmi2SetString(c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
-            case("fmi2GetFMUstate", |c| {
+            case("fmi2SetInteger", |f| fmi2SetInteger(f.c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
+            case("fmi2SetBoolean", |f| fmi2SetBoolean(f.c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
+            case("fmi2SetString", |f| fmi2SetString(f.c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
+            case("fmi2GetFMUstate", |f| {
                 let mut s = null_mut();
-                let status = fmi2GetFMUstate(c, &mut s);
-                fmi2FreeFMUstate(c, &mut s);
+                let status = fmi2GetFMUstate(f.c, &mut s);
+                fmi2FreeFMUstate(f.c, &mut s);
                 status
             }, ALL, OK, None),
-            case("fmi2SetFMUstate", |c| {
-                let donor = me_donor();
+            case("fmi2SetFMUstate", |f| {
+                let donor = me_donor(f.model_index());
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2SetFMUstate(c, s)
+                fmi2SetFMUstate(f.c, s)
             }, ALL, OK, Some(|f, _| {
                 // Now the donor's: Continuous-Time Mode with its states.
-                assert_eq!(f.continuous_states(), (OK, X));
+                assert_eq!(f.continuous_states(), (OK, table_states(f.model_index())));
                 assert_eq!(fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1), OK);
-                let donor = me_donor();
+                let donor = me_donor(f.model_index());
                 assert_eq!(f.get_real("bound"), donor.get_real("bound"));
             })),
-            case("fmi2FreeFMUstate", |c| {
-                let donor = Fmu::new_model_exchange(0);
+            case("fmi2FreeFMUstate", |f| {
+                let donor = Fmu::new_model_exchange(f.model_index());
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2FreeFMUstate(c, &mut s)
+                fmi2FreeFMUstate(f.c, &mut s)
             }, ALL, OK, None),
-            case("fmi2SerializedFMUstateSize", |c| {
-                let donor = Fmu::new_model_exchange(0);
+            case("fmi2SerializedFMUstateSize", |f| {
+                let donor = Fmu::new_model_exchange(f.model_index());
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2SerializedFMUstateSize(c, s, &mut 0)
+                fmi2SerializedFMUstateSize(f.c, s, &mut 0)
             }, ALL, OK, None),
-            case("fmi2SerializeFMUstate", |c| {
-                let donor = Fmu::new_model_exchange(0);
+            case("fmi2SerializeFMUstate", |f| {
+                let donor = Fmu::new_model_exchange(f.model_index());
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2SerializeFMUstate(c, s, [0; 4096].as_mut_ptr(), 4096)
+                fmi2SerializeFMUstate(f.c, s, [0; 4096].as_mut_ptr(), 4096)
             }, ALL, OK, None),
-            case("fmi2DeSerializeFMUstate", |c| {
-                let bytes = serialized(&me_donor());
-                fmi2DeSerializeFMUstate(c, bytes.as_ptr().cast(), bytes.len(), &mut null_mut())
+            case("fmi2DeSerializeFMUstate", |f| {
+                let bytes = serialized(&me_donor(f.model_index()));
+                fmi2DeSerializeFMUstate(f.c, bytes.as_ptr().cast(), bytes.len(), &mut null_mut())
             }, ALL, OK, None),
-            case("fmi2GetDirectionalDerivative", |c| {
-                fmi2GetDirectionalDerivative(c, vr("der(omega_m)").as_ptr(), 1, vr("tau_m").as_ptr(), 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
+            case("fmi2GetDirectionalDerivative", |f| {
+                fmi2GetDirectionalDerivative(f.c, [f.vr("der(omega_m)")].as_ptr(), 1, [f.vr("tau_m")].as_ptr(), 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
             }, READ, OK, Some(|f, _| {
                 // d der(omega_m) / d tau_m = 1/J_m in every mode.
                 let mut dv = [f64::NAN];
-                let s = fmi2GetDirectionalDerivative(f.c, vr("der(omega_m)").as_ptr(), 1, vr("tau_m").as_ptr(), 1, [2.0].as_ptr(), dv.as_mut_ptr());
+                let s = fmi2GetDirectionalDerivative(f.c, [f.vr("der(omega_m)")].as_ptr(), 1, [f.vr("tau_m")].as_ptr(), 1, [2.0].as_ptr(), dv.as_mut_ptr());
                 assert_eq!(s, OK);
                 assert_eq!(dv[0], 2.0 / f.get_real("J_m").1);
             })),
-            case("fmi2SetRealInputDerivatives", |c| {
-                fmi2SetRealInputDerivatives(c, vr("tau_m").as_ptr(), 1, [1].as_ptr(), [0.5].as_ptr())
+            case("fmi2SetRealInputDerivatives", |f| {
+                fmi2SetRealInputDerivatives(f.c, [f.vr("tau_m")].as_ptr(), 1, [1].as_ptr(), [0.5].as_ptr())
             }, NONE, OK, None),
-            case("fmi2GetRealOutputDerivatives", |c| {
-                fmi2GetRealOutputDerivatives(c, vr("omega_m").as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
+            case("fmi2GetRealOutputDerivatives", |f| {
+                fmi2GetRealOutputDerivatives(f.c, [f.vr("omega_m")].as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
             }, NONE, OK, None),
-            case("fmi2DoStep", |c| fmi2DoStep(c, 0.0, 1e-3, 1), NONE, OK, None),
-            case("fmi2CancelStep", |c| fmi2CancelStep(c), NONE, OK, None),
-            case("fmi2GetStatus", |c| fmi2GetStatus(c, fmi2DoStepStatus, &mut fmi2Status::fmi2Error), NONE, OK, None),
-            case("fmi2GetRealStatus", |c| fmi2GetRealStatus(c, fmi2LastSuccessfulTime, &mut 0.0), NONE, OK, None),
-            case("fmi2GetIntegerStatus", |c| fmi2GetIntegerStatus(c, fmi2DoStepStatus, &mut 0), NONE, OK, None),
-            case("fmi2GetBooleanStatus", |c| fmi2GetBooleanStatus(c, fmi2Terminated, &mut 0), NONE, OK, None),
-            case("fmi2GetStringStatus", |c| fmi2GetStringStatus(c, fmi2PendingStatus, &mut null()), NONE, OK, None),
-            case("fmi2EnterEventMode", |c| fmi2EnterEventMode(c), V_N, OK, Some(|f, _| {
+            case("fmi2DoStep", |f| fmi2DoStep(f.c, 0.0, 1e-3, 1), NONE, OK, None),
+            case("fmi2CancelStep", |f| fmi2CancelStep(f.c), NONE, OK, None),
+            case("fmi2GetStatus", |f| fmi2GetStatus(f.c, fmi2DoStepStatus, &mut fmi2Status::fmi2Error), NONE, OK, None),
+            case("fmi2GetRealStatus", |f| fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut 0.0), NONE, OK, None),
+            case("fmi2GetIntegerStatus", |f| fmi2GetIntegerStatus(f.c, fmi2DoStepStatus, &mut 0), NONE, OK, None),
+            case("fmi2GetBooleanStatus", |f| fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut 0), NONE, OK, None),
+            case("fmi2GetStringStatus", |f| fmi2GetStringStatus(f.c, fmi2PendingStatus, &mut null()), NONE, OK, None),
+            case("fmi2EnterEventMode", |f| fmi2EnterEventMode(f.c), V_N, OK, Some(|f, _| {
                 let mut info = event_info();
                 assert_eq!(fmi2NewDiscreteStates(f.c, &mut info), OK);
-                f.refuses("not allowed in state EventMode", |c| fmi2SetContinuousStates(c, X.as_ptr(), NX));
+                let x = table_states(f.model_index());
+                f.refuses("not allowed in state EventMode", |c| fmi2SetContinuousStates(c, x.as_ptr(), x.len()));
             })),
-            case("fmi2NewDiscreteStates", |c| {
+            case("fmi2NewDiscreteStates", |f| {
                 let mut info = event_info();
-                let s = fmi2NewDiscreteStates(c, &mut info);
+                let s = fmi2NewDiscreteStates(f.c, &mut info);
                 if s == OK {
                     // No discrete states, no time events: nothing to iterate, nothing changed.
                     assert_eq!(
@@ -451,55 +468,57 @@ fn me_table() -> Vec<MeCase> {
                 }
                 s
             }, V, OK, None),
-            case("fmi2EnterContinuousTimeMode", |c| fmi2EnterContinuousTimeMode(c), V, OK, Some(|f, _| {
-                assert_eq!(f.set_continuous_states(&X), OK);
+            case("fmi2EnterContinuousTimeMode", |f| fmi2EnterContinuousTimeMode(f.c), V, OK, Some(|f, _| {
+                assert_eq!(f.set_continuous_states(&table_states(f.model_index())), OK);
                 f.refuses("not allowed in state ContinuousTimeMode", |c| fmi2NewDiscreteStates(c, &mut event_info()));
             })),
-            case("fmi2CompletedIntegratorStep", |c| {
+            case("fmi2CompletedIntegratorStep", |f| {
                 let (mut enter, mut terminate) = (fmi2True, fmi2True);
-                let s = fmi2CompletedIntegratorStep(c, 1, &mut enter, &mut terminate);
+                let s = fmi2CompletedIntegratorStep(f.c, 1, &mut enter, &mut terminate);
                 if s == OK {
                     assert_eq!((enter, terminate), (fmi2False, fmi2False));
                 }
                 s
             }, N, OK, None),
-            case("fmi2SetTime", |c| fmi2SetTime(c, 0.3), V_N, OK, Some(|f, _| {
+            case("fmi2SetTime", |f| fmi2SetTime(f.c, 0.3), V_N, OK, Some(|f, _| {
                 // The bounds follow time: those of an instance set to 0.3, not those at 0 (= 0).
                 let (s, bound) = f.get_real("bound");
                 assert_eq!(s, OK);
                 assert!(bound > 0.0);
-                assert_eq!(bound.to_bits(), me_donor().get_real("bound").1.to_bits());
+                assert_eq!(bound.to_bits(), me_donor(f.model_index()).get_real("bound").1.to_bits());
             })),
-            case("fmi2SetContinuousStates", |c| fmi2SetContinuousStates(c, X.as_ptr(), NX), N, OK, Some(|f, _| {
-                assert_eq!(bits(f.continuous_states().1), bits(X));
-                let read = STATE_NAMES.map(|name| f.get_real(name).1);
-                assert_eq!(bits(read), bits(X));
+            case("fmi2SetContinuousStates", |f| {
+                let x = table_states(f.model_index());
+                fmi2SetContinuousStates(f.c, x.as_ptr(), x.len())
+            }, N, OK, Some(|f, _| {
+                let x = table_states(f.model_index());
+                assert_eq!(bits(&f.continuous_states().1), bits(&x));
+                assert_eq!(bits(&read_by_name(f, |state| state.to_string())), bits(&x));
                 // theta' = omega.
                 let (s, dx) = f.derivatives();
                 assert_eq!(s, OK);
-                assert_eq!((dx[0], dx[2]), (X[1], X[3]));
+                assert_eq!((dx[0], dx[2]), (x[1], x[3]));
             })),
-            case("fmi2GetDerivatives", |c| fmi2GetDerivatives(c, [0.0; NX].as_mut_ptr(), NX), [false, false, true, true, true, true], OK, Some(|f, _| {
+            case("fmi2GetDerivatives", |f| fmi2GetDerivatives(f.c, vec![0.0; f.nx()].as_mut_ptr(), f.nx()), [false, false, true, true, true, true], OK, Some(|f, _| {
                 let (s, dx) = f.derivatives();
                 assert_eq!(s, OK);
-                let read = STATE_NAMES.map(|name| f.get_real(&format!("der({name})")).1);
-                assert_eq!(bits(dx), bits(read));
+                assert_eq!(bits(&dx), bits(&read_by_name(f, |state| format!("der({state})"))));
             })),
-            case("fmi2GetEventIndicators", |c| fmi2GetEventIndicators(c, [0.0; NI].as_mut_ptr(), NI), READ, OK, Some(|f, _| {
-                // [u - g, u + g] with u = theta_m - theta_L on the shaft, and g > 0.
+            case("fmi2GetEventIndicators", |f| fmi2GetEventIndicators(f.c, [0.0; NI].as_mut_ptr(), NI), READ, OK, Some(|f, _| {
+                // [u - g, u + g] with u = r_m theta_m - r_L theta_L, and g > 0.
                 let (s, z) = f.event_indicators();
                 assert_eq!(s, OK);
-                let u = f.get_real("theta_m").1 - f.get_real("theta_L").1;
+                let (r_m, r_l) = transmission(f.model, |name| f.get_real(name).1);
+                let u = r_m * f.get_real("theta_m").1 - r_l * f.get_real("theta_L").1;
                 assert!(z[0] < z[1], "{z:?}");
                 assert!(((z[0] + z[1]) / 2.0 - u).abs() <= 1e-15, "{z:?}, u = {u}");
             })),
-            case("fmi2GetContinuousStates", |c| fmi2GetContinuousStates(c, [0.0; NX].as_mut_ptr(), NX), READ, OK, Some(|f, _| {
+            case("fmi2GetContinuousStates", |f| fmi2GetContinuousStates(f.c, vec![0.0; f.nx()].as_mut_ptr(), f.nx()), READ, OK, Some(|f, _| {
                 let (s, x) = f.continuous_states();
                 assert_eq!(s, OK);
-                let read = STATE_NAMES.map(|name| f.get_real(name).1);
-                assert_eq!(bits(x), bits(read));
+                assert_eq!(bits(&x), bits(&read_by_name(f, |state| state.to_string())));
             })),
-            case("fmi2GetNominalsOfContinuousStates", |c| fmi2GetNominalsOfContinuousStates(c, [0.0; NX].as_mut_ptr(), NX), [true, false, true, true, true, true], OK, Some(|f, _| {
+            case("fmi2GetNominalsOfContinuousStates", |f| fmi2GetNominalsOfContinuousStates(f.c, vec![0.0; f.nx()].as_mut_ptr(), f.nx()), [true, false, true, true, true, true], OK, Some(|f, _| {
                 let (s, n) = f.nominals();
                 assert_eq!(s, OK);
                 assert!(n.iter().all(|x| x.is_finite() && *x > 0.0), "{n:?}");
@@ -517,14 +536,17 @@ fn every_call_in_every_model_exchange_state_follows_the_standard_table() {
     assert_eq!(names, cs_names, "the same functions as the Co-Simulation table");
     let mut checked = 0;
     let mut effects = 0;
-    for case in &table {
+    for (model, case) in (0..MODELS.len()).flat_map(|model| table.iter().map(move |case| (model, case))) {
         let co_simulation = case.legal == [false; 6];
         for (phase, column) in ME_COLUMNS {
             let legal = case.legal[column];
-            let f = in_me_phase(SHAFT, phase);
+            let f = in_me_phase(model, phase);
             let before = f.log_len();
-            let status = (case.call)(f.c);
-            let context = format!("{} in {phase} (Model Exchange)", case.name);
+            let status = (case.call)(&f);
+            let context = format!(
+                "{} in {phase} (Model Exchange, {})",
+                case.name, MODELS[model].identifier
+            );
             if legal {
                 assert_eq!(status, case.when_legal, "{context}: {:?}", f.entries().get(before..));
                 assert!(
@@ -555,22 +577,21 @@ fn every_call_in_every_model_exchange_state_follows_the_standard_table() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 280);
+    assert_eq!(checked, 280 * MODELS.len());
     // Every legal call with an effect to check was checked in every state it is legal in.
     let expected: usize = table
         .iter()
         .filter(|c| c.effect.is_some())
         .map(|c| ME_COLUMNS.iter().filter(|(_, k)| c.legal[*k]).count())
         .sum();
-    assert_eq!(effects, expected);
-    assert!(effects > 60, "{effects}");
-    fresh_me_instance_works(SHAFT);
-    fresh_instance_works(SHAFT);
+    assert_eq!(effects, expected * MODELS.len());
+    assert!(expected > 60, "{expected}");
+    fresh_instances_of_every_model_work();
 }
 
 #[test]
 fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them() {
-    for model in [SHAFT, BELT] {
+    for model in 0..MODELS.len() {
         let f = Fmu::new_model_exchange(model);
         // Instantiated -> InitializationMode -> EventMode.
         assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), OK);
@@ -584,7 +605,8 @@ fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them
             assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64), OK, "fmi2SetTime in Event Mode");
             assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
             assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64 + 0.05), OK);
-            assert_eq!(f.set_continuous_states(&X.map(|x| x * k as f64)), OK);
+            let x: Vec<f64> = table_states(model).iter().map(|x| x * k as f64).collect();
+            assert_eq!(f.set_continuous_states(&x), OK);
             assert_eq!(f.set_real("tau_L", k as f64), OK, "an input in Continuous-Time Mode");
             f.assert_all_finite(&format!("round {k}"));
             // Event Mode is entered from Continuous-Time Mode and from Event Mode itself.
@@ -668,25 +690,29 @@ fn model_exchange_error_is_left_only_by_reset_or_an_fmu_state() {
     f.refuses("not allowed in state Error", |c| fmi2SetTime(c, 0.0));
     f.reset_and_check();
     // An FMU state saved in Continuous-Time Mode continues from there, bit for bit.
+    let x = table_states(SHAFT);
     let f = Fmu::me_continuous(SHAFT);
     assert_eq!(fmi2SetTime(f.c, 0.2), OK);
-    assert_eq!(f.set_continuous_states(&X), OK);
+    assert_eq!(f.set_continuous_states(&x), OK);
     let saved = serialized(&f);
     f.refuses("not allowed in state ContinuousTimeMode", |c| {
         fmi2ExitInitializationMode(c)
     });
-    // SAFETY: NX values.
+    // SAFETY: x.len() values.
     f.refuses("not allowed in state Error", |c| unsafe {
-        fmi2SetContinuousStates(c, X.as_ptr(), NX)
+        fmi2SetContinuousStates(c, x.as_ptr(), x.len())
     });
     assert_eq!(load(&f, &saved), (OK, OK));
-    assert_eq!(f.continuous_states(), (OK, X));
+    assert_eq!(f.continuous_states(), (OK, x.clone()));
     let reference = Fmu::me_continuous(SHAFT);
     assert_eq!(fmi2SetTime(reference.c, 0.2), OK);
-    assert_eq!(reference.set_continuous_states(&X), OK);
+    assert_eq!(reference.set_continuous_states(&x), OK);
     for g in [&f, &reference] {
         assert_eq!(fmi2SetTime(g.c, 0.25), OK);
-        assert_eq!(g.set_continuous_states(&X.map(|x| 2.0 * x)), OK);
+        assert_eq!(
+            g.set_continuous_states(&x.iter().map(|x| 2.0 * x).collect::<Vec<_>>()),
+            OK
+        );
         g.assert_all_finite("after leaving Error through an FMU state");
     }
     let values = |f: &Fmu| f.all_values().1.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>();

@@ -4,18 +4,21 @@
 //! - the status is one of fmi2OK, fmi2Warning, fmi2Discard, fmi2Error (never Fatal/Pending);
 //! - fmi2Discard and fmi2Error from a live instance come with a logged reason in logErrors,
 //!   fmi2Warning with one in logWarnings;
-//! - values read with fmi2OK are never NaN, and never infinite except bound_sup (docs/model.md §4):
-//!   variables, continuous states, derivatives, event indicators (u − g ≤ u + g), nominals
-//!   (positive), directional derivatives; after every successful fmi2DoStep and
-//!   fmi2ExitInitializationMode every variable is read and checked; after a successful
-//!   fmi2SetContinuousStates the states read back bit for bit; fmi2NewDiscreteStates and
-//!   fmi2CompletedIntegratorStep ask for nothing (no discrete states, no time events).
+//! - values read with fmi2OK are never NaN, and never infinite except bound_sup and bound_T_sup
+//!   (`admissible`, docs/model.md §4, §8): variables, continuous states, derivatives, event
+//!   indicators (u − g ≤ u + g), nominals (positive), directional derivatives; after every
+//!   successful fmi2DoStep and fmi2ExitInitializationMode every variable is read and checked;
+//!   after a successful fmi2SetContinuousStates the states read back bit for bit;
+//!   fmi2NewDiscreteStates and fmi2CompletedIntegratorStep ask for nothing (no discrete states,
+//!   no time events).
 //!
-//! Model Exchange calls get random finite, extreme and non-finite arguments and random vector
-//! lengths; mostly they follow an explicit Euler integration, so that sequences reach
-//! Continuous-Time Mode with moving states. Times are kept within `FAR_TIME` of the start time
-//! unless [`Driver::far_times`] is set: fmi2SetTime accepts any finite time, and reading the
-//! bounds after a far one takes work proportional to the time (see
+//! Instances are of every model in `MODELS` (unless [`Driver::models`] says fewer), each with
+//! its own number of continuous states in Model Exchange ([`nx`]). Model Exchange calls get
+//! random finite, extreme and non-finite arguments and random vector lengths; mostly they
+//! follow an explicit Euler integration, so that sequences reach Continuous-Time Mode with
+//! moving states. Times are kept within `FAR_TIME` of the start time unless
+//! [`Driver::far_times`] is set: fmi2SetTime accepts any finite time, and reading the bounds
+//! after a far one takes work proportional to the time (see
 //! `model_exchange_far_times_are_refused_or_answered_promptly` in tests/robustness_arguments.rs).
 //!
 //! A panic that unwinds out of an `extern "C"` function aborts the process, so "no panic
@@ -102,7 +105,7 @@ const GET_NOMINALS: u64 = 39;
 const GET_DIRECTIONAL_DERIVATIVE: u64 = 40;
 const OPS: u64 = 41;
 
-/// The knowns and (some) unknowns of the exact Jacobian (docs/model.md §6).
+/// The knowns and (some) unknowns of the exact Jacobian of a drive train (docs/model.md §6).
 const JACOBIAN_KNOWNS: [&str; 6] = ["theta_m", "omega_m", "theta_L", "omega_L", "tau_m", "tau_L"];
 const JACOBIAN_UNKNOWNS: [&str; 8] = [
     "der(theta_m)",
@@ -114,6 +117,20 @@ const JACOBIAN_UNKNOWNS: [&str; 8] = [
     "bound",
     "bound_paper",
 ];
+/// Those a web span adds (BacklashWeb, docs/model.md §8): its state T and inputs v_in, T_in;
+/// der(T), T and bound_T.
+const WEB_JACOBIAN_KNOWNS: [&str; 3] = ["T", "v_in", "T_in"];
+const WEB_JACOBIAN_UNKNOWNS: [&str; 3] = ["der(T)", "T", "bound_T"];
+
+/// The knowns and unknowns of `model` the driver mostly picks from.
+fn jacobian_names(model: &backlash_fmu::fmu::ModelInfo) -> (Vec<&'static str>, Vec<&'static str>) {
+    let (mut knowns, mut unknowns) = (JACOBIAN_KNOWNS.to_vec(), JACOBIAN_UNKNOWNS.to_vec());
+    if model.drive_train.has_web() {
+        knowns.extend(WEB_JACOBIAN_KNOWNS);
+        unknowns.extend(WEB_JACOBIAN_UNKNOWNS);
+    }
+    (knowns, unknowns)
+}
 
 /// The ops a Model Exchange instance gets at random (apart from any op, now and then): those of
 /// both interfaces and its own, twice as often.
@@ -136,9 +153,9 @@ struct Slot {
     /// Our belief of its start time (Model Exchange: times are picked around it).
     start: f64,
     /// The continuous states and derivatives last read or set (Model Exchange), from which
-    /// the next states are stepped.
-    x: [f64; NX],
-    dx: [f64; NX],
+    /// the next states are stepped: [`nx`] of each.
+    x: Vec<f64>,
+    dx: Vec<f64>,
 }
 
 pub struct Driver<S: Source> {
@@ -158,8 +175,8 @@ pub struct Driver<S: Source> {
     /// see [`FAR_TIME`]).
     pub far_times: bool,
     /// Whether instances may be Model Exchange ones (half of them) and calls may cross
-    /// interfaces. Off, the driver makes exactly the Co-Simulation sequences it made before Model
-    /// Exchange existed, so that seeds found then replay unchanged.
+    /// interfaces. Off (and with `models` = 2), the driver makes exactly the Co-Simulation
+    /// sequences it made before Model Exchange existed, so that seeds found then replay unchanged.
     pub model_exchange: bool,
     /// Whether the current call moves its instance along the lifecycle: its arguments are then
     /// mostly valid (the random calls get the wild ones), so that Model Exchange sequences stay
@@ -168,6 +185,9 @@ pub struct Driver<S: Source> {
     pub me_calls: u64,
     /// Successful fmi2SetContinuousStates calls.
     pub ok_state_sets: u64,
+    /// How many of `MODELS`, the first ones, instances are drawn from: all by default. Seeds
+    /// found before BacklashWeb existed replay their sequences with 2.
+    pub models: usize,
 }
 
 impl<S: Source> Driver<S> {
@@ -186,6 +206,7 @@ impl<S: Source> Driver<S> {
             careful: false,
             me_calls: 0,
             ok_state_sets: 0,
+            models: MODELS.len(),
         }
     }
 
@@ -431,8 +452,7 @@ impl<S: Source> Driver<S> {
                     if s == fmi2Status::fmi2OK {
                         for (vr, x) in vrs.iter().zip(&out) {
                             let name = model.by_vr(*vr).unwrap().name;
-                            assert!(!x.is_nan(), "fmi2GetReal OK but {name} is NaN");
-                            assert!(x.is_finite() || name == "bound_sup", "fmi2GetReal OK but {name} = {x}");
+                            assert!(admissible(name, *x), "fmi2GetReal OK but {name} = {x}");
                         }
                     }
                     s
@@ -668,15 +688,16 @@ impl<S: Source> Driver<S> {
                     s
                 }
                 SET_CONTINUOUS_STATES => {
-                    let n = self.length(NX)?;
-                    let (x, dx) = (self.slots[i].x, self.slots[i].dx);
+                    let nx = self.slots[i].x.len();
+                    let n = self.length(nx)?;
+                    let (x, dx) = (self.slots[i].x.clone(), self.slots[i].dx.clone());
                     let mut values = Vec::with_capacity(n);
                     let how = if self.careful { self.below(9)? } else { self.below(10)? };
                     for k in 0..n {
                         values.push(match how {
                             // An explicit Euler step from the last states and derivatives.
-                            0..=5 => x[k % NX] + 1e-4 * (1 + self.below(100)?) as f64 * dx[k % NX],
-                            6 | 7 => x[k % NX] * (1.0 + (self.below(21)? as f64 - 10.0) / 100.0),
+                            0..=5 => x[k % nx] + 1e-4 * (1 + self.below(100)?) as f64 * dx[k % nx],
+                            6 | 7 => x[k % nx] * (1.0 + (self.below(21)? as f64 - 10.0) / 100.0),
                             _ => self.real()?,
                         });
                     }
@@ -689,21 +710,22 @@ impl<S: Source> Driver<S> {
                     if s == fmi2Status::fmi2OK {
                         self.ok_state_sets += 1;
                         read_all = self.chance(20)?;
-                        let x: [f64; NX] = values.as_slice().try_into().expect("only NX states are accepted");
-                        self.slots[i].x = x;
+                        assert_eq!(n, nx, "{n} continuous states accepted, {nx} expected");
                         // Read back bit for bit (legal in Continuous-Time Mode, where the set was).
                         let (s, back) = self.slots[i].f.continuous_states();
                         assert_eq!(s, fmi2Status::fmi2OK, "fmi2GetContinuousStates after a set");
-                        assert_eq!(
-                            back.map(f64::to_bits),
-                            x.map(f64::to_bits),
-                            "states set {x:?}, read {back:?}"
-                        );
+                        let bits = |x: &[f64]| x.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(bits(&back), bits(&values), "states set {values:?}, read {back:?}");
+                        self.slots[i].x = values;
                     }
                     s
                 }
                 GET_CONTINUOUS_STATES | GET_DERIVATIVES | GET_EVENT_INDICATORS | GET_NOMINALS => {
-                    let expected = if op == GET_EVENT_INDICATORS { NI } else { NX };
+                    let expected = if op == GET_EVENT_INDICATORS {
+                        NI
+                    } else {
+                        self.slots[i].x.len()
+                    };
                     let n = self.length(expected)?;
                     let mut out = vec![f64::NAN; n];
                     let ptr = if n > 0 && self.wild(3)? {
@@ -721,8 +743,8 @@ impl<S: Source> Driver<S> {
                         assert_eq!(n, expected, "op {op}: a vector of length {n} accepted");
                         assert!(out.iter().all(|x| x.is_finite()), "op {op}: fmi2OK but {out:?}");
                         match op {
-                            GET_CONTINUOUS_STATES => self.slots[i].x = out.as_slice().try_into().unwrap(),
-                            GET_DERIVATIVES => self.slots[i].dx = out.as_slice().try_into().unwrap(),
+                            GET_CONTINUOUS_STATES => self.slots[i].x = out,
+                            GET_DERIVATIVES => self.slots[i].dx = out,
                             GET_EVENT_INDICATORS => assert!(out[0] <= out[1], "indicators {out:?}"),
                             _ => assert!(out.iter().all(|x| *x > 0.0), "nominals {out:?}"),
                         }
@@ -733,6 +755,7 @@ impl<S: Source> Driver<S> {
                     let (nu, nk) = (self.below(5)? as usize, self.below(5)? as usize);
                     // Mostly unknowns and knowns of the Jacobian (docs/model.md §6), sometimes any
                     // reference.
+                    let (jacobian_knowns, jacobian_unknowns) = jacobian_names(model);
                     let pick = |d: &mut Self, names: &[&str]| -> Option<u32> {
                         Some(if !d.wild(25)? {
                             model.vr(names[d.below(names.len() as u64)? as usize])
@@ -742,12 +765,12 @@ impl<S: Source> Driver<S> {
                     };
                     let mut unknowns = Vec::new();
                     for _ in 0..nu {
-                        unknowns.push(pick(self, &JACOBIAN_UNKNOWNS)?);
+                        unknowns.push(pick(self, &jacobian_unknowns)?);
                     }
                     let mut knowns = Vec::new();
                     let mut seeds = Vec::new();
                     for _ in 0..nk {
-                        knowns.push(pick(self, &JACOBIAN_KNOWNS)?);
+                        knowns.push(pick(self, &jacobian_knowns)?);
                         seeds.push(if !self.wild(30)? {
                             self.below(201)? as f64 / 100.0 - 1.0
                         } else {
@@ -821,7 +844,7 @@ impl<S: Source> Driver<S> {
 
     fn instantiate(&mut self) -> Option<()> {
         self.calls += 1;
-        let model = self.below(2)? as usize;
+        let model = self.below(self.models.min(MODELS.len()) as u64)? as usize;
         let name = if self.chance(50)? { "fuzz" } else { "a%s%n b" };
         let fmu_type = if self.model_exchange && self.chance(50)? {
             fmi2ModelExchange
@@ -839,14 +862,14 @@ impl<S: Source> Driver<S> {
             phase: 0,
             errors_logged: true,
             start: 0.0,
-            x: [0.0; NX],
-            dx: [0.0; NX],
+            x: vec![0.0; nx(model)],
+            dx: vec![0.0; nx(model)],
         });
         Some(())
     }
 
-    /// Reads every variable: fmi2OK with no NaN and nothing infinite but bound_sup, or a refusal
-    /// with a logged reason (then the instance is in state Error).
+    /// Reads every variable: fmi2OK with every value [`admissible`], or a refusal with a logged
+    /// reason (then the instance is in state Error).
     fn read_all(&mut self, i: usize, op: u64) {
         let f = &self.slots[i].f;
         let before = f.log_len();
@@ -861,13 +884,7 @@ impl<S: Source> Driver<S> {
         match s {
             fmi2Status::fmi2OK => {
                 for (name, x) in values {
-                    let var = f.model.by_name(name).unwrap();
-                    assert!(!x.is_nan(), "{name} is NaN {}", context());
-                    assert!(
-                        x.is_finite() || var.causality == Causality::CalculatedParameter,
-                        "{name} = {x} {}",
-                        context()
-                    );
+                    assert!(admissible(name, x), "{name} = {x} {}", context());
                 }
             }
             fmi2Status::fmi2Error => {
@@ -907,13 +924,7 @@ impl<S: Source> Driver<S> {
             let (s, values) = f.all_values();
             assert_eq!(s, fmi2Status::fmi2OK, "{}", context());
             for (name, x) in values {
-                let var = f.model.by_name(name).unwrap();
-                assert!(!x.is_nan(), "{name} is NaN after {}", context());
-                assert!(
-                    x.is_finite() || var.causality == Causality::CalculatedParameter,
-                    "{name} = {x} after {}",
-                    context()
-                );
+                assert!(admissible(name, x), "{name} = {x} after {}", context());
             }
         }
     }

@@ -5,6 +5,7 @@
 pub mod fuzz;
 
 use backlash_fmu::ffi::*;
+use backlash_fmu::fmu::variables::DriveTrain;
 use backlash_fmu::fmu::{ModelInfo, MODELS};
 use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
@@ -59,14 +60,52 @@ pub fn callbacks(log: *const Log) -> fmi2CallbackFunctions {
 
 pub const SHAFT: usize = 0;
 pub const BELT: usize = 1;
+/// BacklashBelt's drive pulling a web span (docs/model.md §8).
+pub const WEB: usize = 2;
 
-/// Number of continuous states (z = [θ_m, ω_m, θ_L, ω_L]) and of event indicators ([u − g, u + g])
-/// of both models in Model Exchange.
-pub const NX: usize = 4;
+/// Number of event indicators ([u − g, u + g]) of every model in Model Exchange.
 pub const NI: usize = 2;
 
-/// The state variables in the order of the continuous states.
-pub const STATE_NAMES: [&str; NX] = ["theta_m", "omega_m", "theta_L", "omega_L"];
+/// Number of continuous states of `model` in Model Exchange: its variables that are the
+/// derivative of a state. Four, z = [θ_m, ω_m, θ_L, ω_L]; five in BacklashWeb, whose span's
+/// tension T is the fifth (docs/model.md §6).
+pub fn nx(model: usize) -> usize {
+    MODELS[model]
+        .variables
+        .iter()
+        .filter(|v| v.derivative_of.is_some())
+        .count()
+}
+
+/// The state variables of `model` in the order of its continuous states: that of their
+/// derivatives, as `<Derivatives>` lists them.
+pub fn state_names(model: usize) -> Vec<&'static str> {
+    let m = &MODELS[model];
+    m.variables
+        .iter()
+        .filter_map(|v| v.derivative_of)
+        .map(|of| m.by_vr(of).expect("a derivative names a variable").name)
+        .collect()
+}
+
+/// Continuous states of `model`: the drive train's `[θ_m, ω_m, θ_L, ω_L]`, then, where the
+/// model has a web span, its tension `tension`.
+pub fn states(model: usize, drive_train: [f64; 4], tension: f64) -> Vec<f64> {
+    let mut x = drive_train.to_vec();
+    match state_names(model).as_slice() {
+        [_, _, _, _] => {}
+        [_, _, _, _, "T"] => x.push(tension),
+        names => panic!("unexpected continuous states {names:?}"),
+    }
+    x
+}
+
+/// Whether `x` is an admissible value of the variable `name`: never NaN; finite, except for
+/// the calculated parameters bound_sup and (BacklashWeb) bound_T_sup, which are +∞ when their
+/// loop is not asymptotically stable (docs/model.md §4, §8).
+pub fn admissible(name: &str, x: f64) -> bool {
+    x.is_finite() || (x == f64::INFINITY && matches!(name, "bound_sup" | "bound_T_sup"))
+}
 
 /// A fresh fmi2EventInfo with every flag set, so that a call that fills it is seen to.
 pub fn event_info() -> fmi2EventInfo {
@@ -171,11 +210,16 @@ impl Fmu {
         f
     }
 
-    /// fmi2GetContinuousStates into a buffer of NX NaNs.
-    pub fn continuous_states(&self) -> (fmi2Status, [f64; NX]) {
-        let mut x = [f64::NAN; NX];
-        // SAFETY: room for NX values.
-        let s = unsafe { fmi2GetContinuousStates(self.c, x.as_mut_ptr(), NX) };
+    /// Number of continuous states of its model ([`nx`]).
+    pub fn nx(&self) -> usize {
+        nx(self.model_index())
+    }
+
+    /// fmi2GetContinuousStates into a buffer of nx NaNs.
+    pub fn continuous_states(&self) -> (fmi2Status, Vec<f64>) {
+        let mut x = vec![f64::NAN; self.nx()];
+        // SAFETY: room for x.len() values.
+        let s = unsafe { fmi2GetContinuousStates(self.c, x.as_mut_ptr(), x.len()) };
         (s, x)
     }
 
@@ -185,11 +229,11 @@ impl Fmu {
         unsafe { fmi2SetContinuousStates(self.c, x.as_ptr(), x.len()) }
     }
 
-    /// fmi2GetDerivatives into a buffer of NX NaNs.
-    pub fn derivatives(&self) -> (fmi2Status, [f64; NX]) {
-        let mut dx = [f64::NAN; NX];
-        // SAFETY: room for NX values.
-        let s = unsafe { fmi2GetDerivatives(self.c, dx.as_mut_ptr(), NX) };
+    /// fmi2GetDerivatives into a buffer of nx NaNs.
+    pub fn derivatives(&self) -> (fmi2Status, Vec<f64>) {
+        let mut dx = vec![f64::NAN; self.nx()];
+        // SAFETY: room for dx.len() values.
+        let s = unsafe { fmi2GetDerivatives(self.c, dx.as_mut_ptr(), dx.len()) };
         (s, dx)
     }
 
@@ -201,11 +245,11 @@ impl Fmu {
         (s, z)
     }
 
-    /// fmi2GetNominalsOfContinuousStates into a buffer of NX NaNs.
-    pub fn nominals(&self) -> (fmi2Status, [f64; NX]) {
-        let mut n = [f64::NAN; NX];
-        // SAFETY: room for NX values.
-        let s = unsafe { fmi2GetNominalsOfContinuousStates(self.c, n.as_mut_ptr(), NX) };
+    /// fmi2GetNominalsOfContinuousStates into a buffer of nx NaNs.
+    pub fn nominals(&self) -> (fmi2Status, Vec<f64>) {
+        let mut n = vec![f64::NAN; self.nx()];
+        // SAFETY: room for n.len() values.
+        let s = unsafe { fmi2GetNominalsOfContinuousStates(self.c, n.as_mut_ptr(), n.len()) };
         (s, n)
     }
 
@@ -252,8 +296,8 @@ impl Fmu {
         (if s2 != fmi2Status::fmi2OK { s2 } else { s }, out)
     }
 
-    /// Reads every variable and asserts the read succeeds and nothing is NaN (bound_sup may
-    /// be +∞ by docs/model.md §4; nothing else may be infinite), and contact ∈ {−1, 0, 1}.
+    /// Reads every variable and asserts the read succeeds, every value is [`admissible`] (no
+    /// NaN, nothing infinite but bound_sup and bound_T_sup), and contact ∈ {−1, 0, 1}.
     pub fn assert_all_finite(&self, context: &str) {
         let (s, values) = self.all_values();
         assert_eq!(
@@ -263,10 +307,7 @@ impl Fmu {
             self.entries().last()
         );
         for (name, x) in values {
-            assert!(!x.is_nan(), "{context}: {name} is NaN");
-            if name != "bound_sup" {
-                assert!(x.is_finite(), "{context}: {name} = {x}");
-            }
+            assert!(admissible(name, x), "{context}: {name} = {x}");
             if name == "contact" {
                 assert!([-1.0, 0.0, 1.0].contains(&x), "{context}: contact = {x}");
             }
@@ -360,26 +401,43 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
     values.into_iter().map(|(_, x)| x.to_bits()).collect()
 }
 
-/// The momentum balance of a run from rest at θ = 0 with τ_m = 2, τ_L = 0.5 for `t` seconds.
+/// The transmission ratios (r_m, r_L) of `model` (docs/model.md §1) from the values of its
+/// parameters, read by `at`: 1 and 1 on the shaft, R_1 and R_2 R_g2/R_g1 on the belt drives.
+pub fn transmission(model: &ModelInfo, at: impl Fn(&str) -> f64) -> (f64, f64) {
+    match model.drive_train {
+        DriveTrain::Shaft => (1.0, 1.0),
+        DriveTrain::Belt | DriveTrain::Web => (at("R_1"), at("R_2") * at("R_g2") / at("R_g1")),
+    }
+}
+
+/// The momentum balance of a run from rest at θ = 0 (and T = 0) with τ_m = 2, τ_L = 0.5 (and
+/// v_in = T_in = 0) for `t` seconds.
 pub fn assert_momentum_balance(f: &Fmu, values: &[(&'static str, f64)], t: f64) {
     let at = |name: &str| values.iter().find(|(n, _)| *n == name).map(|(_, x)| *x).unwrap();
-    // docs/model.md §1: (J_m ω_m' + b_m ω_m − τ_m)/r_m + (J_L ω_L' + b_L ω_L − τ_L)/r_L = 0 in every
-    // mode (ψ cancels), so from rest at θ = 0 the integral
-    //   (J_m ω_m + b_m θ_m − τ_m t)/r_m + (J_L ω_L + b_L θ_L − τ_L t)/r_L
-    // stays 0 whatever the contact history: an independent check that the run is physical.
-    let (r_m, r_l) = match f.model.identifier {
-        "BacklashShaft" => (1.0, 1.0),
-        _ => (at("R_1"), at("R_2") * at("R_g2") / at("R_g1")),
-    };
+    // docs/model.md §1: (J_m ω_m' + b_m ω_m − τ_m)/r_m + (J_L ω_L' + b_L ω_L − τ_L + R_w T)/r_L = 0
+    // in every mode (ψ cancels; the web's pull R_w T only where there is a span, §8), so from
+    // rest at θ = 0 the integral
+    //   (J_m ω_m + b_m θ_m − τ_m t)/r_m + (J_L ω_L + b_L θ_L − τ_L t + R_w ∫T)/r_L
+    // stays 0 whatever the contact history: an independent check that the run is physical. The
+    // span, L_w T' = EA (R_w ω_L − v_in) + v_ref (T_in − T), gives ∫T = (EA R_w θ_L − L_w T)/v_ref
+    // from T = 0 with v_in = T_in = 0.
+    let (r_m, r_l) = transmission(f.model, at);
     let motor = [at("J_m") * at("omega_m"), at("b_m") * at("theta_m"), -2.0 * t];
-    let load = [at("J_L") * at("omega_L"), at("b_L") * at("theta_L"), -0.5 * t];
+    let mut load = vec![at("J_L") * at("omega_L"), at("b_L") * at("theta_L"), -0.5 * t];
+    if f.model.drive_train.has_web() {
+        assert_eq!((at("v_in"), at("T_in")), (0.0, 0.0), "the span's inputs at rest");
+        let r_w_over_v_ref = at("R_w") / at("v_ref");
+        load.push(r_w_over_v_ref * at("EA") * at("R_w") * at("theta_L"));
+        load.push(-r_w_over_v_ref * at("L_w") * at("T"));
+    }
     let balance = motor.iter().sum::<f64>() / r_m + load.iter().sum::<f64>() / r_l;
     let scale = motor.iter().map(|x| x.abs()).sum::<f64>() / r_m + load.iter().map(|x| x.abs()).sum::<f64>() / r_l;
     assert!(
         balance.abs() <= 1e-9 * scale,
         "momentum balance violated: {balance:e} (scale {scale:e}) in {values:?}"
     );
-    assert!(at("omega_m") > 0.0, "the motor did not move: {values:?}");
+    // (Not ω_m > 0: a web span pulling back makes the drive oscillate.)
+    assert!(at("theta_m") > 0.0, "the motor did not turn: {values:?}");
 }
 
 /// The standard run on a brand-new instance.
@@ -435,7 +493,7 @@ pub fn standard_me_run_on(f: &Fmu) -> Vec<u64> {
     let end = 0.1;
     let steps = (end * omega0 / 0.2).ceil().max(20.0) as usize;
     let h = end / steps as f64;
-    let rates = |t: f64, x: &[f64; NX]| {
+    let rates = |t: f64, x: &[f64]| {
         assert_eq!(fmi2SetTime(f.c, t), OK);
         assert_eq!(f.set_continuous_states(x), OK);
         let (s, dx) = f.derivatives();
@@ -450,10 +508,14 @@ pub fn standard_me_run_on(f: &Fmu) -> Vec<u64> {
     for k in 0..steps {
         let t = k as f64 * h;
         let k1 = rates(t, &x);
-        let k2 = rates(t + h / 2.0, &std::array::from_fn(|i| x[i] + h / 2.0 * k1[i]));
-        let k3 = rates(t + h / 2.0, &std::array::from_fn(|i| x[i] + h / 2.0 * k2[i]));
-        let k4 = rates(t + h, &std::array::from_fn(|i| x[i] + h * k3[i]));
-        x = std::array::from_fn(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
+        // x + c k, componentwise.
+        let along = |c: f64, k: &[f64]| -> Vec<f64> { x.iter().zip(k).map(|(x, k)| x + c * k).collect() };
+        let k2 = rates(t + h / 2.0, &along(h / 2.0, &k1));
+        let k3 = rates(t + h / 2.0, &along(h / 2.0, &k2));
+        let k4 = rates(t + h, &along(h, &k3));
+        x = (0..x.len())
+            .map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+            .collect();
         assert_eq!(fmi2SetTime(f.c, (k + 1) as f64 * h), OK);
         assert_eq!(f.set_continuous_states(&x), OK);
         let (mut enter, mut terminate) = (fmi2True, fmi2True);
@@ -489,6 +551,14 @@ pub fn fresh_me_instance_works(model: usize) {
     let a = standard_me_run(model);
     let b = standard_me_run(model);
     assert_eq!(a, b);
+}
+
+/// [`fresh_instance_works`] and [`fresh_me_instance_works`] for every model.
+pub fn fresh_instances_of_every_model_work() {
+    for model in 0..MODELS.len() {
+        fresh_instance_works(model);
+        fresh_me_instance_works(model);
+    }
 }
 
 pub fn no_args() -> (*const u32, *mut f64) {
@@ -543,10 +613,29 @@ pub fn plant_offset(bytes: &[u8]) -> usize {
     phase_offset(bytes) + 4 + 8 * 4 + 8 * backlash_fmu::fmu::Symbol::COUNT + 8 * 4
 }
 
-/// Offset of the contact-mode byte of a drive train's state: counted from the end, before the
-/// bound (12 f64) and the checksum (8 bytes).
+/// Number of f64 of the bound part of an FMU state of `model` (format in src/fmu/snapshot.rs):
+/// 12 for a drive train's one bound, 32 for the web line's two.
+pub fn bound_words(model: &ModelInfo) -> usize {
+    if model.drive_train.has_web() {
+        32
+    } else {
+        12
+    }
+}
+
+/// The model whose guid an FMU state's bytes carry.
+pub fn model_of_state(bytes: &[u8]) -> &'static ModelInfo {
+    let guid = &bytes[12..phase_offset(bytes)];
+    MODELS
+        .iter()
+        .find(|m| m.guid.as_bytes() == guid)
+        .expect("the bytes of a state of one of the models")
+}
+
+/// Offset of the contact-mode byte of a state: counted from the end, before the bound part
+/// ([`bound_words`] f64) and the checksum (8 bytes).
 pub fn mode_offset(bytes: &[u8]) -> usize {
-    bytes.len() - 8 - 8 * 12 - 1
+    bytes.len() - 8 - 8 * bound_words(model_of_state(bytes)) - 1
 }
 
 /// fmi2DeSerializeFMUstate + fmi2SetFMUstate: (status of deserialize, status of set).
