@@ -206,26 +206,37 @@ static long status_kb(const char *field) {
 
 /* ---- instances ---- */
 
-/* The paper's rig (the FMU's start values) unless params are given; Kp, Ki from rigs.py. */
-static fmi2Component make(const char *name, const fmi2ValueReference *vr, const fmi2Real *value, size_t n,
-                          int log_contacts) {
-    fmi2Component c = api.instantiate(name, fmi2CoSimulation, guid, resources, &callbacks, fmi2False, fmi2False);
+/* An initialized Co-Simulation instance of the library `a` (guid `model_guid`), with the given
+ * parameters and start values set first. */
+static fmi2Component make_of(const Api *a, const char *model_guid, const char *model_resources, const char *name,
+                             const fmi2ValueReference *vr, const fmi2Real *value, size_t n, int log_contacts) {
+    fmi2Component c =
+        a->instantiate(name, fmi2CoSimulation, model_guid, model_resources, &callbacks, fmi2False, fmi2False);
     if (!c) die("fmi2Instantiate failed");
     if (log_contacts) {
         fmi2String categories[] = {"logContactEvents"};
-        check(api.set_debug_logging(c, fmi2True, 1, categories), "fmi2SetDebugLogging");
+        check(a->set_debug_logging(c, fmi2True, 1, categories), "fmi2SetDebugLogging");
     }
-    if (n) check(api.set_real(c, vr, n, value), "fmi2SetReal(parameters)");
-    check(api.setup_experiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment");
-    check(api.enter_init(c), "fmi2EnterInitializationMode");
-    check(api.exit_init(c), "fmi2ExitInitializationMode");
+    if (n) check(a->set_real(c, vr, n, value), "fmi2SetReal(parameters)");
+    check(a->setup_experiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment");
+    check(a->enter_init(c), "fmi2EnterInitializationMode");
+    check(a->exit_init(c), "fmi2ExitInitializationMode");
     return c;
 }
 
-static void release(fmi2Component c) {
-    check(api.terminate(c), "fmi2Terminate");
-    api.free_instance(c);
+static void release_of(const Api *a, fmi2Component c) {
+    check(a->terminate(c), "fmi2Terminate");
+    a->free_instance(c);
 }
+
+/* BacklashShaft: the paper's rig (the FMU's start values) unless params are given; Kp, Ki from
+ * rigs.py. */
+static fmi2Component make(const char *name, const fmi2ValueReference *vr, const fmi2Real *value, size_t n,
+                          int log_contacts) {
+    return make_of(&api, guid, resources, name, vr, value, n, log_contacts);
+}
+
+static void release(fmi2Component c) { release_of(&api, c); }
 
 /* Gains of the PI loop the bounds assume (tests/python/rigs.py SHAFT_GAINS): the bounds are
  * then the 5-state closed-loop ones that a user of the loop reads. */
@@ -290,6 +301,73 @@ static fmi2Component make_swinging(const char *name, int log_contacts) {
 }
 static double swing_torque(long k) { return (k % 2 == 0 ? 1.0 : -1.0) * 2.0 * V_SWING * J_M / H; }
 
+/* ---- the belt drive and the web line ----
+ *
+ * BacklashBelt and BacklashWeb, each dlopened from its own archive, side by side on the schedule
+ * of benches/physics.rs `web_benches`: the FMUs' start values (the web line's drive is
+ * BacklashBelt's, its span the film line), the belt's default step size, the motor pressed
+ * 0.1 mm (in u) past the gap under a constant torque, the web's tension from 5 N with the
+ * upstream inputs v_in = T_in = 0. Both with the same speed PI for the bounds (the best-damped
+ * gains of the belt drive that `cargo xtask design --model web` finds, rounded), the web also with
+ * a tension PI (the gains of `web_bounds_advance_100us`), so that its step advances bound_T too. */
+#define H_BELT 1e-4 /* BacklashBelt's and BacklashWeb's default step size [s] */
+#define KP_BELT 0.18
+#define KI_BELT 57.6
+#define KP_T_WEB 0.01
+#define KI_T_WEB 0.05
+#define TAU_PRESS_BELT 0.5
+/* (g + 0.1 mm)/r_m, with BacklashBelt's start values: g = (R_2/R_g1) Delta, r_m = R_1
+ * (docs/model.md §1). */
+#define THETA_PRESSED_BELT ((0.04 / 0.015 * 5e-5 + 1e-4) / 0.02)
+
+/* One of the two archives: its library, guid and resource URI, and what the schedule sets:
+ * parameters and start values before initialization, then the held torques tau_m, tau_L. */
+#define MAX_START 6
+typedef struct {
+    Api api;
+    const char *guid, *resources;
+    fmi2ValueReference start_vr[MAX_START], input_vr[2], contact_vr;
+    fmi2Real start[MAX_START];
+    size_t n_start;
+} Drive;
+
+enum { BELT, WEB, DRIVES };
+static Drive drive[DRIVES];
+
+/* Loads both archives' libraries; the value references are each description's own. */
+static void load_drives(char **belt_args, char **web_args) {
+    const Drive belt = {
+        .start_vr = {VR_BacklashBelt_Kp, VR_BacklashBelt_Ki, VR_BacklashBelt_theta_m},
+        .start = {KP_BELT, KI_BELT, THETA_PRESSED_BELT},
+        .n_start = 3,
+        .input_vr = {VR_BacklashBelt_tau_m, VR_BacklashBelt_tau_L},
+        .contact_vr = VR_BacklashBelt_contact,
+    };
+    const Drive web = {
+        .start_vr = {VR_BacklashWeb_Kp, VR_BacklashWeb_Ki, VR_BacklashWeb_theta_m, VR_BacklashWeb_T,
+                     VR_BacklashWeb_Kp_T, VR_BacklashWeb_Ki_T},
+        .start = {KP_BELT, KI_BELT, THETA_PRESSED_BELT, 5.0, KP_T_WEB, KI_T_WEB},
+        .n_start = 6,
+        .input_vr = {VR_BacklashWeb_tau_m, VR_BacklashWeb_tau_L},
+        .contact_vr = VR_BacklashWeb_contact,
+    };
+    drive[BELT] = belt;
+    drive[WEB] = web;
+    char **args[DRIVES] = {belt_args, web_args};
+    for (int i = 0; i < DRIVES; i++) {
+        load(&drive[i].api, args[i][0]);
+        drive[i].guid = args[i][1];
+        drive[i].resources = args[i][2];
+    }
+}
+
+static fmi2Component make_drive_pressed(const Drive *d, const char *name, int log_contacts) {
+    fmi2Component c = make_of(&d->api, d->guid, d->resources, name, d->start_vr, d->start, d->n_start, log_contacts);
+    const fmi2Real tau[] = {TAU_PRESS_BELT, 0.0};
+    check(d->api.set_real(c, d->input_vr, 2, tau), "fmi2SetReal(inputs)");
+    return c;
+}
+
 /* ---- floors ---- */
 
 /* A trivial "copy input to output" component with the FMI signatures, called through function
@@ -340,13 +418,23 @@ enum {
     INDICATORS,
     STATES_DERIVATIVES,
     STEP3,
+    BELT_STEP,
+    WEB_STEP,
+    BELT_FROM_START,
+    WEB_FROM_START,
     BLOCKS
 };
 static const char *const block_key[BLOCKS] = {
     "matvec_4x4",     "copy_set2_step_get1", "ours_set2_get1",         "ours_step_event_free",
     "ours_set2_step", "ours_set2_step_get1", "ours_set2_step_get_all", "ours_set2_step_switching",
     "me_get_derivatives", "me_get_event_indicators", "me_set_states_get_derivatives", "ours3_step_event_free",
+    "belt_step_event_free", "web_step_event_free", "belt_step_from_start", "web_step_from_start",
 };
+/* The rows of the drives (an instance stepped on through the run, and a fresh instance's first
+ * steps), and their names in the `@ <name>_pressed_switches` check lines. */
+static const int drive_block[DRIVES] = {BELT_STEP, WEB_STEP};
+static const int drive_from_start_block[DRIVES] = {BELT_FROM_START, WEB_FROM_START};
+static const char *const drive_name[DRIVES] = {"belt", "web"};
 
 /* One batch of the floor y = M x, fed back (see `suite`); a function of its own so that its
  * code is the same as in a loop by itself (the matrix in registers). */
@@ -414,6 +502,16 @@ static void suite(int batches, long steps) {
         printf("@ swinging_switches %ld %ld\n", contact_messages, total);
         release(c);
     }
+    /* The belt and web schedules: event-free too, checked the same way. */
+    for (int i = 0; i < DRIVES; i++) {
+        const Drive *d = &drive[i];
+        fmi2Component c = make_drive_pressed(d, "check-pressed", 1);
+        contact_messages = 0;
+        for (long k = 0; k < total; k++) check(d->api.do_step(c, k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
+        check(d->api.get_integer(c, &d->contact_vr, 1, &contact), "fmi2GetInteger");
+        printf("@ %s_pressed_switches %ld %ld %d %g\n", drive_name[i], contact_messages, total, (int)contact, H_BELT);
+        release_of(&d->api, c);
+    }
 
     /* Floor: y = M x with M orthogonal (two plane rotations; built at run time so nothing
      * folds), fed back so that each product depends on the previous one, as steps do. */
@@ -441,6 +539,9 @@ static void suite(int batches, long steps) {
     fmi2Component me = make_model_exchange("model-exchange");
     fmi3Instance step3 = make_pressed3();
     long k_step3 = 0;
+    fmi2Component drive_step[DRIVES];
+    for (int i = 0; i < DRIVES; i++) drive_step[i] = make_drive_pressed(&drive[i], drive_name[i], 0);
+    long k_drive = 0;
     double dx[4] = {0}, z[2] = {0}, x_me[4] = {DELTA_DEFAULT + 0.0055, 0.0, 0.0, 0.0};
     double me_sink = 0.0;
 
@@ -529,7 +630,32 @@ static void suite(int batches, long steps) {
             check3(api.do_step3(step3, k_step3 * H, H, fmi3True, &event, &terminate, &early, &last), "fmi3DoStep");
         }
         toc(t0, steps, t[STEP3], tw[STEP3], b);
+
+        /* The belt's and the web's event-free steps, one batch each, in turns: which goes first
+         * alternates from round to round. Both take the same steps, k_drive on; then the same
+         * number of steps from t = 0 on a fresh instance (made and freed untimed), since a step
+         * costs more while the bounds' responses are still being integrated. */
+        for (int j = 0; j < DRIVES; j++) {
+            int i = (b + j) % DRIVES;
+            const Drive *d = &drive[i];
+            long k = k_drive;
+            t0 = tic();
+            for (long n = 0; n < steps; n++, k++)
+                check(d->api.do_step(drive_step[i], k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
+            toc(t0, steps, t[drive_block[i]], tw[drive_block[i]], b);
+        }
+        k_drive += steps;
+        for (int j = 0; j < DRIVES; j++) {
+            int i = (b + j) % DRIVES;
+            const Drive *d = &drive[i];
+            fmi2Component fresh = make_drive_pressed(d, drive_name[i], 0);
+            t0 = tic();
+            for (long k = 0; k < steps; k++) check(d->api.do_step(fresh, k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
+            toc(t0, steps, t[drive_from_start_block[i]], tw[drive_from_start_block[i]], b);
+            release_of(&d->api, fresh);
+        }
     }
+    for (int i = 0; i < DRIVES; i++) release_of(&drive[i].api, drive_step[i]);
     api.free_instance3(step3);
     /* In contact at the pressed state: der(omega_m) = (tau - r psi)/J_m, independent of the host. */
     printf("@ me_pressed_derivatives %.17g %.17g %.17g %.17g %.6g\n", dx[0], dx[1], dx[2], dx[3], me_sink);
@@ -625,12 +751,15 @@ static void piloop(double seconds, int repeats) {
 }
 
 int main(int argc, char **argv) {
-    if (argc < 5) die("usage: native_host <lib.so> <guid> <resource-uri> suite|scale|instances|piloop [args]");
+    if (argc < 5)
+        die("usage: native_host <lib.so> <guid> <resource-uri> suite|scale|instances|piloop [args] (see the top "
+            "of native_host.c)");
     load(&api, argv[1]);
     guid = argv[2];
     resources = argv[3];
     const char *mode = argv[4];
-    if (strcmp(mode, "suite") == 0 && argc == 7) {
+    if (strcmp(mode, "suite") == 0 && argc == 13) {
+        load_drives(&argv[7], &argv[10]);
         suite(atoi(argv[5]), atol(argv[6]));
     } else if (strcmp(mode, "scale") == 0 && argc == 6) {
         scale(atol(argv[5]));

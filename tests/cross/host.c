@@ -3,7 +3,8 @@
  * win64 under Wine, aarch64-linux-gnu-gcc under qemu), loads one platform's library and prints
  * what it observed, one result per line:
  *
- *     @ sample <k> <contact> <switches> <bits of theta_m omega_m theta_L omega_L psi bound bound_paper>
+ *     @ sample <k> <contact> <switches> <bits of theta_m omega_m theta_L omega_L psi bound bound_paper
+ *                                         [T bound_T]>
  *     @ early <k> <contact> <switches> <bits of lastSuccessfulTime> <bits of the same outputs>
  *     @ misuse <case> <status> <messages logged>
  *     @ saved <size in bytes>
@@ -16,7 +17,9 @@
  *   <token>       the guid of the FMI 2.0 description, or for the fmi3 scenario the
  *                 instantiationToken of the FMI 3.0 one
  *   <variables>   name=vr,... for tau_m tau_L theta_m omega_m theta_L omega_L psi bound
- *                 bound_paper contact Kp Ki (read by xtask from the archive's modelDescription.xml)
+ *                 bound_paper contact Kp Ki (read by xtask from the archive's modelDescription.xml),
+ *                 and for a web line (BacklashWeb) also v_in T_in T bound_T: the host then sets
+ *                 the upstream web speed and tension as inputs too and samples T and bound_T
  *   <parameters>  vr=bits,... Real parameters set before initialization, each value as the
  *                 hexadecimal IEEE-754 bits (no platform's decimal conversion enters the run);
  *                 must include Kp and Ki, which are also the gains of the host's PI loop
@@ -143,12 +146,19 @@ static void load(const char *path) {
 
 /* ---- value references, by name ---- */
 
-enum { TAU_M, TAU_L, THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER, CONTACT, KP, KI, NVARS };
+/* Every model's variables, then the web line's (from V_IN on): given all or none. */
+enum { TAU_M, TAU_L, THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER, CONTACT, KP, KI,
+       V_IN, T_IN, TENSION, BOUND_T, NVARS };
 static const char *const var_name[NVARS] = {"tau_m", "tau_L", "theta_m", "omega_m",     "theta_L", "omega_L",
-                                            "psi",   "bound", "bound_paper", "contact", "Kp",      "Ki"};
+                                            "psi",   "bound", "bound_paper", "contact", "Kp",      "Ki",
+                                            "v_in",  "T_in",  "T",           "bound_T"};
 static fmi2ValueReference vr[NVARS];
 
-/* Parses "name=vr,name=vr,..."; every name of var_name must be given. */
+/* The model is a web line: its variables from V_IN on were given. */
+static int web;
+
+/* Parses "name=vr,name=vr,..."; every name of var_name before V_IN must be given, the web line's
+ * all or none. */
 static void parse_variables(const char *list) {
     int seen[NVARS] = {0};
     const char *p = list;
@@ -167,8 +177,12 @@ static void parse_variables(const char *list) {
         }
         p = *end ? end + 1 : end;
     }
-    for (int i = 0; i < NVARS; i++)
+    for (int i = 0; i < V_IN; i++)
         if (!seen[i]) die("variables: no value reference for %s", var_name[i]);
+    int web_seen = 0;
+    for (int i = V_IN; i < NVARS; i++) web_seen += seen[i];
+    if (web_seen != 0 && web_seen != NVARS - V_IN) die("variables: some of the web line's, not all");
+    web = web_seen != 0;
 }
 
 /* Parameters: value references and values, parsed from "vr=bits,..."; kp, ki among them. */
@@ -292,20 +306,24 @@ static void count_switch3(fmi3Instance c) {
     note_contact(contact);
 }
 
-/* The Real outputs of a sample line, in their order (OUTPUTS in xtask/src/cross/compare.rs). */
-#define NOUT 7
-static const int output_var[NOUT] = {THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER};
+/* The Real outputs of a sample line, in their order (OUTPUTS in xtask/src/cross/compare.rs): every
+ * model's, then a web line's (WEB_OUTPUTS there). */
+#define NOUT 9
+static const int output_var[NOUT] = {THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER, TENSION, BOUND_T};
+
+/* How many of output_var the model has. */
+static size_t n_outputs(void) { return web ? NOUT : NOUT - 2; }
 
 static void print_outputs(const double out[NOUT]) {
-    for (int i = 0; i < NOUT; i++) printf(" %016" PRIx64, bits(out[i]));
+    for (size_t i = 0; i < n_outputs(); i++) printf(" %016" PRIx64, bits(out[i]));
     printf("\n");
 }
 
 static void sample(fmi2Component c, long k) {
     fmi2ValueReference out_vr[NOUT];
     fmi2Real out[NOUT];
-    for (int i = 0; i < NOUT; i++) out_vr[i] = vr[output_var[i]];
-    check(api.get_real(c, out_vr, NOUT, out), "fmi2GetReal(outputs)");
+    for (size_t i = 0; i < n_outputs(); i++) out_vr[i] = vr[output_var[i]];
+    check(api.get_real(c, out_vr, n_outputs(), out), "fmi2GetReal(outputs)");
     printf("@ sample %ld %d %ld", k, (int)last_contact, switches);
     print_outputs(out);
 }
@@ -315,8 +333,8 @@ static void sample(fmi2Component c, long k) {
 static void sample3(fmi3Instance c, long k, const fmi3Float64 *early) {
     fmi3ValueReference out_vr[NOUT];
     fmi3Float64 out[NOUT];
-    for (int i = 0; i < NOUT; i++) out_vr[i] = vr[output_var[i]];
-    check(api3.get_float64(c, out_vr, NOUT, out, NOUT), "fmi3GetFloat64(outputs)");
+    for (size_t i = 0; i < n_outputs(); i++) out_vr[i] = vr[output_var[i]];
+    check(api3.get_float64(c, out_vr, n_outputs(), out, n_outputs()), "fmi3GetFloat64(outputs)");
     if (early)
         printf("@ early %ld %d %ld %016" PRIx64, k, (int)last_contact, switches, bits(*early));
     else
@@ -337,11 +355,36 @@ static void open_torques(long k, double tau[2]) {
     tau[1] = k >= 1000 ? -0.5 : 0.0;
 }
 
+/* A web line's upstream web speed v_in [m/s] and tension T_in [N] in step k: the web enters a
+ * little slower or faster by turns, under a tension that steps up at t = 2 s. */
+static void web_upstream(long k, double *v_in, double *t_in) {
+    *v_in = 0.02 + square(k, 300, 0.01);
+    *t_in = k >= 2000 ? 60.0 : 40.0;
+}
+
+/* The inputs of step k: the torques `tau`, and on a web line also its upstream speed and tension.
+ * Fills ref and value; returns how many. */
+#define MAX_INPUTS 4
+static size_t step_inputs(long k, const double tau[2], fmi2ValueReference ref[MAX_INPUTS], double value[MAX_INPUTS]) {
+    ref[0] = vr[TAU_M], value[0] = tau[0];
+    ref[1] = vr[TAU_L], value[1] = tau[1];
+    if (!web) return 2;
+    ref[2] = vr[V_IN], ref[3] = vr[T_IN];
+    web_upstream(k, &value[2], &value[3]);
+    return 4;
+}
+
+static void set_inputs(fmi2Component c, long k, const double tau[2]) {
+    fmi2ValueReference ref[MAX_INPUTS];
+    fmi2Real value[MAX_INPUTS];
+    size_t n = step_inputs(k, tau, ref, value);
+    check(api.set_real(c, ref, n, value), "fmi2SetReal(inputs)");
+}
+
 static void open_inputs(fmi2Component c, long k) {
-    const fmi2ValueReference in[] = {vr[TAU_M], vr[TAU_L]};
     fmi2Real tau[2];
     open_torques(k, tau);
-    check(api.set_real(c, in, 2, tau), "fmi2SetReal(inputs)");
+    set_inputs(c, k, tau);
 }
 
 static void run_open(fmi2Component c, long from, long to, long every) {
@@ -363,11 +406,14 @@ static void open_loop(long steps, long every) {
  * FMU stopped to the end of the step, again after every early return at a contact switch. */
 static void fmi3_open_loop(long steps, long every) {
     fmi3Instance c = make3("fmi3");
-    const fmi3ValueReference in[] = {vr[TAU_M], vr[TAU_L]};
     for (long k = 0; k < steps; k++) {
-        fmi3Float64 tau[2];
+        double tau[2], value[MAX_INPUTS];
+        fmi2ValueReference ref[MAX_INPUTS];
+        fmi3ValueReference ref3[MAX_INPUTS];
         open_torques(k, tau);
-        check(api3.set_float64(c, in, 2, tau, 2), "fmi3SetFloat64(inputs)");
+        size_t n = step_inputs(k, tau, ref, value);
+        for (size_t i = 0; i < n; i++) ref3[i] = ref[i];
+        check(api3.set_float64(c, ref3, n, value, n), "fmi3SetFloat64(inputs)");
         /* The first call takes the whole step, as fmi2DoStep does in the open loop. */
         const double end = k * H + H;
         double t = k * H, h = H;
@@ -394,14 +440,13 @@ static void fmi3_open_loop(long steps, long every) {
  * reverses between +5 and -5 rad/s every second; a load torque of -2 N.m from t = 4 s. */
 static void closed_loop(long steps, long every) {
     fmi2Component c = make("closed");
-    const fmi2ValueReference in[] = {vr[TAU_M], vr[TAU_L]};
     double integral = 0.0, w = 0.0;
     for (long k = 0; k < steps; k++) {
         check(api.get_real(c, &vr[OMEGA_M], 1, &w), "fmi2GetReal(omega_m)");
         double e = square(k, 1000, 5.0) - w;
         const fmi2Real tau[] = {kp * e + ki * integral, k >= 4000 ? -2.0 : 0.0};
         integral += H * e;
-        check(api.set_real(c, in, 2, tau), "fmi2SetReal(inputs)");
+        set_inputs(c, k, tau);
         check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
         count_switch(c);
         if ((k + 1) % every == 0) sample(c, k + 1);

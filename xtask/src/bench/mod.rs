@@ -1,12 +1,13 @@
 //! `cargo xtask bench [--smoke]`: every benchmark in one run, and BENCHMARKS.md generated from it.
 //!
-//! Builds the FMUs, unpacks BacklashShaft.fmu, compiles the C host benches/native_host.c against
-//! the official FMI 2.0 headers (fmpy's copy in .venv) and the value references of the archive's
-//! modelDescription.xml, then runs: the native per-call costs and their floors, the growth with
-//! steps and instances, the PI loop natively, through fmpy and in scipy (benches/python_bench.py),
-//! and the criterion bench of the physics core. Each tool prints `@ <key> <values>` lines (criterion
-//! writes estimates.json); run.rs collects them, report.rs writes the report with the machine facts
-//! and the exact commands.
+//! Builds the FMUs, unpacks BacklashShaft.fmu, BacklashBelt.fmu and BacklashWeb.fmu, compiles the C
+//! host benches/native_host.c against the official FMI 2.0 headers (fmpy's copy in .venv) and the
+//! value references of the archives' modelDescription.xml, then runs: the native per-call costs and
+//! their floors, with the event-free steps of the belt drive and the web line beside them, the
+//! growth with steps and instances, the PI loop natively, through fmpy and in scipy
+//! (benches/python_bench.py), and the criterion bench of the physics core. Each tool prints
+//! `@ <key> <values>` lines (criterion writes estimates.json); run.rs collects them, report.rs
+//! writes the report with the machine facts and the exact commands.
 
 mod report;
 mod run;
@@ -29,7 +30,13 @@ with the numbers, the machine facts and the exact commands. Takes a few minutes.
   --smoke   tiny sizes, no criterion: checks that the harness runs (seconds after the build);
             writes target/bench/BENCHMARKS.smoke.md and leaves BENCHMARKS.md alone";
 
+/// The model of the native host's per-call costs, growth and PI loop, and of the Python benches.
 const MODEL: &str = "BacklashShaft";
+
+/// The belt drive and the web line that extends it, each from its own archive: their event-free
+/// steps are taken in the same rounds of the native suite, so that the web's cost is measured
+/// against the belt's in one run (target: within 1.5x of it).
+const DRIVE_AND_WEB: [&str; 2] = ["BacklashBelt", "BacklashWeb"];
 
 /// Sizes of one run; `--smoke` shrinks all of them.
 struct Plan {

@@ -10,7 +10,7 @@ use std::time::{Instant, SystemTime};
 
 use serde::Deserialize;
 
-use super::{Plan, MODEL};
+use super::{Plan, DRIVE_AND_WEB, MODEL};
 use crate::{fmu, python, util};
 
 /// The `@ key values…` lines of every tool, by key, in order of arrival.
@@ -149,22 +149,63 @@ fn describe(cmd: &Command) -> String {
     words.join(" ")
 }
 
-/// The compiled native host and the unpacked archive it loads; collects every tool's results.
-pub(super) struct Runner {
-    host: PathBuf,
+/// An FMI 2.0 archive unpacked for the native host: what the host passes to fmi2Instantiate
+/// and where it finds the library.
+struct Archive {
     library: PathBuf,
     guid: String,
     resources: String,
+}
+
+impl Archive {
+    /// Unpacks `target/fmu/<id>.fmu` into `work/<id>`; the archive and the `#define`s of the value
+    /// references of its description, each named `<prefix><variable>`.
+    fn unpack(work: &Path, id: &str, prefix: &str) -> Result<(Archive, String), String> {
+        let dir = work.join(id);
+        let xml = unpack(&util::fmu_dir().join(format!("{id}.fmu")), &dir)?;
+        let (guid, defines) = guid_and_vr_defines(&xml, prefix)?;
+        let archive = Archive {
+            library: dir.join("binaries").join("linux64").join(format!("{id}.so")),
+            guid,
+            resources: format!("file://{}", dir.join("resources").display()),
+        };
+        Ok((archive, defines))
+    }
+
+    /// The host's arguments for it: `<lib.so> <guid> <resource-uri>`.
+    fn arguments(&self) -> [String; 3] {
+        [
+            self.library.display().to_string(),
+            self.guid.clone(),
+            self.resources.clone(),
+        ]
+    }
+}
+
+/// The compiled native host and the unpacked archives it loads; collects every tool's results.
+pub(super) struct Runner {
+    host: PathBuf,
+    /// BacklashShaft, the model of every mode.
+    shaft: Archive,
+    /// The archives of [`DRIVE_AND_WEB`], in that order, for the suite's belt and web rows.
+    drives: Vec<Archive>,
     measured: Measurements,
 }
 
 impl Runner {
-    /// Unpacks BacklashShaft.fmu into `work` and compiles benches/native_host.c against fmpy's
-    /// FMI headers and the value references of the archive's own modelDescription.xml.
+    /// Unpacks BacklashShaft.fmu and the archives of [`DRIVE_AND_WEB`] into `work` and compiles
+    /// benches/native_host.c against fmpy's FMI headers and the value references of the archives'
+    /// own modelDescription.xml: `VR_<name>` of BacklashShaft, `VR_<model>_<name>` of the others.
     pub(super) fn prepare(work: &Path) -> Result<Runner, String> {
-        let unpacked = work.join(MODEL);
-        let xml = unpack(&util::fmu_dir().join(format!("{MODEL}.fmu")), &unpacked)?;
-        let (guid, mut vr_header) = guid_and_vr_header(&xml)?;
+        let (shaft, defines) = Archive::unpack(work, MODEL, "VR_")?;
+        let mut vr_header =
+            String::from("/* Written by cargo xtask bench from the archives' modelDescription.xml. */\n") + &defines;
+        let mut drives = Vec::new();
+        for id in DRIVE_AND_WEB {
+            let (archive, defines) = Archive::unpack(work, id, &format!("VR_{id}_"))?;
+            vr_header.push_str(&defines);
+            drives.push(archive);
+        }
         // The FMI 3.0 archive's token, for the FMI 3.0 step of the suite (same library).
         let xml3 = unpack(
             &fmu::FMI3.out_dir().join(format!("{MODEL}.fmu")),
@@ -191,9 +232,8 @@ impl Runner {
 
         Ok(Runner {
             host,
-            library: unpacked.join("binaries").join("linux64").join(format!("{MODEL}.so")),
-            guid,
-            resources: format!("file://{}", unpacked.join("resources").display()),
+            shaft,
+            drives,
             measured: Measurements {
                 results: Results::default(),
                 criterion: Vec::new(),
@@ -217,20 +257,21 @@ impl Runner {
     fn native(&mut self, mode: &[String]) -> Result<(), String> {
         let mut cmd = Command::new(&self.host);
         cmd.current_dir(util::repo_root())
-            .arg(&self.library)
-            .arg(&self.guid)
-            .arg(&self.resources)
+            .args(self.shaft.arguments())
             .args(mode);
         self.run(&mut cmd)
     }
 
-    /// Section 1: the per-call costs and their floors, rows taken in turn round by round.
+    /// Section 1: the per-call costs and their floors, and the event-free steps of the archives
+    /// of [`DRIVE_AND_WEB`]; rows taken in turn round by round.
     pub(super) fn native_suite(&mut self, plan: &Plan) -> Result<(), String> {
-        self.native(&strings(&[
+        let mut mode = strings(&[
             "suite",
             &plan.suite_rounds.to_string(),
             &plan.steps_per_batch.to_string(),
-        ]))
+        ]);
+        mode.extend(self.drives.iter().flat_map(Archive::arguments));
+        self.native(&mode)
     }
 
     /// Growth with the number of steps, one process each.
@@ -440,12 +481,12 @@ fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
     Ok(xml)
 }
 
-/// The guid of the archive's description, and `#define VR_<name> <vr>u` for every
+/// The guid of the archive's description, and `#define <prefix><name> <vr>u` for every
 /// ScalarVariable of it.
-fn guid_and_vr_header(xml: &str) -> Result<(String, String), String> {
+fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
     let guid = fmu::FMI2.token(&doc)?;
-    let mut text = String::from("/* Written by cargo xtask bench from the archive's modelDescription.xml. */\n");
+    let mut text = String::new();
     let mut count = 0;
     for variable in doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")) {
         let (Some(name), Some(vr)) = (variable.attribute("name"), variable.attribute("valueReference")) else {
@@ -457,7 +498,7 @@ fn guid_and_vr_header(xml: &str) -> Result<(String, String), String> {
             .chars()
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
             .collect();
-        text.push_str(&format!("#define VR_{ident} {vr}u\n"));
+        text.push_str(&format!("#define {prefix}{ident} {vr}u\n"));
         count += 1;
     }
     if count == 0 {

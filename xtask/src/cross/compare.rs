@@ -1,7 +1,8 @@
 //! Reads what the cross test's host printed (tests/cross/host.c) and compares two platforms.
 
-/// The Real outputs of a sample line, in the host's order.
-pub const OUTPUTS: [&str; 7] = [
+/// The Real outputs of a sample line, in the host's order: every model's, then the last
+/// [`WEB_OUTPUTS`] of them a web line's (BacklashWeb), which the other models lack.
+pub const OUTPUTS: [&str; 9] = [
     "theta_m",
     "omega_m",
     "theta_L",
@@ -9,7 +10,12 @@ pub const OUTPUTS: [&str; 7] = [
     "psi",
     "bound",
     "bound_paper",
+    "T",
+    "bound_T",
 ];
+
+/// How many of [`OUTPUTS`], at its end, only a web line has.
+pub const WEB_OUTPUTS: usize = 2;
 
 /// Largest relative difference two platforms may show in any output.
 pub const TOLERANCE: f64 = 1e-12;
@@ -22,7 +28,9 @@ pub struct Sample {
     pub early: Option<f64>,
     pub contact: i32,
     pub switches: u64,
-    pub values: [f64; 7],
+    /// The first `values.len()` of [`OUTPUTS`]: all of them on a web line, else all but the web
+    /// line's.
+    pub values: Vec<f64>,
 }
 
 impl Sample {
@@ -60,14 +68,14 @@ pub fn samples(output: &str) -> Result<Vec<Sample>, String> {
             let bad = || format!("malformed sample line: @ {}", fields.join(" "));
             let hex = |field: &str| u64::from_str_radix(field, 16).map(f64::from_bits).map_err(|_| bad());
             let (early, outputs) = match fields[0] {
-                "early" if fields.len() == 5 + OUTPUTS.len() => (Some(hex(fields[4])?), &fields[5..]),
-                "sample" if fields.len() == 4 + OUTPUTS.len() => (None, &fields[4..]),
+                "early" if fields.len() > 5 => (Some(hex(fields[4])?), &fields[5..]),
+                "sample" if fields.len() > 4 => (None, &fields[4..]),
                 _ => return Err(bad()),
             };
-            let mut values = [0.0; 7];
-            for (value, field) in values.iter_mut().zip(outputs) {
-                *value = hex(field)?;
+            if outputs.len() != OUTPUTS.len() && outputs.len() != OUTPUTS.len() - WEB_OUTPUTS {
+                return Err(bad());
             }
+            let values = outputs.iter().map(|field| hex(field)).collect::<Result<Vec<_>, _>>()?;
             Ok(Sample {
                 k: fields[1].parse().map_err(|_| bad())?,
                 early,
@@ -140,6 +148,14 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
         if (r.k, r.early.is_some()) != (o.k, o.early.is_some()) {
             return Err(format!("a sample {} where the reference has one {}", o.at(), r.at()));
         }
+        if r.values.len() != o.values.len() {
+            return Err(format!(
+                "{} outputs {}, the reference {}",
+                o.values.len(),
+                o.at(),
+                r.values.len()
+            ));
+        }
         if (r.contact, r.switches) != (o.contact, o.switches) {
             return Err(format!(
                 "{}: contact {} after {} switches, the reference contact {} after {}",
@@ -153,7 +169,7 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
         let early = r.early.zip(o.early).map(|(a, b)| ("lastSuccessfulTime", (a, b)));
         let outputs = OUTPUTS
             .iter()
-            .zip(r.values.into_iter().zip(o.values))
+            .zip(r.values.iter().copied().zip(o.values.iter().copied()))
             .map(|(n, v)| (*n, v));
         let compared: Vec<(&'static str, (f64, f64))> = early.into_iter().chain(outputs).collect();
         if compared.iter().all(|(_, (a, b))| a.to_bits() == b.to_bits()) {
@@ -181,7 +197,7 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
 mod tests {
     use super::*;
 
-    fn line(k: u64, contact: i32, switches: u64, values: [f64; 7]) -> String {
+    fn line(k: u64, contact: i32, switches: u64, values: &[f64]) -> String {
         let hex: Vec<String> = values.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
         format!("@ sample {k} {contact} {switches} {}\r\n", hex.join(" "))
     }
@@ -189,7 +205,7 @@ mod tests {
     #[test]
     fn samples_are_read_bit_for_bit_from_either_line_ending() {
         let values = [0.1, -2.5, 1e-300, f64::MIN_POSITIVE, -0.0, 3.0, 1.0 / 3.0];
-        let text = format!("noise\n{}@ misuse x 3 1\n", line(100, -1, 4, values));
+        let text = format!("noise\n{}@ misuse x 3 1\n", line(100, -1, 4, &values));
         let parsed = samples(&text).unwrap();
         assert_eq!(parsed.len(), 1);
         assert_eq!((parsed[0].k, parsed[0].contact, parsed[0].switches), (100, -1, 4));
@@ -208,7 +224,7 @@ mod tests {
             early: None,
             contact: 1,
             switches: 2,
-            values: [1.0; 7],
+            values: vec![1.0; 7],
         };
         let reference = std::slice::from_ref(&base);
         let same = agree(reference, reference).unwrap();
@@ -242,7 +258,7 @@ mod tests {
             let hex: Vec<String> = values.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
             format!("@ early 7 0 1 {:016x} {}\n", t.to_bits(), hex.join(" "))
         };
-        let text = format!("{}{}", early(6.5e-3), line(7, 0, 1, values));
+        let text = format!("{}{}", early(6.5e-3), line(7, 0, 1, &values));
         let reference = samples(&text).unwrap();
         assert_eq!(
             reference.iter().map(|s| s.early).collect::<Vec<_>>(),
@@ -250,16 +266,32 @@ mod tests {
         );
         assert_eq!(agree(&reference, &reference).unwrap().bit_identical, 2);
 
-        let moved = samples(&format!("{}{}", early(6.5e-3 * (1.0 + 1e-9)), line(7, 0, 1, values))).unwrap();
+        let moved = samples(&format!("{}{}", early(6.5e-3 * (1.0 + 1e-9)), line(7, 0, 1, &values))).unwrap();
         let error = agree(&reference, &moved).unwrap_err();
         assert!(
             error.contains("lastSuccessfulTime at the early return in step 7"),
             "{error}"
         );
 
-        let missing = samples(&format!("{}{}", line(7, 0, 1, values), line(7, 0, 1, values))).unwrap();
+        let missing = samples(&format!("{}{}", line(7, 0, 1, &values), line(7, 0, 1, &values))).unwrap();
         assert!(agree(&reference, &missing).is_err());
         assert!(samples("@ early 7 0 1 3ff0000000000000\n").is_err());
+    }
+
+    #[test]
+    fn a_web_lines_samples_carry_its_outputs_and_are_compared_in_them() {
+        let mut values = vec![1.0; OUTPUTS.len()];
+        let reference = samples(&line(5, 1, 0, &values)).unwrap();
+        assert_eq!(reference[0].values.len(), OUTPUTS.len());
+        values[OUTPUTS.len() - 1] = 1.0 + 1e-9;
+        let error = agree(&reference, &samples(&line(5, 1, 0, &values)).unwrap()).unwrap_err();
+        assert!(error.contains("bound_T after step 5"), "{error}");
+
+        // A model without the web line's outputs is not compared with one that has them.
+        let drive_only = samples(&line(5, 1, 0, &values[..OUTPUTS.len() - WEB_OUTPUTS])).unwrap();
+        assert!(agree(&reference, &drive_only).is_err());
+        // Only all outputs or all but the web line's make a sample.
+        assert!(samples(&line(5, 1, 0, &values[..OUTPUTS.len() - 1])).is_err());
     }
 
     #[test]

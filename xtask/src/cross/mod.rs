@@ -4,12 +4,13 @@
 //!
 //! For each model: a closed PI loop and an open-loop torque schedule through FMI 2.0, both with
 //! contact switches, sampled along the way (every output within 1e-12 relative of linux64, the
-//! same contact modes and switch counts); the same open loop through FMI 3.0 from the FMI 3.0
-//! archive, whose fmi3DoStep returns early at every contact switch (each switch instant and the
-//! outputs there compared as the samples are); misuse of the C API (the same fmi2Status and
-//! number of logged messages as on linux64); an FMU state serialized on each platform, restored
-//! on every platform and continued as the saving platform continued it. The Windows DLL in each
-//! archive must import only DLLs of a stock Windows 10.
+//! same contact modes and switch counts; on the web line also its upstream speed and tension as
+//! inputs, and its tension T and bound_T among the outputs); the same open loop through FMI 3.0
+//! from the FMI 3.0 archive, whose fmi3DoStep returns early at every contact switch (each switch
+//! instant and the outputs there compared as the samples are); misuse of the C API (the same
+//! fmi2Status and number of logged messages as on linux64); an FMU state serialized on each
+//! platform, restored on every platform and continued as the saving platform continued it. The
+//! Windows DLL in each archive must import only DLLs of a stock Windows 10.
 
 mod compare;
 mod host;
@@ -29,28 +30,35 @@ use crate::{abi, python};
 use compare::{Agreement, Sample};
 use host::Host;
 
+/// A set of parameter values, by name.
+type Parameters = &'static [(&'static str, f64)];
+
 /// The drives of tests/python/rigs.py (SHAFT, BELT: the paper's inertias and damping) with the
 /// PI gains chosen there to damp each closed loop (SHAFT_GAINS, BELT_GAINS); the host's loop uses
 /// Kp and Ki as its gains.
-const PAPER: [(&str, f64); 4] = [("J_m", 2.28), ("J_L", 2.55), ("b_m", 0.05), ("b_L", 0.05)];
-const RIGS: [(&str, &[(&str, f64)]); 2] = [
-    (
-        "BacklashShaft",
-        &[("k", 200.0), ("Delta", 5.38e-3 / 2.0), ("Kp", 42.0), ("Ki", 180.0)],
-    ),
-    (
-        "BacklashBelt",
-        &[
-            ("K_b", 2.0e4),
-            ("R_1", 0.1),
-            ("R_2", 0.08),
-            ("R_g1", 0.05),
-            ("R_g2", 0.075),
-            ("Delta", 2.0e-3),
-            ("Kp", 38.0),
-            ("Ki", 200.0),
-        ],
-    ),
+const PAPER: Parameters = &[("J_m", 2.28), ("J_L", 2.55), ("b_m", 0.05), ("b_L", 0.05)];
+const SHAFT: Parameters = &[("k", 200.0), ("Delta", 5.38e-3 / 2.0), ("Kp", 42.0), ("Ki", 180.0)];
+const BELT: Parameters = &[
+    ("K_b", 2.0e4),
+    ("R_1", 0.1),
+    ("R_2", 0.08),
+    ("R_g1", 0.05),
+    ("R_g2", 0.075),
+    ("Delta", 2.0e-3),
+    ("Kp", 38.0),
+    ("Ki", 200.0),
+];
+/// The web line's span on the belt rig: the FMU's film line (its start values) but for a web
+/// 100 times less stiff, whose pull on the load roller is of the order of the drive's torques
+/// rather than far above them; the tension PI's gains, so that bound_T is that of the loop with
+/// both PIs.
+const WEB_SPAN: Parameters = &[("EA", 1.0e3), ("Kp_T", 1.0e-3), ("Ki_T", 1.0e-2)];
+
+/// Each model's test rig: the parameter sets it is made of, set in this order.
+const RIGS: [(&str, &[Parameters]); 3] = [
+    ("BacklashShaft", &[PAPER, SHAFT]),
+    ("BacklashBelt", &[PAPER, BELT]),
+    ("BacklashWeb", &[PAPER, BELT, WEB_SPAN]),
 ];
 
 /// A scenario of the host that samples its outputs along the way (h = 1 ms in the host).
@@ -92,7 +100,7 @@ const FMI3_OPEN_LOOP: Sampled = Sampled {
 /// A scenario that switches contact fewer times than this would not test the switching.
 const MIN_SWITCHES: u64 = 4;
 
-/// The variables the host drives and reads, by name (tests/cross/host.c).
+/// The variables the host drives and reads on every model, by name (tests/cross/host.c).
 const HOST_VARIABLES: [&str; 12] = [
     "tau_m",
     "tau_L",
@@ -107,6 +115,11 @@ const HOST_VARIABLES: [&str; 12] = [
     "Kp",
     "Ki",
 ];
+
+/// The web line's variables the host drives (the upstream web speed and tension) and reads,
+/// passed where the description has them (BacklashWeb): the host then sets these inputs too and
+/// samples T and bound_T.
+const WEB_VARIABLES: [&str; 4] = ["v_in", "T_in", "T", "bound_T"];
 
 pub fn run(args: &[String]) -> Result<(), String> {
     if let Some(arg) = args.first() {
@@ -178,7 +191,7 @@ pub fn test(built: &[Built]) -> Result<(), String> {
         misuse(&model, &hosts, &mut timer)?;
         fmu_state(&model, &hosts, &mut timer)?;
     }
-    println!("\nhost run time per platform (all scenarios, both models):");
+    println!("\nhost run time per platform (all scenarios, all models):");
     for (name, time) in &timer.per_platform {
         println!("  {:>6.1} s  {name}", time.as_secs_f64());
     }
@@ -287,8 +300,9 @@ fn read_entry(archive: &Path, name: &str) -> Result<Vec<u8>, String> {
 }
 
 /// From a model description of `standard`: the guid (FMI 2.0) or instantiation token (FMI 3.0),
-/// `name=vr,...` of the host's variables, and the rig's parameters as `vr=bits,...` (the exact
-/// f64 of each value, as hexadecimal IEEE-754 bits).
+/// `name=vr,...` of the host's variables (those of [`WEB_VARIABLES`] where the description has
+/// them), and the rig's parameters as `vr=bits,...` (the exact f64 of each value, as hexadecimal
+/// IEEE-754 bits).
 fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
     let token = standard.token(&doc)?;
@@ -299,16 +313,27 @@ fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, S
             .and_then(|n| n.attribute("valueReference"))
             .ok_or_else(|| format!("modelDescription.xml has no variable {name}"))
     };
-    let variables = HOST_VARIABLES
+    let mut variables = HOST_VARIABLES
         .iter()
         .map(|name| value_reference(name).map(|vr| format!("{name}={vr}")))
         .collect::<Result<Vec<_>, _>>()?;
-    let rig = RIGS
+    let web: Vec<String> = WEB_VARIABLES
+        .iter()
+        .filter_map(|name| value_reference(name).ok().map(|vr| format!("{name}={vr}")))
+        .collect();
+    if !web.is_empty() && web.len() != WEB_VARIABLES.len() {
+        return Err(format!(
+            "modelDescription.xml has some of the web line's variables {WEB_VARIABLES:?}, not all"
+        ));
+    }
+    variables.extend(web);
+    let (_, rig) = RIGS
         .iter()
         .find(|(model, _)| *model == id)
-        .map(|(_, rig)| PAPER.iter().chain(rig.iter()))
         .ok_or_else(|| format!("no test rig for {id} in xtask/src/cross/mod.rs (RIGS)"))?;
     let parameters = rig
+        .iter()
+        .flat_map(|set| set.iter())
         .map(|(name, value)| value_reference(name).map(|vr| format!("{vr}={:016x}", value.to_bits())))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((token.to_string(), variables.join(","), parameters.join(",")))
