@@ -47,8 +47,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from fmpy import extract, read_model_description  # noqa: E402
-from fmpy.fmi2 import FMU2Slave  # noqa: E402
+
+# The FMU access lives in the package sweep/ at the repository root, shared with the shaft's demo.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from sweep.twin import Fmu, Instance  # noqa: E402
 
 # Communication step [s]: h times the belt drive's contact natural frequency
 # (sqrt(K_b (R_1²/J_m + α_1²/J_L)) ≈ 1170 rad/s, docs/model.md §1) is 0.12; the rerun at h/2
@@ -76,68 +78,25 @@ TOL = 1e-12
 # ------------------------------------------------------------------------------------------
 
 
-class WebInstance:
-    """One instance of BacklashWeb, parameters and the upstream web set before initialization."""
-
-    OUTPUTS = ("omega_m", "omega_L", "T", "bound", "bound_T")
-
-    def __init__(self, unzipdir: str, md, name: str, params: dict[str, float]):
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.slave = FMU2Slave(
-            guid=md.guid,
-            unzipDirectory=unzipdir,
-            modelIdentifier=md.coSimulation.modelIdentifier,
-            instanceName=name,
-        )
-        self.slave.instantiate()
-        self.slave.setupExperiment(startTime=0.0)
-        values = dict(params, v_in=V_IN, T_in=T_IN)
-        self.slave.setReal([self.vr[n] for n in values], [float(v) for v in values.values()])
-        self.slave.enterInitializationMode()
-        self.slave.exitInitializationMode()
-        self.out_vrs = [self.vr[n] for n in self.OUTPUTS]
-        self.tau_vr = [self.vr["tau_m"]]
-        self.contact_vr = [self.vr["contact"]]
-
-    def outputs(self) -> dict[str, float]:
-        return dict(zip(self.OUTPUTS, self.slave.getReal(self.out_vrs)))
-
-    def contact(self) -> int:
-        return self.slave.getInteger(self.contact_vr)[0]
-
-    def sups(self) -> tuple[float, float]:
-        """(bound_T_sup [N], bound_sup [rad/s])."""
-        t_sup, sup = self.slave.getReal([self.vr["bound_T_sup"], self.vr["bound_sup"]])
-        return t_sup, sup
-
-    def step(self, t: float, h: float, tau_m: float) -> None:
-        self.slave.setReal(self.tau_vr, [tau_m])
-        status = self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-        if status not in (None, 0):
-            raise RuntimeError(f"doStep returned status {status} at t = {t}")
-
-    def close(self) -> None:
-        self.slave.terminate()
-        self.slave.freeInstance()
+# What the twin run reads at every communication point (besides `contact`).
+OUTPUTS = ("omega_m", "omega_L", "T", "bound", "bound_T")
 
 
-class WebFmu:
-    """The archive, extracted once (removed by `remove`); instances made on demand."""
+class WebFmu(Fmu):
+    """BacklashWeb's archive, extracted once (removed by `remove`); its instances read OUTPUTS
+    and start with the upstream web (V_IN, T_IN) set."""
 
     def __init__(self, path: Path):
-        self.md = read_model_description(str(path))
-        self.unzipdir = extract(str(path))
-        self.count = 0
+        super().__init__(path, OUTPUTS)
 
-    def instance(self, params: dict[str, float]) -> WebInstance:
-        self.count += 1
-        return WebInstance(self.unzipdir, self.md, f"web{self.count}", params)
+    def instance(self, params: dict[str, float]) -> Instance:
+        return super().instance(dict(params, v_in=V_IN, T_in=T_IN))
 
     def bound_t_sup(self, params: dict[str, float]) -> float:
         """bound_T_sup of an instance with these parameters."""
         inst = self.instance(params)
         try:
-            return inst.sups()[0]
+            return inst.get("bound_T_sup")[0]
         finally:
             inst.close()
 
@@ -190,7 +149,7 @@ def twin_web_run(fmu: WebFmu, params: dict[str, float], kp: float, ki: float, ho
     twins = (fmu.instance(common), fmu.instance(dict(common, Delta=0.0)))
     try:
         n = int(round(horizon / h))
-        cols = np.zeros((n + 1, 2, len(WebInstance.OUTPUTS)))
+        cols = np.zeros((n + 1, 2, len(OUTPUTS)))
         contact = np.zeros(n + 1, dtype=int)
         x_c = [0.0, 0.0]  # speed PI integrators
         x_T = [0.0, 0.0]  # tension PI integrators
@@ -198,8 +157,8 @@ def twin_web_run(fmu: WebFmu, params: dict[str, float], kp: float, ki: float, ho
             t = i * h
             outs = [inst.outputs() for inst in twins]
             for j, out in enumerate(outs):
-                cols[i, j] = [out[name] for name in WebInstance.OUTPUTS]
-            contact[i] = twins[0].contact()
+                cols[i, j] = [out[name] for name in OUTPUTS]
+            contact[i] = outs[0]["contact"]
             if i == n:
                 break
             for j, (inst, out) in enumerate(zip(twins, outs)):
@@ -208,11 +167,11 @@ def twin_web_run(fmu: WebFmu, params: dict[str, float], kp: float, ki: float, ho
                 inst.step(t, h, kp * e + ki * x_c[j])
                 x_c[j] += h * e
                 x_T[j] += h * e_T
-        bound_T_sup, bound_sup = twins[0].sups()
+        bound_T_sup, bound_sup = twins[0].get("bound_T_sup", "bound_sup")
     finally:
         for inst in twins:
             inst.close()
-    column = {name: k for k, name in enumerate(WebInstance.OUTPUTS)}
+    column = {name: k for k, name in enumerate(OUTPUTS)}
     return WebRun(
         t=np.arange(n + 1) * h,
         T_b=cols[:, 0, column["T"]],

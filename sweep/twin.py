@@ -27,10 +27,15 @@ SPEED = 0.05
 # ------------------------------------------------------------------------------------------
 
 
-class ShaftFmu:
-    """One instance of BacklashShaft, parameters set before initialization."""
+# What the twin run reads of BacklashShaft at every communication point (besides `contact`).
+SHAFT_OUTPUTS = ("omega_m", "omega_L", "bound", "bound_paper", "psi")
 
-    def __init__(self, unzipdir: str, md, name: str, params: dict[str, float]):
+
+class Instance:
+    """One Co-Simulation instance of an archive's model: `params` (parameters, start values,
+    inputs) set before initialization, `outputs` (and `contact`) read together."""
+
+    def __init__(self, unzipdir: str, md, name: str, params: dict[str, float], outputs=SHAFT_OUTPUTS):
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.slave = FMU2Slave(
             guid=md.guid,
@@ -44,13 +49,16 @@ class ShaftFmu:
         self.slave.setReal([self.vr[n] for n in names], [float(params[n]) for n in names])
         self.slave.enterInitializationMode()
         self.slave.exitInitializationMode()
-        self.out_names = ["omega_m", "omega_L", "bound", "bound_paper", "psi"]
+        self.out_names = list(outputs)
         self.out_vrs = [self.vr[n] for n in self.out_names]
         self.tau_vr = [self.vr["tau_m"]]
         self.contact_vr = [self.vr["contact"]]
 
     def bound_sup(self) -> float:
         return self.slave.getReal([self.vr["bound_sup"]])[0]
+
+    def get(self, *names: str) -> list[float]:
+        return self.slave.getReal([self.vr[n] for n in names])
 
     def outputs(self) -> dict[str, float]:
         values = self.slave.getReal(self.out_vrs)
@@ -70,16 +78,17 @@ class ShaftFmu:
 
 
 class Fmu:
-    """The archive, extracted once; instances made on demand."""
+    """The archive, extracted once; instances made on demand, each reading `outputs`."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, outputs=SHAFT_OUTPUTS):
         self.md = read_model_description(str(path))
         self.unzipdir = extract(str(path))
+        self.outputs = outputs
         self.count = 0
 
-    def instance(self, params: dict[str, float]) -> ShaftFmu:
+    def instance(self, params: dict[str, float]) -> Instance:
         self.count += 1
-        return ShaftFmu(self.unzipdir, self.md, f"i{self.count}", params)
+        return Instance(self.unzipdir, self.md, f"i{self.count}", params, self.outputs)
 
 
 # ------------------------------------------------------------------------------------------
