@@ -120,6 +120,17 @@ def bound_sups(p: dict, Kp: float, Ki: float, Kp_T: float = 0.0, Ki_T: float = 0
     return K * g * l1_norm(A, d, c_T), K * g * l1_norm(A, d, c_w)
 
 
+def _switch(sol, s: float, stalls: int) -> tuple[int, float, int]:
+    """(event index, instant, stalls) of the terminal switch event that ended `sol`, which
+    started at s; refuses a switch that does not advance time four times in a row."""
+    hit = next(i for i, te in enumerate(sol.t_events) if len(te))
+    s_ev = float(sol.t_events[hit][0])
+    stalls = stalls + 1 if s_ev == s else 0
+    if stalls > 3:
+        raise RuntimeError(f"switch events do not advance at t = {s}")
+    return hit, s_ev, stalls
+
+
 def simulate(
     p: dict,
     gains: tuple[float, float, float, float],
@@ -188,11 +199,7 @@ def simulate(
             raise RuntimeError(sol.message)
         out.extend(sol.y.T)
         if sol.status == 1:
-            hit = next(i for i, te in enumerate(sol.t_events) if len(te))
-            s_ev = float(sol.t_events[hit][0])
-            stalls = stalls + 1 if s_ev == s else 0
-            if stalls > 3:
-                raise RuntimeError(f"switch events do not advance at t = {s}")
+            hit, s_ev, stalls = _switch(sol, s, stalls)
             s, x, mode = s_ev, sol.y_events[hit][0].copy(), targets[hit]
     y = np.array(out)
     return y[:, 4], y[:, 2]
@@ -356,11 +363,7 @@ class OpenLoop:
             if sol.status == -1:
                 raise RuntimeError(sol.message)
             if sol.status == 1:
-                hit = next(i for i, te in enumerate(sol.t_events) if len(te))
-                s_ev = float(sol.t_events[hit][0])
-                stalls = stalls + 1 if s_ev == s else 0
-                if stalls > 3:
-                    raise RuntimeError(f"switch events do not advance at t = {s}")
+                hit, s_ev, stalls = _switch(sol, s, stalls)
                 x = sol.y_events[hit][0].copy()
                 x[0] = levels[hit]
                 self.switches.append((s_ev, self.mode, targets[hit]))

@@ -33,18 +33,22 @@ CASES = 12  # 3 gaps x 2 readings of the gap x 2 references
 TOL = 1e-12
 
 
-@pytest.fixture(scope="module")
-def demo_run(tmp_path_factory):
-    fmu = fmu_driver.require("BacklashShaft").path
-    out = tmp_path_factory.mktemp("demo")
-    design = out / "design.json"
-    design.write_text(json.dumps(design_json()))
+def run_script(script, model: str, design: dict, out) -> tuple:
+    """(out, stdout) of a demo script in --short mode on `model`'s archive and the design answer."""
+    path = out / "design.json"
+    path.write_text(json.dumps(design))
+    fmu = fmu_driver.require(model).path
     proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--fmu", str(fmu), "--design", str(design), "--out", str(out), "--short"],
+        [sys.executable, str(script), "--fmu", str(fmu), "--design", str(path), "--out", str(out), "--short"],
         capture_output=True, text=True, timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
     return out, proc.stdout
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    return run_script(SCRIPT, "BacklashShaft", design_json(), tmp_path_factory.mktemp("demo"))
 
 
 def test_one_progress_line_per_case(demo_run):
@@ -94,16 +98,7 @@ def test_pngs_are_written(demo_run):
 
 @pytest.fixture(scope="module")
 def web_run(tmp_path_factory):
-    fmu = fmu_driver.require("BacklashWeb").path
-    out = tmp_path_factory.mktemp("web_line")
-    design = out / "design_web.json"
-    design.write_text(json.dumps(web_design_json("tension")))
-    proc = subprocess.run(
-        [sys.executable, str(WEB_SCRIPT), "--fmu", str(fmu), "--design", str(design), "--out", str(out), "--short"],
-        capture_output=True, text=True, timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr
-    return out, proc.stdout
+    return run_script(WEB_SCRIPT, "BacklashWeb", web_design_json("tension"), tmp_path_factory.mktemp("web_line"))
 
 
 def test_web_line_deviations_stay_within_their_bounds_at_every_row(web_run):
