@@ -182,6 +182,8 @@ fn invalid_fields_are_refused(model: usize) {
     edit(mode + 1, &f64::NAN.to_le_bytes(), "a bound's state");
     let last = mode + 1 + 8 * (bound_words(m) - 1);
     edit(last, &f64::NAN.to_le_bytes(), "a bound's state");
+    edit(lag_offset(&bytes), &f64::NAN.to_le_bytes(), "the bounds' lag");
+    edit(lag_offset(&bytes), &(-1e-3f64).to_le_bytes(), "the bounds' lag");
     f.reset_and_check();
 }
 

@@ -18,6 +18,10 @@ pub struct Simulation {
     pub bound_t_sup: Result<f64, Unbounded>,
     /// The longest step accepted ([`max_step`]).
     pub max_step: f64,
+    /// How far the bounds lag behind the plant [s]. Co-Simulation steps advance the plant only
+    /// and add their length here; the bounds, functions of elapsed time alone, are brought up
+    /// to date when read ([`Simulation::bounds_current`]). 0 in Model Exchange.
+    pub bounds_behind: f64,
 }
 
 impl Simulation {
@@ -81,25 +85,62 @@ impl Simulation {
         Err(rates_overflow(rates, inputs, plant.web().is_some(), what))
     }
 
-    /// Advances plant and bound over `h` when the stepper's quiet path applies (see
-    /// [`Stepper::quiet_step`]) and both stay finite; returns whether it did. When it did not,
+    /// Advances the plant over `h` when the stepper's quiet path applies (see
+    /// [`Stepper::quiet_step`]) and it stays finite; returns whether it did. When it did not,
     /// nothing changed and the general path does the step, or says why it cannot.
     #[inline]
     pub fn quiet_step(&mut self, inputs: &Inputs, h: f64) -> bool {
         let Some(next) = self.stepper.quiet_step(&self.state, inputs, h) else {
             return false;
         };
-        // `next` is finite: its force is what is left of `state_ok`. The bound changes only
-        // when it stays finite, and last, so that a refusal leaves both as they were.
-        if !finite(self.plant().force(next.u)) || self.bound.advance(h).is_err() {
+        // `next` is finite: its force is what is left of `state_ok`.
+        if !finite(self.plant().force(next.u)) {
             return false;
         }
         self.state = next;
+        self.bounds_lag(h);
         true
     }
 
-    /// Rebuilds from saved values and continues from a saved plant and bound state.
-    pub fn restore(model: &ModelInfo, v: &Values, state: PlantState, bound: &[f64]) -> Result<Simulation, FmuError> {
+    /// The plant advanced by `h`: the bounds lag behind by that much more. Once they lag by the
+    /// longest step they are brought along, so that reading them after any number of unread
+    /// steps costs at most that much work (an error there is the one a read reports).
+    #[inline]
+    pub fn bounds_lag(&mut self, h: f64) {
+        self.bounds_behind += h;
+        if self.bounds_behind >= self.max_step {
+            self.bounds_current().ok();
+        }
+    }
+
+    /// Brings the bounds up to the plant (Co-Simulation): advances them by the time they lag
+    /// behind, in one advance when they accept it (so that bounds read after every step are
+    /// exactly those advanced step by step), else in the longest advances they accept. On error
+    /// they stay at some time between, and still lag behind by the rest.
+    pub fn bounds_current(&mut self) -> Result<(), BoundError> {
+        while self.bounds_behind > 0.0 {
+            let h = self.bounds_behind;
+            match self.bound.advance(h) {
+                Ok(()) => self.bounds_behind = 0.0,
+                Err(BoundError::AdvanceTooLong { max_h, .. }) => {
+                    self.bound.advance(max_h)?;
+                    self.bounds_behind = h - max_h;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+
+    /// Rebuilds from saved values and continues from a saved plant and bound state, the bounds
+    /// lagging `bounds_behind` behind the plant.
+    pub fn restore(
+        model: &ModelInfo,
+        v: &Values,
+        state: PlantState,
+        bound: &[f64],
+        bounds_behind: f64,
+    ) -> Result<Simulation, FmuError> {
         let mut sim = Simulation::build(model, v)?;
         if !state.is_finite() {
             return Err(FmuError::StateRefused("the plant state is not finite".into()));
@@ -107,6 +148,12 @@ impl Simulation {
         sim.check_state(&state, format_args!("the saved plant state overflows"))?;
         sim.state = state;
         sim.bound.restore(bound)?;
+        if !(bounds_behind.is_finite() && bounds_behind >= 0.0) {
+            return Err(FmuError::StateRefused(format!(
+                "the bounds' lag {bounds_behind} s must be finite and >= 0"
+            )));
+        }
+        sim.bounds_behind = bounds_behind;
         Ok(sim)
     }
 
@@ -220,6 +267,7 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         bound,
         bound_sup,
         bound_t_sup,
+        bounds_behind: 0.0,
     };
     let mut cache = lock();
     if cache.len() == TEMPLATE_CACHE {

@@ -16,6 +16,7 @@
 //! | | 8·4 | the input lines' slopes dτ_m/dt, dτ_L/dt, dv_in/dt, dT_in/dt |
 //! | | 8·7 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', mode (signed byte −1/0/+1) |
 //! | | 8·b | bounds: elapsed, response[n], integral[n], l1 of each loop bound; b = 12 for the drive trains (one bound, n = 5), 32 for the web line (speed and tension, n = 7) |
+//! | | 8 | how far the bounds lag behind the plant [s] (Co-Simulation: the steps since they were last read) |
 //! | end−8 | 8 | FNV-1a-64 checksum of all bytes before it |
 //!
 //! Loading checks, in order: length, magic, version, guid (a state of the other model is
@@ -38,6 +39,8 @@ pub struct PhysicsSnapshot {
     pub plant: PlantState,
     /// [`Bounds::words`].
     pub bound: Vec<f64>,
+    /// How far the bounds lag behind the plant ([`super::simulation::Simulation::bounds_behind`]).
+    pub bounds_behind: f64,
 }
 
 /// Everything needed to continue an instance bit-identically; derived objects (plant
@@ -64,7 +67,7 @@ const FLAG_FMI3: u8 = 16;
 /// plant, bounds, checksum.
 fn body_len(model: &ModelInfo) -> usize {
     let bounds = Bounds::word_count(model.drive_train.has_web());
-    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8 + 8
 }
 
 fn fnv1a_64(bytes: &[u8]) -> u64 {
@@ -127,6 +130,8 @@ impl Snapshot {
         let no_bounds = vec![0.0; Bounds::word_count(self.model().drive_train.has_web())];
         let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
+        let behind = self.physics.as_ref().map_or(0.0, |p| p.bounds_behind);
+        b.extend_from_slice(&behind.to_le_bytes());
         let checksum = fnv1a_64(&b);
         b.extend_from_slice(&checksum.to_le_bytes());
         debug_assert_eq!(b.len(), self.serialized_len());
@@ -255,6 +260,10 @@ impl Snapshot {
         for x in bound.iter_mut() {
             *x = r.finite("a bound's state")?;
         }
+        let bounds_behind = r.finite("the bounds' lag")?;
+        if bounds_behind < 0.0 {
+            return refuse(format!("the bounds' lag {bounds_behind} s is negative"));
+        }
         debug_assert_eq!(r.at, payload.len());
 
         let has_physics = flags & FLAG_PHYSICS != 0;
@@ -282,6 +291,7 @@ impl Snapshot {
                 mode,
             },
             bound,
+            bounds_behind,
         });
         Ok(Snapshot {
             guid: model.guid,

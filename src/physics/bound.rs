@@ -140,7 +140,7 @@ pub type WebSpeedBound = WebLoopBound<OMEGA_L>;
 /// The web line's bounds on its span tension T: `bound_T`, `bound_T_sup`.
 pub type WebTensionBound = WebLoopBound<TENSION>;
 
-/// bound(t), bound_paper(t) and bound_sup of docs/model.md §3, advanced alongside the simulation,
+/// bound(t), bound_paper(t) and bound_sup of docs/model.md §3, advanced over elapsed time,
 /// for a backlash-free loop of `N` states (augmented to `BA` = 2 N, `KO` kernel outputs, at
 /// most `R` coordinates in the tail bound) and the response of its entry `OUT` (ω_L, or T on a
 /// web line).

@@ -633,9 +633,14 @@ pub fn model_of_state(bytes: &[u8]) -> &'static ModelInfo {
 }
 
 /// Offset of the contact-mode byte of a state: counted from the end, before the bound part
-/// ([`bound_words`] f64) and the checksum (8 bytes).
+/// ([`bound_words`] f64), the bounds' lag (one f64) and the checksum (8 bytes).
 pub fn mode_offset(bytes: &[u8]) -> usize {
-    bytes.len() - 8 - 8 * bound_words(model_of_state(bytes)) - 1
+    bytes.len() - 8 - 8 - 8 * bound_words(model_of_state(bytes)) - 1
+}
+
+/// Offset of the bounds' lag behind the plant, the last f64 before the checksum.
+pub fn lag_offset(bytes: &[u8]) -> usize {
+    bytes.len() - 8 - 8
 }
 
 /// fmi2DeSerializeFMUstate + fmi2SetFMUstate: (status of deserialize, status of set).

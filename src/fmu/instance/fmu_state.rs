@@ -19,6 +19,7 @@ impl Instance {
             physics: self.sim.as_ref().map(|sim| PhysicsSnapshot {
                 plant: sim.state,
                 bound: sim.bound.words(),
+                bounds_behind: sim.bounds_behind,
             }),
         }
     }
@@ -45,7 +46,13 @@ impl Instance {
             )));
         }
         let sim = match &snapshot.physics {
-            Some(p) => Some(Simulation::restore(self.model, &snapshot.values, p.plant, &p.bound)?),
+            Some(p) => Some(Simulation::restore(
+                self.model,
+                &snapshot.values,
+                p.plant,
+                &p.bound,
+                p.bounds_behind,
+            )?),
             None => None,
         };
         self.phase = snapshot.phase;

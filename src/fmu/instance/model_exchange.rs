@@ -25,15 +25,18 @@ pub struct EventInfo {
 const EVENT_INDICATORS: usize = 2;
 
 impl Instance {
-    /// The bound of a Model Exchange instance at its time (docs/model.md §4: measured from the
-    /// start time); a Co-Simulation instance advances it with each step.
+    /// The bounds at the instance's time (docs/model.md §4: measured from the start time), for
+    /// reading: in Model Exchange at the time the solver set, in Co-Simulation caught up with
+    /// the steps taken since they were last read.
     pub(super) fn bound_to_time(&mut self) -> Result<(), FmuError> {
-        if self.flavour.interface != Interface::ModelExchange {
-            return Ok(());
-        }
         let elapsed = self.time - self.experiment.start_time;
+        let model_exchange = self.flavour.interface == Interface::ModelExchange;
         match self.sim.as_mut() {
-            Some(sim) => sim.bound_at(elapsed).map_err(|e| match e {
+            Some(sim) => match model_exchange {
+                true => sim.bound_at(elapsed),
+                false => sim.bounds_current(),
+            }
+            .map_err(|e| match e {
                 crate::physics::BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
                     "the bounds at t = {} overflow: bound = {bound:e}, bound_paper = {bound_paper:e}",
                     self.time

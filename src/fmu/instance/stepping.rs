@@ -5,7 +5,7 @@ use super::Instance;
 use crate::fmu::adapter::{self, INPUT_NAMES, MAX_INPUTS};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::logging::LogCategory;
-use crate::physics::{finite, BoundError, Inputs, StepError, MAX_PERIODS_PER_STEP};
+use crate::physics::{finite, Inputs, StepError, MAX_PERIODS_PER_STEP};
 
 /// Relative tolerance for "the communication point equals the current time": steps are
 /// accumulated by the importer in floating point, so they drift by a few ulps per step.
@@ -211,14 +211,8 @@ impl Instance {
         if !sim.state_ok(&state) {
             return Err(sim.overflow(&state, format_args!("the step to t = {end} overflows")));
         }
-        // Fails before changing anything (a bad h is excluded above).
-        sim.bound.advance(advanced).map_err(|e| match e {
-            BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
-                "the step to t = {end} overflows the bounds: bound = {bound:e}, bound_paper = {bound_paper:e}"
-            )),
-            e => e.into(),
-        })?;
         sim.state = state;
+        sim.bounds_lag(advanced);
         let half_gap = sim.plant().half_gap();
         for e in switches {
             let t = communication_point + e.offset;

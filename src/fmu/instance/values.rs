@@ -278,11 +278,24 @@ impl Instance {
     ) -> Result<Status, FmuError> {
         Self::same_length("fmi2GetRealOutputDerivatives orders", orders.len(), vrs.len())?;
         Self::same_length("fmi2GetRealOutputDerivatives values", out.len(), vrs.len())?;
-        let Some(sim) = &self.sim else {
+        if self.sim.is_none() {
             return Err(FmuError::InvalidArgument(
                 "no output derivatives before initialization has ended".into(),
             ));
-        };
+        }
+        // The bounds' rates at the instance's time, when one is asked for.
+        let bounds = vrs.iter().any(|vr| {
+            self.model.by_vr(*vr).is_some_and(|v| {
+                matches!(
+                    adapter::source(v.symbol),
+                    Source::Calculated(Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT)
+                )
+            })
+        });
+        if bounds {
+            self.bound_to_time()?;
+        }
+        let sim = self.sim.as_ref().expect("checked above");
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         let mut rates: Option<adapter::StateVector> = None;
         for ((vr, order), slot) in vrs.iter().zip(orders).zip(out.iter_mut()) {
