@@ -116,7 +116,9 @@ impl Simulation {
     /// Brings the bounds up to the plant (Co-Simulation): advances them by the time they lag
     /// behind, in one advance when they accept it (so that bounds read after every step are
     /// exactly those advanced step by step), else in the longest advances they accept. On error
-    /// they stay at some time between, and still lag behind by the rest.
+    /// they stay at some time between, and still lag behind by the rest. Out of line: the
+    /// steps' hot path calls it only once the bounds lag by the longest step.
+    #[inline(never)]
     pub fn bounds_current(&mut self) -> Result<(), BoundError> {
         while self.bounds_behind > 0.0 {
             let h = self.bounds_behind;
