@@ -1,5 +1,6 @@
 //! `documentation/index.html` of each archive: a shared page (`template.html`) with the model's
-//! drive-train section and a variable table taken from the generated model description, so that
+//! drive-train section (where it says `{{BELT_DRIVE}}`, the belt drive's generic form of
+//! `belt_drive.html`) and a variable table taken from the generated model description, so that
 //! the documented names, units and start values cannot drift from the ones the FMU serves.
 //!
 //! One template serves both standards; the description's `fmiVersion` says which page it is:
@@ -23,7 +24,9 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
     let dir = source_dir();
     let read = |path: PathBuf| fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", util::shown(&path)));
     let template = read(dir.join("template.html"))?;
-    let drive_train = read(dir.join(id).join("drive_train.html"))?;
+    // The belt drive's generic form, shared by BacklashBelt's page and BacklashWeb's.
+    let drive_train = read(dir.join(id).join("drive_train.html"))?
+        .replace("{{BELT_DRIVE}}", &read(dir.join("belt_drive.html"))?);
 
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
     let root = doc.root_element();
