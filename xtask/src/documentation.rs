@@ -25,8 +25,8 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
     let read = |path: PathBuf| fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", util::shown(&path)));
     let template = read(dir.join("template.html"))?;
     // The belt drive's generic form, shared by BacklashBelt's page and BacklashWeb's.
-    let drive_train = read(dir.join(id).join("drive_train.html"))?
-        .replace("{{BELT_DRIVE}}", &read(dir.join("belt_drive.html"))?);
+    let drive_train =
+        read(dir.join(id).join("drive_train.html"))?.replace("{{BELT_DRIVE}}", &read(dir.join("belt_drive.html"))?);
 
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
     let root = doc.root_element();
