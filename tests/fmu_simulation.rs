@@ -226,3 +226,65 @@ fn bound_rates_match_central_differences() {
     }
     assert!(rate[0] > 0.0);
 }
+
+/// Co-Simulation steps advance the plant only; the bounds follow when read (docs/model.md §3).
+/// Read after every step they are, bit for bit, the library's bound advanced step by step; read
+/// every tenth step, or first after an FMU state taken in between, they agree with it to
+/// round-off; the shaft under a reversing torque, so that the plant switches too.
+#[test]
+fn bounds_read_after_any_steps_are_the_bound_advanced_over_them() {
+    use backlash_fmu::physics::{PiGains, Plant, PlantParams, SpeedErrorBound};
+    let gains = [("Kp", 42.0), ("Ki", 180.0)];
+    let mut direct = SpeedErrorBound::new(
+        &Plant::new(PlantParams::paper_rig(0.775e-3)).unwrap(),
+        PiGains { kp: 42.0, ki: 180.0 },
+    )
+    .unwrap();
+    let (mut every, mut tenth) = (shaft(&gains, None, false), shaft(&gains, None, false));
+    every.exit_initialization_mode().unwrap();
+    tenth.exit_initialization_mode().unwrap();
+    let h = 0.013;
+    let names = ["bound", "bound_paper"];
+    let mut saved = None;
+    for k in 0..300 {
+        let tau = if (k / 20) % 2 == 0 { 3.0 } else { -3.0 };
+        for inst in [&mut every, &mut tenth] {
+            inst.set_real(&[inst.model().vr("tau_m")], &[tau]).unwrap();
+            inst.do_step(k as f64 * h, h).unwrap();
+        }
+        direct.advance(h).unwrap();
+        let b = get(&mut every, &names);
+        assert_eq!(b[0].to_bits(), direct.bound().to_bits(), "bound after step {k}");
+        assert_eq!(
+            b[1].to_bits(),
+            direct.bound_paper().to_bits(),
+            "bound_paper after step {k}"
+        );
+        if k == 154 {
+            // Taken with the bounds 5 steps behind: the state keeps that.
+            let state = tenth.get_fmu_state().unwrap();
+            saved = Some((tenth.serialize_fmu_state(&state).unwrap(), b.clone()));
+        }
+        if k % 10 == 9 {
+            let c = get(&mut tenth, &names);
+            for (x, y) in c.iter().zip(&b) {
+                assert!(
+                    (x - y).abs() <= 1e-13 * y.abs(),
+                    "read every tenth step, after {k}: {x} vs {y}"
+                );
+            }
+        }
+    }
+    let (bytes, at_save) = saved.unwrap();
+    let mut other = shaft(&gains, None, false);
+    other.exit_initialization_mode().unwrap();
+    let restored = other.deserialize_fmu_state(&bytes).unwrap();
+    other.set_fmu_state(&restored).unwrap();
+    let c = get(&mut other, &names);
+    for (x, y) in c.iter().zip(&at_save) {
+        assert!(
+            (x - y).abs() <= 1e-13 * y.abs(),
+            "restored with the bounds behind: {x} vs {y}"
+        );
+    }
+}
