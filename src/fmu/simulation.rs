@@ -22,6 +22,9 @@ pub struct Simulation {
     /// and add their length here; the bounds, functions of elapsed time alone, are brought up
     /// to date when read ([`Simulation::bounds_current`]). 0 in Model Exchange.
     pub bounds_behind: f64,
+    /// The last attempt to bring the bounds up to date failed (they overflow): steps no longer
+    /// try, reads do (and report it).
+    bounds_refused: bool,
 }
 
 impl Simulation {
@@ -104,11 +107,12 @@ impl Simulation {
 
     /// The plant advanced by `h`: the bounds lag behind by that much more. Once they lag by the
     /// longest step they are brought along, so that reading them after any number of unread
-    /// steps costs at most that much work (an error there is the one a read reports).
+    /// steps costs at most that much work (an error there is the one a read reports, and the
+    /// steps after it do not try again).
     #[inline]
     pub fn bounds_lag(&mut self, h: f64) {
         self.bounds_behind += h;
-        if self.bounds_behind >= self.max_step {
+        if self.bounds_behind >= self.max_step && !self.bounds_refused {
             self.bounds_current().ok();
         }
     }
@@ -120,6 +124,12 @@ impl Simulation {
     /// steps' hot path calls it only once the bounds lag by the longest step.
     #[inline(never)]
     pub fn bounds_current(&mut self) -> Result<(), BoundError> {
+        let result = self.catch_up();
+        self.bounds_refused = result.is_err();
+        result
+    }
+
+    fn catch_up(&mut self) -> Result<(), BoundError> {
         while self.bounds_behind > 0.0 {
             let h = self.bounds_behind;
             match self.bound.advance(h) {
@@ -270,6 +280,7 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         bound_sup,
         bound_t_sup,
         bounds_behind: 0.0,
+        bounds_refused: false,
     };
     let mut cache = lock();
     if cache.len() == TEMPLATE_CACHE {
