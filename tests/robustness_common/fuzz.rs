@@ -901,7 +901,7 @@ impl<S: Source> Driver<S> {
         }
     }
 
-    fn check(&self, i: usize, op: u64, status: fmi2Status, before: usize, check_all: bool) {
+    fn check(&mut self, i: usize, op: u64, status: fmi2Status, before: usize, check_all: bool) {
         let f = &self.slots[i].f;
         let new = &f.entries()[before..];
         let context = || format!("op {op}, call {}: {status:?}, log {new:?}", self.calls);
@@ -921,10 +921,28 @@ impl<S: Source> Driver<S> {
             _ => panic!("status outside the FMI 2.0 set: {}", context()),
         }
         if check_all {
+            // Every variable reads, admissible; but the bounds, brought up to the step only
+            // when read (docs/model.md §3), may overflow there: then the read is refused with
+            // that reason and the instance is in Error.
+            let before_read = f.log_len();
             let (s, values) = f.all_values();
-            assert_eq!(s, fmi2Status::fmi2OK, "{}", context());
-            for (name, x) in values {
-                assert!(admissible(name, x), "{name} = {x} after {}", context());
+            match s {
+                fmi2Status::fmi2OK => {
+                    for (name, x) in values {
+                        assert!(admissible(name, x), "{name} = {x} after {}", context());
+                    }
+                }
+                fmi2Status::fmi2Error => {
+                    let read = &f.entries()[before_read..];
+                    assert!(
+                        !self.slots[i].errors_logged
+                            || read.iter().any(|e| e.category == "logErrors" && e.message.contains("the bounds at t")),
+                        "reading every variable: {s:?}, log {read:?} after {}",
+                        context()
+                    );
+                    self.slots[i].phase = 3;
+                }
+                _ => panic!("reading every variable: {s:?} after {}", context()),
             }
         }
     }
