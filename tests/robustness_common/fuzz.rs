@@ -936,7 +936,9 @@ impl<S: Source> Driver<S> {
                     let read = &f.entries()[before_read..];
                     assert!(
                         !self.slots[i].errors_logged
-                            || read.iter().any(|e| e.category == "logErrors" && e.message.contains("the bounds at t")),
+                            || read
+                                .iter()
+                                .any(|e| e.category == "logErrors" && e.message.contains("the bounds at t")),
                         "reading every variable: {s:?}, log {read:?} after {}",
                         context()
                     );
