@@ -25,7 +25,7 @@ if [[ ! -f "$headers/fmi2Functions.h" ]]; then
 fi
 cc -O1 -g -Wall -Wextra -Werror -I "$headers" scripts/leak_driver.c -o "$work/leak_driver" -ldl
 
-for model in BacklashShaft BacklashBelt; do
+for model in BacklashShaft BacklashBelt BacklashWeb; do
     fmu="target/fmu/$model.fmu"
     [[ -f "$fmu" ]] || cargo xtask fmu
     unzip -q -o "$fmu" -d "$work/$model"
@@ -34,15 +34,17 @@ for model in BacklashShaft BacklashBelt; do
     vr_of() { grep -o "name=\"$1\" valueReference=\"[0-9]*\"" "$md" | grep -o '[0-9]*"$' | tr -d '"'; }
     tau_m="$(vr_of tau_m)"
     omega_m="$(vr_of omega_m)"
-    [[ -n "$guid" && -n "$tau_m" && -n "$omega_m" ]] || { echo "$model: cannot read $md" >&2; exit 2; }
+    # The continuous states: one derivative attribute each.
+    nx="$(grep -o 'derivative="[0-9]*"' "$md" | wc -l)"
+    [[ -n "$guid" && -n "$tau_m" && -n "$omega_m" && "$nx" -gt 0 ]] || { echo "$model: cannot read $md" >&2; exit 2; }
     so="$work/$model/binaries/linux64/$model.so"
 
     echo "== $model: heap growth over $cycles cycles (native)"
-    "$work/leak_driver" "$so" "$guid" "$cycles" "$tau_m" "$omega_m"
+    "$work/leak_driver" "$so" "$guid" "$cycles" "$tau_m" "$omega_m" "$nx"
 
     echo "== $model: valgrind --leak-check=full over $cycles cycles"
     valgrind --quiet --leak-check=full --show-leak-kinds=definite,indirect \
         --errors-for-leak-kinds=definite,indirect --error-exitcode=3 \
-        "$work/leak_driver" "$so" "$guid" "$cycles" "$tau_m" "$omega_m"
+        "$work/leak_driver" "$so" "$guid" "$cycles" "$tau_m" "$omega_m" "$nx"
 done
 echo "leak check passed: $cycles cycles per model and interface, no heap growth, nothing lost"

@@ -1,6 +1,6 @@
 /* Instantiate/free cycles through the C ABI of a packaged FMU, for scripts/leak_check.sh.
  *
- * Usage: leak_driver <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m>
+ * Usage: leak_driver <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m> <continuous states>
  *
  * Each cycle, for Co-Simulation: fmi2Instantiate, a refused call (NULL array) and recovery by
  * fmi2Reset, setup, initialization, 5 steps, an FMU state serialized and deserialized (freed
@@ -23,6 +23,7 @@
 #include "fmi2Functions.h"
 
 #define GROWTH_LIMIT 4096
+#define MAX_STATES 8
 
 static int logged = 0;
 
@@ -49,8 +50,9 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
     } while (0)
 
 int main(int argc, char **argv) {
-    if (argc != 6) {
-        fprintf(stderr, "usage: %s <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m>\n", argv[0]);
+    if (argc != 7) {
+        fprintf(stderr, "usage: %s <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m> <continuous states>\n",
+                argv[0]);
         return 2;
     }
     long cycles = atol(argv[3]);
@@ -68,6 +70,12 @@ int main(int argc, char **argv) {
 
     fmi2CallbackFunctions cb = {logger, NULL, NULL, NULL, NULL};
     const fmi2ValueReference tau_m = (fmi2ValueReference)atol(argv[4]), omega_m = (fmi2ValueReference)atol(argv[5]);
+    /* 4, or 5 with a web span's tension. */
+    const size_t nx = (size_t)atol(argv[6]);
+    if (nx < 1 || nx > MAX_STATES) {
+        fprintf(stderr, "%zu continuous states: expected 1 to %d\n", nx, MAX_STATES);
+        return 2;
+    }
     size_t heap_after_warmup = 0;
     for (long k = 0; k < cycles; k++) {
         if (k == cycles / 10) heap_after_warmup = mallinfo2().uordblks;
@@ -112,7 +120,7 @@ int main(int argc, char **argv) {
             fprintf(stderr, "cycle %ld: fmi2Instantiate (Model Exchange) returned NULL\n", k);
             return 1;
         }
-        CHECK(fmi2SetContinuousStates(c, NULL, 4), fmi2Error);
+        CHECK(fmi2SetContinuousStates(c, NULL, nx), fmi2Error);
         CHECK(fmi2Reset(c), fmi2OK);
         CHECK(fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), fmi2OK);
         CHECK(fmi2EnterInitializationMode(c), fmi2OK);
@@ -121,14 +129,14 @@ int main(int argc, char **argv) {
         fmi2EventInfo info;
         CHECK(fmi2NewDiscreteStates(c, &info), fmi2OK);
         CHECK(fmi2EnterContinuousTimeMode(c), fmi2OK);
-        fmi2Real x[4], dx[4], z[2];
+        fmi2Real x[MAX_STATES], dx[MAX_STATES], z[2];
         fmi2Boolean enter = fmi2True, terminate = fmi2True;
-        CHECK(fmi2GetContinuousStates(c, x, 4), fmi2OK);
+        CHECK(fmi2GetContinuousStates(c, x, nx), fmi2OK);
         for (int i = 0; i < 5; i++) {
-            CHECK(fmi2GetDerivatives(c, dx, 4), fmi2OK);
-            for (int j = 0; j < 4; j++) x[j] += 1e-5 * dx[j];
+            CHECK(fmi2GetDerivatives(c, dx, nx), fmi2OK);
+            for (size_t j = 0; j < nx; j++) x[j] += 1e-5 * dx[j];
             CHECK(fmi2SetTime(c, (i + 1) * 1e-5), fmi2OK);
-            CHECK(fmi2SetContinuousStates(c, x, 4), fmi2OK);
+            CHECK(fmi2SetContinuousStates(c, x, nx), fmi2OK);
             CHECK(fmi2GetEventIndicators(c, z, 2), fmi2OK);
             CHECK(fmi2CompletedIntegratorStep(c, fmi2True, &enter, &terminate), fmi2OK);
         }
