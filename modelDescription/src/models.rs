@@ -1,4 +1,4 @@
-//! The two models' variable tables: value references, kinds, start values, units and texts
+//! The models' variable tables: value references, kinds, start values, units and texts
 //! (docs/model.md §4; the defaults of BacklashShaft are the paper's rig).
 
 use crate::{
@@ -126,7 +126,7 @@ fn parameter(
 }
 
 /// Value references are unique across types, so a reference alone names a variable.
-/// The PI gains (value references 17 and 18), the same in both models: they parameterize
+/// The PI gains (value references 17 and 18), the same in every model: they parameterize
 /// the bounds only.
 fn pi_gains() -> [Var; 2] {
     [
@@ -201,7 +201,7 @@ fn continuous_local(
     )
 }
 
-/// The event indicators u − g and u + g as variables, value references 28 and 29 in both models
+/// The event indicators u − g and u + g as variables, value references 28 and 29 in every model
 /// (FMI 3.0 lists event indicators by value reference; FMI 2.0 importers see two locals).
 fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
     let unit = match drive_train {
@@ -225,7 +225,7 @@ fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
     ]
 }
 
-/// `der(theta_m)` … `der(omega_L)`, value references 24–27 in both models, after the state
+/// `der(theta_m)` … `der(omega_L)`, value references 24–27 in every model, after the state
 /// outputs of `v`.
 fn state_derivatives(v: &[Var]) -> [Var; 4] {
     let state = |name: &str| v.iter().find(|w| w.name == name).expect("the state outputs come first");

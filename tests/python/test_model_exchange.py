@@ -1,5 +1,5 @@
-"""FMI 2.0 Model Exchange of both FMUs: the right-hand side of docs/model.md §1 as an importer's
-integrator sees it, against independent references.
+"""FMI 2.0 Model Exchange of every FMU (the web line's web decoupled): the right-hand side of
+docs/model.md §1 as an importer's integrator sees it, against independent references.
 
 References (none takes a number from the FMU):
 - reference_continuous.py: the exact solution (matrix exponentials, switches found with brentq)
