@@ -5,17 +5,13 @@ use super::adapter::{self, StateVector, Values};
 use super::bounds::Bounds;
 use super::error::FmuError;
 use super::variables::{Causality, ModelInfo};
-use crate::physics::{finite, max_step, BoundError, Inputs, Plant, PlantState, Stepper, Unbounded};
+use crate::physics::{finite, max_step, BoundError, Inputs, Plant, PlantState, Stepper};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
     pub stepper: Stepper,
     pub state: PlantState,
     pub bound: Bounds,
-    /// bound_sup, or why it is +∞ (docs/model.md §3).
-    pub bound_sup: Result<f64, Unbounded>,
-    /// bound_T_sup of a web line, or why it is +∞ (docs/model.md §8); 0 for the drive trains.
-    pub bound_t_sup: Result<f64, Unbounded>,
     /// The longest step accepted ([`max_step`]).
     pub max_step: f64,
     /// How far the bounds lag behind the plant [s]. Co-Simulation steps advance the plant only
@@ -207,12 +203,14 @@ impl Simulation {
         self.stepper.plant()
     }
 
+    /// bound_sup, +∞ when unbounded (docs/model.md §3).
     pub fn bound_sup_value(&self) -> f64 {
-        self.bound_sup.unwrap_or(f64::INFINITY)
+        self.bound.sup().unwrap_or(f64::INFINITY)
     }
 
+    /// bound_T_sup of a web line, +∞ when unbounded (docs/model.md §8).
     pub fn bound_t_sup_value(&self) -> f64 {
-        self.bound_t_sup.unwrap_or(f64::INFINITY)
+        self.bound.sup_t().unwrap_or(f64::INFINITY)
     }
 }
 
@@ -270,15 +268,12 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let plant = Plant::new(adapter::plant_params(model, v))?;
     let (speed, tension) = adapter::gains(v);
     let bound = Bounds::new(&plant, speed, tension)?;
-    let (bound_sup, bound_t_sup) = (bound.sup(), bound.sup_t());
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
     let sim = Simulation {
         max_step: max_step(&plant),
         stepper: Stepper::new(plant),
         state,
         bound,
-        bound_sup,
-        bound_t_sup,
         bounds_behind: 0.0,
         bounds_refused: false,
     };

@@ -422,7 +422,7 @@ impl Instance {
         // Every output, the state derivatives included, must be finite from here on.
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         sim.rates(&sim.state, &inputs, format_args!("the initial accelerations overflow"))?;
-        let unbounded = match (sim.bound_sup, sim.bound_t_sup) {
+        let unbounded = match (sim.bound.sup(), sim.bound.sup_t()) {
             (Err(why), Err(_)) => Some(("bound_sup and bound_T_sup", why)),
             (Err(why), _) => Some(("bound_sup", why)),
             (_, Err(why)) => Some(("bound_T_sup", why)),
