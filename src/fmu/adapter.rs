@@ -6,7 +6,7 @@
 //! compile error. The rest of `fmu` handles variables only through [`source`].
 
 use super::simulation::Simulation;
-use super::variables::{model_by_identifier, DriveTrain, ModelInfo, Symbol};
+use super::variables::{model_by_identifier, DriveTrain, ModelInfo, Symbol, MODELS};
 use crate::physics::{Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, WebSpan};
 
 /// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`].
@@ -288,14 +288,22 @@ pub fn inputs(plant: &Plant, v: &Values, slopes: &InputSlopes) -> Inputs {
     }
 }
 
+/// The input lines, by their [`Source::Input`] slot.
+pub const INPUT_SYMBOLS: [Symbol; MAX_INPUTS] = [Symbol::TauM, Symbol::TauL, Symbol::VIn, Symbol::TIn];
+
 /// The values of the input lines, by slot.
 #[inline]
 pub fn input_values(v: &Values) -> [f64; MAX_INPUTS] {
-    [Symbol::TauM, Symbol::TauL, Symbol::VIn, Symbol::TIn].map(|s| v[s.index()])
+    INPUT_SYMBOLS.map(|s| v[s.index()])
 }
 
-/// The input lines' names, by slot.
-pub const INPUT_NAMES: [&str; MAX_INPUTS] = ["tau_m", "tau_L", "v_in", "T_in"];
+/// The name of the input line in `slot`, as the descriptions give it (for messages).
+pub fn input_name(slot: usize) -> &'static str {
+    MODELS
+        .iter()
+        .find_map(|m| m.by_symbol(INPUT_SYMBOLS[slot]))
+        .map_or("an input", |v| v.name)
+}
 
 /// The state from z (Model Exchange's continuous states); the mode is the one u lies in.
 pub fn state_of(plant: &Plant, z: &StateVector) -> PlantState {
@@ -310,10 +318,9 @@ pub fn entries_of(state: &PlantState) -> StateVector {
 /// Stores the input values at the end of a step (the input lines continue from there).
 #[inline]
 pub fn store_inputs(v: &mut Values, lines: &[f64; MAX_INPUTS]) {
-    v[Symbol::TauM.index()] = lines[0];
-    v[Symbol::TauL.index()] = lines[1];
-    v[Symbol::VIn.index()] = lines[2];
-    v[Symbol::TIn.index()] = lines[3];
+    for (s, x) in INPUT_SYMBOLS.iter().zip(lines) {
+        v[s.index()] = *x;
+    }
 }
 
 /// The initial state from the start values of θ, ω (and T).

@@ -22,7 +22,7 @@
 //! Loading checks, in order: length, magic, version, guid (a state of the other model is
 //! refused), exact length, checksum, then every field (phase, finiteness, parameter ranges).
 
-use super::adapter::{InputSlopes, Values, INPUT_NAMES, MAX_INPUTS};
+use super::adapter::{input_name, InputSlopes, Values, MAX_INPUTS};
 use super::bounds::Bounds;
 use super::error::FmuError;
 use super::instance::Experiment;
@@ -243,8 +243,8 @@ impl Snapshot {
             }
         }
         let mut input_slopes = [0.0; MAX_INPUTS];
-        for (slope, name) in input_slopes.iter_mut().zip(INPUT_NAMES) {
-            *slope = r.finite(&format!("d{name}/dt"))?;
+        for (slot, slope) in input_slopes.iter_mut().enumerate() {
+            *slope = r.finite(&format!("d{}/dt", input_name(slot)))?;
         }
         let mut z = [0.0; 7];
         for (x, name) in z

@@ -2,7 +2,7 @@
 //! general step with located contact switches, which in FMI 3.0 may stop at the first one.
 
 use super::Instance;
-use crate::fmu::adapter::{self, INPUT_NAMES, MAX_INPUTS};
+use crate::fmu::adapter::{self, MAX_INPUTS};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::logging::LogCategory;
 use crate::physics::{finite, Inputs, StepError, MAX_PERIODS_PER_STEP};
@@ -125,7 +125,8 @@ impl Instance {
         if let Some(i) = lines_end.iter().position(|x| !x.is_finite()) {
             return FmuError::Overflow(format!(
                 "the input ramp of {} reaches {:e} at the end of the step",
-                INPUT_NAMES[i], lines_end[i]
+                adapter::input_name(i),
+                lines_end[i]
             ));
         }
         let max_step = self.sim.as_ref().map_or(f64::NAN, |sim| sim.max_step);
@@ -156,7 +157,9 @@ impl Instance {
             } else {
                 2
             };
-            let named: Vec<String> = (0..n).map(|i| format!("{} = {:e}", INPUT_NAMES[i], lines[i])).collect();
+            let named: Vec<String> = (0..n)
+                .map(|i| format!("{} = {:e}", adapter::input_name(i), lines[i]))
+                .collect();
             named.join(", ")
         };
         let overflow = |e: StepError| match e {
