@@ -25,28 +25,6 @@ pub struct EventInfo {
 const EVENT_INDICATORS: usize = 2;
 
 impl Instance {
-    /// The bounds at the instance's time (docs/model.md §4: measured from the start time), for
-    /// reading: in Model Exchange at the time the solver set, in Co-Simulation caught up with
-    /// the steps taken since they were last read.
-    pub(super) fn bound_to_time(&mut self) -> Result<(), FmuError> {
-        let elapsed = self.time - self.experiment.start_time;
-        let model_exchange = self.flavour.interface == Interface::ModelExchange;
-        match self.sim.as_mut() {
-            Some(sim) => match model_exchange {
-                true => sim.bound_at(elapsed),
-                false => sim.bounds_current(),
-            }
-            .map_err(|e| match e {
-                crate::physics::BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
-                    "the bounds at t = {} overflow: bound = {bound:e}, bound_paper = {bound_paper:e}",
-                    self.time
-                )),
-                e => e.into(),
-            }),
-            None => Ok(()),
-        }
-    }
-
     /// Model Exchange, and FMI 3.0 Co-Simulation with Event Mode (after a step that stopped at
     /// a contact switch, or whenever the importer wants to act).
     pub(crate) fn enter_event_mode_body(&mut self) -> Result<Status, FmuError> {

@@ -5,9 +5,9 @@ use super::Instance;
 use crate::fmu::adapter::{self, Calculated, Source};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
-use crate::fmu::state_machine::{Phase, Standard};
+use crate::fmu::state_machine::{Interface, Phase, Standard};
 use crate::fmu::variables::{Causality, VarType, Variable};
-use crate::physics::contact_indicator;
+use crate::physics::{contact_indicator, BoundError};
 
 /// The independent variable of the FMI 3.0 descriptions: the instance's time.
 use model_description::xml3::TIME;
@@ -56,6 +56,28 @@ impl Instance {
             self.preview = Some(Simulation::build(self.model, &self.values)?);
         }
         Ok(self.preview.as_ref().expect("built above"))
+    }
+
+    /// The bounds at the instance's time (docs/model.md §4: measured from the start time), for
+    /// reading: in Model Exchange at the time the solver set, in Co-Simulation caught up with
+    /// the steps taken since they were last read.
+    pub(super) fn bound_to_time(&mut self) -> Result<(), FmuError> {
+        let elapsed = self.time - self.experiment.start_time;
+        let model_exchange = self.flavour.interface == Interface::ModelExchange;
+        match self.sim.as_mut() {
+            Some(sim) => match model_exchange {
+                true => sim.bound_at(elapsed),
+                false => sim.bounds_current(),
+            }
+            .map_err(|e| match e {
+                BoundError::Overflow { bound, bound_paper } => FmuError::Overflow(format!(
+                    "the bounds at t = {} overflow: bound = {bound:e}, bound_paper = {bound_paper:e}",
+                    self.time
+                )),
+                e => e.into(),
+            }),
+            None => Ok(()),
+        }
     }
 
     fn real_value(&mut self, v: &Variable) -> Result<f64, FmuError> {

@@ -326,9 +326,8 @@ pub(super) fn render(plan: &Plan, measured: &Measurements, facts: &Facts) -> Res
          switches on either. A step advances the plant; the bounds, functions of elapsed time alone, are \
          brought up to the step when read (docs/model.md §3). The web line's step costs {t_web_start:.2}x \
          the belt drive's over a fresh instance's first {start_s} s ({:.1} ns more) and {t_web:.2}x over \
-         {run_s} s of one instance ({:.1} ns more). Read after every step, the bounds cost more while their \
-         responses are still being integrated (the web's take about 10 s to decay below round-off, the \
-         belt's about 1 s; after that reading them costs next to nothing): over the first {start_s} s \
+         {run_s} s of one instance ({:.1} ns more). Read after every step, the bounds add the cost of their \
+         advance over the step: over the first {start_s} s \
          a step with the bounds read costs {:.1} ns on the web line (two bounds of the 7-state loop) and \
          {:.1} ns on the belt drive (one of the 5-state loop), {t_web_read:.2}x.",
         drive_h * 1e6,
