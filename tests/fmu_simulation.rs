@@ -288,3 +288,28 @@ fn bounds_read_after_any_steps_are_the_bound_advanced_over_them() {
         );
     }
 }
+
+/// Unread, the bounds lag behind by the steps taken, and are brought along within the step that
+/// makes them lag by the longest step accepted; an FMU state records the lag.
+#[test]
+fn unread_bounds_are_brought_along_once_they_lag_by_the_longest_step() {
+    use backlash_fmu::fmu::adapter::default_plant_params;
+    use backlash_fmu::physics::{max_step, Plant};
+    let belt = &MODELS[1];
+    let longest = max_step(&Plant::new(default_plant_params(belt.identifier)).unwrap());
+    let mut inst = Instance::new(belt, None, false);
+    inst.setup_experiment(None, 0.0, None).unwrap();
+    inst.enter_initialization_mode().unwrap();
+    inst.exit_initialization_mode().unwrap();
+    let h = 0.5 * longest;
+    let lag = |inst: &mut Instance| inst.get_fmu_state().unwrap().physics.unwrap().bounds_behind;
+    let mut lags = Vec::new();
+    for k in 0..3 {
+        inst.do_step(k as f64 * h, h).unwrap();
+        lags.push(lag(&mut inst));
+    }
+    assert_eq!(lags, [h, 0.0, h]);
+    // Read, they catch up.
+    let bound = get(&mut inst, &["bound"])[0];
+    assert!(bound > 0.0 && lag(&mut inst) == 0.0, "bound {bound}");
+}
