@@ -101,6 +101,14 @@ impl Bounds {
         }
     }
 
+    /// The longest advance accepted in one call (the web line's two bounds share their loop).
+    pub fn max_advance(&self) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.max_advance(),
+            Bounds::Web(w) => w.speed.max_advance().min(w.tension.max_advance()),
+        }
+    }
+
     pub fn bound(&self) -> f64 {
         match self {
             Bounds::Speed(b) => b.bound(),

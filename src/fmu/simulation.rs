@@ -18,6 +18,9 @@ pub struct Simulation {
     /// and add their length here; the bounds, functions of elapsed time alone, are brought up
     /// to date when read ([`Simulation::bounds_current`]). 0 in Model Exchange.
     pub bounds_behind: f64,
+    /// The lag at which a step brings the bounds along: the longest step, or the longest advance
+    /// the bounds accept if that is shorter.
+    lag_limit: f64,
     /// The last attempt to bring the bounds up to date failed (they overflow): steps no longer
     /// try, reads do (and report it).
     bounds_refused: bool,
@@ -108,7 +111,7 @@ impl Simulation {
     #[inline]
     pub fn bounds_lag(&mut self, h: f64) {
         self.bounds_behind += h;
-        if self.bounds_behind >= self.max_step && !self.bounds_refused {
+        if self.bounds_behind >= self.lag_limit && !self.bounds_refused {
             self.bounds_current().ok();
         }
     }
@@ -125,9 +128,15 @@ impl Simulation {
         result
     }
 
+    /// At most [`MAX_BOUND_ADVANCES`] advances, as [`Simulation::bound_at`]: a lag the bounds
+    /// cannot follow within them (extreme parameters, where their longest advance is far shorter
+    /// than a step) is refused rather than followed for ever.
     fn catch_up(&mut self) -> Result<(), BoundError> {
-        while self.bounds_behind > 0.0 {
+        for _ in 0..MAX_BOUND_ADVANCES {
             let h = self.bounds_behind;
+            if h <= 0.0 {
+                return Ok(());
+            }
             match self.bound.advance(h) {
                 Ok(()) => self.bounds_behind = 0.0,
                 Err(BoundError::AdvanceTooLong { max_h, .. }) => {
@@ -137,7 +146,14 @@ impl Simulation {
                 Err(e) => return Err(e),
             }
         }
-        Ok(())
+        if self.bounds_behind <= 0.0 {
+            return Ok(());
+        }
+        let reached = self.bound.elapsed();
+        Err(BoundError::TooFar {
+            elapsed: reached + self.bounds_behind,
+            reached,
+        })
     }
 
     /// Rebuilds from saved values and continues from a saved plant and bound state, the bounds
@@ -269,12 +285,15 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let (speed, tension) = adapter::gains(v);
     let bound = Bounds::new(&plant, speed, tension)?;
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
+    let longest = max_step(&plant);
+    let lag_limit = longest.min(bound.max_advance());
     let sim = Simulation {
-        max_step: max_step(&plant),
+        max_step: longest,
         stepper: Stepper::new(plant),
         state,
         bound,
         bounds_behind: 0.0,
+        lag_limit,
         bounds_refused: false,
     };
     let mut cache = lock();

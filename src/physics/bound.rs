@@ -513,6 +513,12 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
         self.state.elapsed
     }
 
+    /// The longest advance accepted in one call (longer ones are refused with
+    /// `AdvanceTooLong`).
+    pub fn max_advance(&self) -> f64 {
+        super::stepper::MAX_PIECES as f64 * self.h_rows.len_ref()
+    }
+
     pub fn state(&self) -> BoundState<N> {
         self.state
     }

@@ -922,8 +922,9 @@ impl<S: Source> Driver<S> {
         }
         if check_all {
             // Every variable reads, admissible; but the bounds, brought up to the step only
-            // when read (docs/model.md §3), may overflow there: then the read is refused with
-            // that reason and the instance is in Error.
+            // when read (docs/model.md §3), may overflow there, or (extreme parameters) lie out
+            // of their reach: then the read is refused with that reason and the instance is in
+            // Error.
             let before_read = f.log_len();
             let (s, values) = f.all_values();
             match s {
@@ -938,7 +939,7 @@ impl<S: Source> Driver<S> {
                         !self.slots[i].errors_logged
                             || read
                                 .iter()
-                                .any(|e| e.category == "logErrors" && e.message.contains("the bounds at t")),
+                                .any(|e| e.category == "logErrors" && e.message.contains("the bounds at")),
                         "reading every variable: {s:?}, log {read:?} after {}",
                         context()
                     );
