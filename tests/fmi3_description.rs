@@ -287,6 +287,7 @@ fn variables_are_the_tables_in_fmi3_form() {
             assert_eq!(x.attribute("description"), Some(v.description), "{what}");
             assert_eq!(x.attribute("unit").unwrap_or(""), v.unit, "{what}");
             assert_eq!(x.attribute("quantity").unwrap_or(""), v.quantity, "{what}");
+            // Exact: start and nominal are written with `{:?}`, which round-trips an f64.
             assert_eq!(
                 x.attribute("start").map(|s| s.parse::<f64>().unwrap()),
                 v.start,

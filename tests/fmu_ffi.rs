@@ -108,6 +108,7 @@ fn a_full_run_through_the_c_functions() {
             fmi2GetRealStatus(c, fmi2LastSuccessfulTime, &mut last),
             fmi2Status::fmi2OK
         );
+        // The FMU's time is communicationPoint + stepSize: the same sums as `t += 1e-4`.
         assert_eq!(last, t);
         assert_eq!(
             fmi2GetIntegerStatus(c, fmi2DoStepStatus, &mut 0),
@@ -198,6 +199,7 @@ fn fmu_states_through_bytes_and_refusals() {
             fmi2Status::fmi2OK
         );
         assert_eq!(fmi2SetFMUstate(other, copy), fmi2Status::fmi2OK);
+        // The same state stepped by the same code.
         assert_eq!(next(other), expected);
         assert_eq!(fmi2FreeFMUstate(other, &mut copy), fmi2Status::fmi2OK);
         assert!(copy.is_null());

@@ -141,7 +141,10 @@ fn the_first_contact_is_logged_at_the_free_flight_time() {
     assert_eq!(contact, [1]);
 }
 
-/// Outputs after each of `steps` steps with a varying torque, as bits.
+/// Outputs after each of `steps` steps with a varying torque, as bits. Two runs compared bit
+/// for bit are the same arithmetic by construction: the same library code (in one process, so
+/// the same libm) on the same parameters, state and inputs; fmi2Reset rebuilds the start state
+/// from the same values, and an FMU state carries its f64 words byte for byte.
 fn run(inst: &mut Instance, steps: usize) -> Vec<u64> {
     let names = [
         "theta_m",
@@ -195,6 +198,7 @@ fn a_deserialized_state_continues_bit_identically_in_another_instance() {
     let mut b = Instance::new(&MODELS[0], None, false);
     let restored = b.deserialize_fmu_state(&bytes).unwrap();
     b.set_fmu_state(&restored).unwrap();
+    // A stored value read back.
     assert_eq!(b.time().to_bits(), t_snap.to_bits());
     assert_eq!(run(&mut b, 30), continued);
 
@@ -254,6 +258,9 @@ fn bounds_read_after_any_steps_are_the_bound_advanced_over_them() {
         }
         direct.advance(h).unwrap();
         let b = get(&mut every, &names);
+        // Bit for bit by construction: the instance builds the same SpeedErrorBound (the
+        // shaft's start values are paper_rig(0.775e-3)'s) and, read after every step, catches
+        // up by its lag 0 + h = h in one `advance(h)`, the call made on `direct`.
         assert_eq!(b[0].to_bits(), direct.bound().to_bits(), "bound after step {k}");
         assert_eq!(
             b[1].to_bits(),
@@ -308,6 +315,8 @@ fn unread_bounds_are_brought_along_once_they_lag_by_the_longest_step() {
         inst.do_step(k as f64 * h, h).unwrap();
         lags.push(lag(&mut inst));
     }
+    // Exact: the lag sums step lengths, 0 + h = h and h + h = 2 h exactly, and catching up
+    // sets it to 0.
     assert_eq!(lags, [h, 0.0, h]);
     // Read, they catch up.
     let bound = get(&mut inst, &["bound"])[0];

@@ -70,6 +70,7 @@ fn xml_and_rust_table_describe_the_same_variables() {
                 "{}",
                 v.name
             );
+            // Exact: the description writes start with `{:?}`, which round-trips an f64.
             assert_eq!(
                 x.start.as_ref().map(|s| s.parse::<f64>().unwrap()),
                 v.start,
@@ -254,6 +255,7 @@ fn calculated_outputs_at_the_start_match_the_model_formulas() {
     inst.get_real(&vrs, &mut out).unwrap();
     let expected_psi = 200.0 * (0.012 - 0.775e-3);
     assert!((out[0] - expected_psi).abs() <= 1e-13 * expected_psi, "{out:?}");
+    // Exact: at elapsed time 0 l1 and the integral are zeros, and K g·0 and K g·√0 are 0.
     assert_eq!(&out[1..3], &[0.0, 0.0]);
     assert!(
         out[3].is_finite() && out[3] > 0.0,

@@ -161,6 +161,8 @@ fn a_serialized_fmu_state_continues_bit_for_bit() {
     other.exit_initialization_mode().unwrap();
     let restored = other.deserialize_fmu_state(&bytes).unwrap();
     other.set_fmu_state(&restored).unwrap();
+    // Same arithmetic by construction: the state's f64 words are carried byte for byte and the
+    // same code (one process, one libm) continues from them with the same inputs.
     assert_eq!(trace(&mut other, 0.04, 60), continued);
     let t = get(&mut other, &["T", "bound_T"]);
     assert!(t[0] != 0.0 && t[1] > 0.0, "the web moved and its bound grew: {t:?}");
@@ -341,5 +343,9 @@ fn tension_gains_without_a_speed_loop_change_no_bound() {
     let without = bounds(&[]);
     let with = bounds(&[("Kp_T", 0.01), ("Ki_T", 0.05)]);
     assert!(without.iter().all(|x| x.is_finite() && *x > 0.0), "{without:?}");
+    // Bit for bit by construction: with Kp = Ki = 0 the tension gains enter `web_loop` only
+    // multiplied by a speed gain (0·Kp_T, 0·Ki_T: the same zeros as with Kp_T = Ki_T = 0), and
+    // neither `web_loop` nor `Reduced::web` wires x_T in with the speed loop open; so both
+    // instances build identical matrices and run the same arithmetic on them.
     assert_eq!(with, without);
 }

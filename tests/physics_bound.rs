@@ -103,6 +103,8 @@ fn bound_holds_for_the_backlash_loop_and_the_printed_formula_does_not() {
         b.advance(dt).unwrap();
         let diff = (with_gap.omega_l() - without.omega_l()).abs();
         let (bound, paper) = (b.bound(), b.bound_paper());
+        // Exact: one `LoopBound` advanced further; its l1 only gains non-negative terms and
+        // rounding is monotonic, so K g l1 cannot decrease in floating point either.
         assert!(
             bound >= last_bound,
             "bound decreased at t = {}: {bound} < {last_bound}",
@@ -197,6 +199,8 @@ fn bound_sup_is_the_limit_of_bound() {
         let mut last = 0.0;
         for t in [0.1, 1.0, 10.0] {
             b.advance(t - b.elapsed()).unwrap();
+            // `>= last` is exact: the same bound advanced further, its l1 only gains
+            // non-negative terms (rounding is monotonic).
             assert!(b.bound() <= sup * (1.0 + 1e-12) && b.bound() >= last);
             last = b.bound();
         }
@@ -252,6 +256,7 @@ fn one_long_advance_equals_many_short_ones_and_reset_restarts() {
     }
     assert!(rel(one.bound(), many.bound()) <= 1e-10 && rel(one.bound_paper(), many.bound_paper()) <= 1e-10);
     one.reset();
+    // Exact: reset zeroes elapsed, l1 and the integral, and K g·0 and K g·√0 are 0.
     assert_eq!((one.elapsed(), one.bound(), one.bound_paper()), (0.0, 0.0, 0.0));
 }
 
@@ -270,6 +275,8 @@ fn settled_advance_drifts_exactly_and_refuses_overflow() {
     }
     let settled = b.state();
     b.advance(1.0).unwrap();
+    // Exact once settled: the settled advance leaves the response as stored (only `drift`
+    // touches the integral); an unsettled one recomputes it.
     assert_eq!(b.state().response, settled.response, "not settled after 2000 s");
     assert!(settled.response.iter().any(|r| *r != 0.0), "no drift to test");
     let h = 100.0;
@@ -293,6 +300,9 @@ fn settled_advance_drifts_exactly_and_refuses_overflow() {
                 Ok(()) => {
                     accepted += 1;
                     let now = b.state();
+                    // Bit for bit by construction: `expected` is `LoopBound::drift`'s own
+                    // arithmetic (I_i += r_i·h, the same operands in the same order), and
+                    // `elapsed += h` is `advance`'s; response and l1 are left as stored.
                     assert_eq!(now.integral, expected, "scale {c:e}, advance {accepted}");
                     assert_eq!((now.response, now.l1), (before.response, before.l1));
                     assert_eq!(now.elapsed, before.elapsed + h);
@@ -344,6 +354,7 @@ fn bound_paper_rate_at_the_start_is_the_right_derivative() {
     // right (bound_paper(δ)/δ = K g ‖r‖ + O(δ)).
     let params = PlantParams::paper_rig(1.78e-3);
     let start = bound_for(&params, KP, KI);
+    // Exact: the integral starts at zeros, and K g·√0 is 0.
     assert_eq!(start.bound_paper(), 0.0);
     let delta = 1e-8;
     let mut after = start.clone();
@@ -357,6 +368,8 @@ fn bound_paper_rate_at_the_start_is_the_right_derivative() {
     // And bound's rate is K g |h(0)|, h(0) = −r_L/J_L.
     let plant = Plant::new(params).unwrap();
     let expected = plant.stiffness() * plant.half_gap() * plant.r_l() / params.j_l;
+    // The same fl(K g) times r_L/J_L (r_L = 1): the library rounds 1/J_L and the product, this
+    // side the quotient, so they are at most 3 u = 1.5 ε ≈ 3.3e-16 apart (relative).
     assert!(rel(start.bound_rate(), expected) <= 1e-15);
 }
 
@@ -389,6 +402,8 @@ fn force_rate_is_the_slope_of_the_force() {
         let rates = stepper.time_derivative(&mid, &inputs, 1);
         let rate = plant.force_rate(mid.mode, rates[0], rates[2]);
         if mode == ContactMode::Free {
+            // Exact: ψ' is the literal 0 in the gap, and dz(u, g) is exactly 0 inside it at
+            // both ends (u = 0.2 g barely moves over 2δ), so the difference is 0/(2δ) = 0.
             assert_eq!(rate, 0.0);
             assert_eq!(slope, 0.0);
         } else {
@@ -406,6 +421,8 @@ fn max_step_is_the_period_cap_of_the_contact_oscillation() {
     for params in [PlantParams::paper_rig(1.78e-3), support::rigs::belt(1e-3)] {
         let plant = Plant::new(params).unwrap();
         let (k, r_m, r_l) = (plant.stiffness(), plant.r_m(), plant.r_l());
+        // Bit for bit by construction: `Plant::contact_frequency` and `max_step` written out
+        // with the same operands in the same order (and sqrt is correctly rounded).
         let omega0 = (k * (r_m * r_m / params.j_m + r_l * r_l / params.j_l)).sqrt();
         assert_eq!(plant.contact_frequency(), omega0);
         assert_eq!(

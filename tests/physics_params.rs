@@ -142,6 +142,8 @@ fn derived_constants_that_overflow_are_rejected() {
     match Plant::new(p) {
         Err(ParamError::DerivedOutOfScale { name, value }) => {
             assert_eq!(name, "K*r_m^2/J_m");
+            // Bit for bit: `Plant::new`'s K·r_m·r_m/J_m with the same operands in the same
+            // order (J_m = 1: the division is exact).
             assert_eq!(value, 1e100 * 1e60 * 1e60);
         }
         other => panic!("{other:?}"),

@@ -211,7 +211,8 @@ fn refused_in_step_complete(reason: &str, call: impl FnOnce(fmi2Component) -> fm
     let f = Fmu::initialized(SHAFT, None);
     let before = f.all_values().1;
     f.refuses(reason, call);
-    // The refusal changed no value (fmi2GetXXX stays legal in state Error).
+    // The refusal changed no value (fmi2GetXXX stays legal in state Error): bit for bit, as
+    // both reads compute the outputs by the same code from the same stored values.
     let after = f.all_values();
     assert_eq!(after.0, OK);
     assert_eq!(
@@ -681,7 +682,9 @@ fn bad_step_sizes_and_communication_points_are_refused() {
         refused_in_step_complete("currentCommunicationPoint", |c| fmi2DoStep(c, t, 1e-3, 1));
     }
 
-    // A tiny step is a step: at t = 0 it is representable and moves time exactly.
+    // A tiny step is a step: at t = 0 it is representable and moves time exactly. The FMU's
+    // time is currentCommunicationPoint + h, so exact here: 0 + 1e-300 = 1e-300, and
+    // 1e-300 + fl(1 − 1e-300) = 1e-300 + 1 rounds to 1 (1e-300 is far below half an ulp of 1).
     let f = Fmu::initialized(SHAFT, None);
     assert_eq!(fmi2DoStep(f.c, 0.0, 1e-300, 1), OK);
     assert_eq!(f.time(), 1e-300);
@@ -827,6 +830,8 @@ fn x_at_work(model: usize) -> Vec<f64> {
 
 /// Everything a Model Exchange instance shows, as bits: every variable, the continuous states,
 /// the event indicators and the nominals (all readable in Event, Continuous-Time and Error mode).
+/// Two observations of one unchanged instance are the same arithmetic by construction (the same
+/// code on the same stored values), so they are compared bit for bit.
 fn observe(f: &Fmu) -> Vec<u64> {
     let (s, values) = f.all_values();
     assert_eq!(s, OK, "{:?}", f.entries().last());
@@ -1140,6 +1145,8 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
         for t in [1.0, 1.5, 1.0] {
             assert_eq!(fmi2SetTime(f.c, t), OK, "t = {t}");
         }
+        // Bit for bit: back at elapsed time 0 the bounds restart from their reset state (a
+        // bound is a function of elapsed time alone), and the rest never moved.
         assert_eq!(
             observe(&f),
             before,
@@ -1355,7 +1362,9 @@ fn model_exchange_directional_derivatives_refuse_bad_seeds_and_references() {
         };
         assert_eq!(s, OK);
         // d theta_m = the theta_m seed; the bound depends on time alone; u = r_m theta_m - r_L theta_L
-        // moves with theta_m (r_m = 1 on the shaft).
+        // moves with theta_m (r_m = 1 on the shaft). All exact: the seed passed through (0 + 0.5),
+        // the literal 0, and u_minus_g and u_plus_g both `Plant::transmission` of the same
+        // seeds (on the shaft 1·0.5 − 1·0 = 0.5).
         assert_eq!(dv[..2], [0.5, 0.0]);
         assert_eq!(dv[2], dv[3]);
         if model == SHAFT {
@@ -1389,6 +1398,7 @@ fn model_exchange_directional_derivatives_refuse_bad_seeds_and_references() {
                     )
                 };
                 assert_eq!(s, OK, "{known}");
+                // d(T) is the seed passed through (0 + 2) and d(bound_T) the literal 0: exact.
                 let want = [2.0 * rate, if known == "T" { 2.0 } else { 0.0 }, 0.0];
                 assert!(
                     (dv[0] - want[0]).abs() <= 1e-14 * want[0].abs() && dv[1..] == want[1..],

@@ -82,7 +82,8 @@ fn a_panic_in_any_function_and_any_state_is_caught_and_leaves_error() {
         f.refuses("not allowed in state Error", |c| fmi2EnterInitializationMode(c));
         // Values stay readable in Error (they are for debugging), and fmi2Reset recovers.
         f.reset_and_check();
-        // Another instance stepping alongside is untouched: it matches its twin bit for bit.
+        // Another instance stepping alongside is untouched: it matches its twin bit for bit (the
+        // same calls with the same arguments: the same arithmetic by construction).
         let t = k as f64 * 1e-3;
         assert_eq!(fmi2DoStep(other.c, t, 1e-3, 1), OK);
         assert_eq!(fmi2DoStep(twin.c, t, 1e-3, 1), OK);
@@ -171,7 +172,8 @@ fn a_panic_in_a_model_exchange_function_is_caught_and_leaves_error() {
         f.refuses("not allowed in state Error", |c| fmi2EnterEventMode(c));
         f.assert_all_finite(&format!("after a panic in {}", function.c_name()));
         f.reset_and_check();
-        // Another instance integrating alongside is untouched: it matches its twin bit for bit.
+        // Another instance integrating alongside is untouched: it matches its twin bit for bit
+        // (the same calls with the same arguments: the same arithmetic by construction).
         let x = states(WEB, [1e-4 * k as f64, 0.1, 0.0, 0.05], 5.0 * k as f64);
         for g in [&other, &twin] {
             assert_eq!(fmi2SetTime(g.c, 0.01 * k as f64), OK);

@@ -222,6 +222,7 @@ fn error_is_left_only_by_reset_or_an_fmu_state() {
     let reference = Fmu::initialized(SHAFT, None);
     assert_eq!(fmi2DoStep(reference.c, 0.0, 0.01, 1), OK);
     assert_eq!(fmi2DoStep(reference.c, 0.01, 0.01, 1), OK);
+    // The restored state is the reference's after its first step, stepped by the same code.
     let bits = |f: &Fmu| f.all_values().1.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&f), bits(&reference));
 }
@@ -382,6 +383,7 @@ fn me_table() -> Vec<MeCase> {
                 }
                 assert_eq!(f.get_real("tau_m"), (OK, 0.5));
                 // der(omega_m) = (tau_m - b_m omega_m - psi) / J_m, from rest at theta = 0.
+                // (0.5 − b_m·0 − 0)/J_m: the FMU's division of the same numbers, the rest exact zeros.
                 assert_eq!(f.get_real("der(omega_m)"), (OK, 0.5 / f.get_real("J_m").1));
             })),
             case("fmi2SetInteger", |f| fmi2SetInteger(f.c, null(), 0, null()), [true, true, true, false, false, false], OK, None),
@@ -403,6 +405,7 @@ fn me_table() -> Vec<MeCase> {
                 assert_eq!(f.continuous_states(), (OK, table_states(f.model_index())));
                 assert_eq!(fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1), OK);
                 let donor = me_donor(f.model_index());
+                // The same bound state advanced to the same time by the same code.
                 assert_eq!(f.get_real("bound"), donor.get_real("bound"));
             })),
             case("fmi2FreeFMUstate", |f| {
@@ -434,6 +437,8 @@ fn me_table() -> Vec<MeCase> {
                 let mut dv = [f64::NAN];
                 let s = fmi2GetDirectionalDerivative(f.c, [f.vr("der(omega_m)")].as_ptr(), 1, [f.vr("tau_m")].as_ptr(), 1, [2.0].as_ptr(), dv.as_mut_ptr());
                 assert_eq!(s, OK);
+                // The FMU's (1/J_m)·2 equals 2/J_m exactly: scaling by a power of two commutes with
+                // rounding.
                 assert_eq!(dv[0], 2.0 / f.get_real("J_m").1);
             })),
             case("fmi2SetRealInputDerivatives", |f| {
@@ -485,6 +490,7 @@ fn me_table() -> Vec<MeCase> {
                 let (s, bound) = f.get_real("bound");
                 assert_eq!(s, OK);
                 assert!(bound > 0.0);
+                // Both bring the bound from the start to 0.3 by the same advance.
                 assert_eq!(bound.to_bits(), me_donor(f.model_index()).get_real("bound").1.to_bits());
             })),
             case("fmi2SetContinuousStates", |f| {

@@ -1,7 +1,9 @@
 //! Instances used from many threads at once (each instance by one thread at a time, as FMI
 //! 2.0 §2.1.5 requires) give bit-identical results to the same runs done one after another:
 //! the live-instance table, the FMU-state table and the shared cache of built plants must
-//! neither corrupt nor couple instances, of either interface.
+//! neither corrupt nor couple instances, of either interface. Bit for bit is the contract: a
+//! run is the same calls with the same arguments in one process (one libm), the same
+//! arithmetic whichever thread runs it, and a cached plant is a copy of a deterministic build.
 #![cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 
 mod robustness_common;

@@ -346,6 +346,7 @@ fn model_exchange_states_do_not_cross_interfaces() {
     let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
     me.get_derivatives(&mut a).unwrap();
     other.get_derivatives(&mut b).unwrap();
+    // The same state, restored bit for bit, through the same vector field.
     assert_eq!(a, b);
     // Into a Co-Simulation instance: refused with the reason.
     let (mut cs, _) = shaft();

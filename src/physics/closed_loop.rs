@@ -329,7 +329,8 @@ mod tests {
                     (&lhs - &rhs).abs().max() <= 1e-14 * scale,
                     "{tension:?}: {lhs} vs {rhs}"
                 );
-                // The output row picks the same entry in both coordinates.
+                // The output row picks the same entry in both coordinates (exact: a sum of 1·1
+                // and products with 0).
                 assert_eq!((r.out.transpose() * &proj)[output], 1.0);
             }
         }

@@ -310,6 +310,14 @@ impl Stepper {
     /// step size `step` last took and one piece long, and the piece is certified free of
     /// switches. Returns the state at its end if it is finite; else `None`, and `step` does
     /// the step (or says why not). `state` must be finite.
+    ///
+    /// Contract: a state it returns is bit for bit the one `step` gives, but for the sign of a
+    /// zero. It is `step`'s one-piece path by construction: the same cached kernel summed by
+    /// the same `PieceKernel::sums_inline` (which `step` reaches through `sums`) over the same
+    /// operands in the same order, then the same `clear` and `finish_piece`; IEEE arithmetic
+    /// without contraction gives the same bits on any machine, inlined or not. The one
+    /// difference: `step` forms the inputs at the piece start as τ + τ̇·0, which is τ but for
+    /// the sign of a zero.
     #[inline]
     pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
         match self {

@@ -745,6 +745,7 @@ impl<S: Source> Driver<S> {
                         match op {
                             GET_CONTINUOUS_STATES => self.slots[i].x = out,
                             GET_DERIVATIVES => self.slots[i].dx = out,
+                            // [u − g, u + g] with g ≥ 0: ordered after rounding too (monotonic).
                             GET_EVENT_INDICATORS => assert!(out[0] <= out[1], "indicators {out:?}"),
                             _ => assert!(out.iter().all(|x| *x > 0.0), "nominals {out:?}"),
                         }

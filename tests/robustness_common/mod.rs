@@ -384,7 +384,8 @@ impl Drop for Fmu {
 
 /// A short open-loop run from the start values (τ_m = 2, τ_L = 0.5, 20 steps of 5 ms), as the
 /// bits of every variable at the end. Used to prove an instance works normally: a fresh one,
-/// or one reset after misuse, must reproduce the run of an untouched instance bit for bit.
+/// or one reset after misuse, must reproduce the run of an untouched instance bit for bit (the
+/// same calls with the same arguments in one process: the same arithmetic by construction).
 pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
     assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), fmi2Status::fmi2OK);
     assert_eq!(fmi2EnterInitializationMode(f.c), fmi2Status::fmi2OK);
@@ -460,7 +461,8 @@ pub fn fresh_instance_works(model: usize) {
 /// over θ_m's) through fmi2SetTime, fmi2SetContinuousStates, fmi2GetDerivatives and
 /// fmi2CompletedIntegratorStep, with an event iteration whenever an event indicator changes
 /// sign. Runge-Kutta keeps linear invariants, so the momentum balance holds as in the
-/// Co-Simulation run. Returns the bits of every variable at the end.
+/// Co-Simulation run. Returns the bits of every variable at the end (compared bit for bit, as
+/// [`standard_run_on`]'s: the same calls, the same arithmetic).
 pub fn standard_me_run_on(f: &Fmu) -> Vec<u64> {
     assert!(f.model_exchange, "a Model Exchange instance");
     const OK: fmi2Status = fmi2Status::fmi2OK;

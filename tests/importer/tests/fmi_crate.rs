@@ -211,6 +211,7 @@ fn shaft_model_exchange_integrates_to_the_closed_form_motor_response() {
     fmu.set_continuous_states(&x).expect("fmi2SetContinuousStates");
     fmu.get_event_indicators(&mut indicators)
         .expect("fmi2GetEventIndicators");
+    // u = r_m θ_m − r_L θ_L with r_m = 1, θ_L = 0 on the shaft: u ∓ g is this very subtraction.
     assert_eq!(indicators, [x[0] - delta, x[0] + delta]);
     fmu.terminate().expect("fmi2Terminate");
 }

@@ -621,7 +621,17 @@ mod tests {
                 kp: design.gains.kp * fp,
                 ki: design.gains.ki * fi,
             };
-            assert!(min_damping_ratio(&plant, g) < design.min_damping, "{fp} {fi}");
+            // Not the same computation: design.min_damping is evaluated where two pole pairs
+            // coincide, a double eigenvalue, which eigenvalue routines resolve only to ~√ε of its
+            // modulus (the optimiser's own stopping resolution, 1e-15 in ζ, is below that); the
+            // 1 % steps here lower ζ by 7e-3 or more.
+            let resolution = f64::EPSILON.sqrt();
+            assert!(
+                min_damping_ratio(&plant, g) < design.min_damping + resolution,
+                "{fp} {fi}: {} vs {}",
+                min_damping_ratio(&plant, g),
+                design.min_damping
+            );
         }
     }
 
@@ -689,6 +699,8 @@ mod tests {
         assert!(k_min.k < 200.0);
         let at = |k: f64| bound_sup(&with_stiffness(&rig(delta), k), gains).unwrap();
         assert!((at(k_min.k) / eps - 1.0).abs() < 1e-9, "{} vs {eps}", at(k_min.k));
+        // Exact by construction: `refine_crossing` reports the feasible end of its bracket, a
+        // K where its own evaluation, this same bound_sup on the same parameters, gave ≤ ε.
         assert!(at(k_min.k) <= eps);
         assert!(at(0.99 * k_min.k) > eps);
         assert!(at(1.01 * k_min.k) < eps);
