@@ -52,7 +52,8 @@ impl Fmu3 {
                 token.as_ptr(),
                 null(),
                 false,
-                false,
+                // loggingOn: the tests read the reasons (with false the logger is never called).
+                true,
                 event_mode_used,
                 early_return,
                 null(),
@@ -391,7 +392,7 @@ fn undeclared_features_are_refused_with_the_reason() {
         fmi3GetClock(f.c, vr.as_ptr(), 1, clock.as_mut_ptr()),
         fmi3Status::fmi3Error
     );
-    assert!(f.log.lock().unwrap().last().unwrap().1.contains("no clocks"));
+    assert!(f.log.lock().unwrap().iter().any(|(_, m)| m.contains("no clocks")));
     let f = Fmu3::co_simulation(0, false, false);
     assert_eq!(fmi3EnterConfigurationMode(f.c), fmi3Status::fmi3Error);
     // Without Event Mode the importer cannot enter it.
@@ -413,11 +414,26 @@ fn undeclared_features_are_refused_with_the_reason() {
             c"{0}".as_ptr(),
             null(),
             false,
-            false,
+            true,
             &*log as *const Log3 as *mut c_void,
             Some(log3),
         )
     };
     assert!(c.is_null());
     assert!(log.lock().unwrap()[0].1.contains("instantiationToken"));
+    // With loggingOn = false the logger is not called at all (FMI 3.0.2 §2.3.1).
+    let quiet: Box<Log3> = Box::default();
+    // SAFETY: as above.
+    let c = unsafe {
+        fmi3InstantiateModelExchange(
+            c"x".as_ptr(),
+            c"{0}".as_ptr(),
+            null(),
+            false,
+            false,
+            &*quiet as *const Log3 as *mut c_void,
+            Some(log3),
+        )
+    };
+    assert!(c.is_null() && quiet.lock().unwrap().is_empty());
 }

@@ -1135,12 +1135,16 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
         for t in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -1e-300, -1.0, -f64::MAX] {
             let reason = format!("time {t} must be finite and >= the start time 0");
             refused_in_me(model, false, &reason, |c| fmi2SetTime(c, t));
-            refused_in_me(model, true, &reason, |c| fmi2SetTime(c, t));
+            // FMI 2.0.4 §3.2.3, condition 8: no fmi2SetTime at all in Event Mode here.
+            refused_in_me(model, true, "fmi2SetTime is not allowed in state EventMode", |c| {
+                fmi2SetTime(c, t)
+            });
         }
         let f = Fmu::new_model_exchange(model);
         assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 1.0, 1, 2.0), OK);
         assert_eq!(fmi2EnterInitializationMode(f.c), OK);
         assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
         let before = observe(&f);
         for t in [1.0, 1.5, 1.0] {
             assert_eq!(fmi2SetTime(f.c, t), OK, "t = {t}");
@@ -1412,6 +1416,40 @@ fn model_exchange_directional_derivatives_refuse_bad_seeds_and_references() {
     fresh_me_instance_works(SHAFT);
 }
 
+/// fmi2SetReal of the continuous-time state `name` in Continuous-Time Mode (FMI 2.0.4 §3.2.3,
+/// condition 5) does what fmi2SetContinuousStates with the other entries unchanged does: both
+/// build the plant's state from the same vector by the same function, so every value the
+/// instances show is the same bit for bit. A non-finite or overflowing value is refused and
+/// changes nothing.
+fn a_state_set_by_reference_is_a_state_set(model: usize, name: &str) {
+    let k = state_names(model).iter().position(|s| *s == name).expect("a state");
+    let (by_name, by_vector) = (me_at_work(model, false), me_at_work(model, false));
+    let mut x = x_at_work(model);
+    x[k] = -4.0e-3;
+    assert_eq!(by_name.set_real(name, x[k]), OK);
+    assert_eq!(by_vector.set_continuous_states(&x), OK);
+    assert_eq!(observe(&by_name), observe(&by_vector), "{name}");
+    assert_eq!(by_name.continuous_states(), (OK, x), "{name}");
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let f = me_at_work(model, false);
+        let before = observe(&f);
+        f.refuses(&format!("value {bad} refused for {name}"), |_| f.set_real(name, bad));
+        assert_eq!(observe(&f), before, "{name} = {bad}");
+    }
+    // A huge finite state: accepted unless its force overflows (refused, nothing changed),
+    // then every read is finite or refused as an overflow.
+    let f = me_at_work(model, false);
+    let before = observe(&f);
+    let log = f.log_len();
+    match f.set_real(name, f64::MAX) {
+        OK => reads_are_finite_or_refused(&f, &format!("{name} = f64::MAX")),
+        status => {
+            f.assert_refused(status, log, "overflow");
+            assert_eq!(observe(&f), before, "{name} = f64::MAX");
+        }
+    }
+}
+
 #[test]
 fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
     use backlash_fmu::fmu::variables::Causality::*;
@@ -1420,7 +1458,15 @@ fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
             for v in m.variables.iter().filter(|v| v.name != "contact") {
                 let reason = match (v.causality, v.is_initial_state()) {
                     (Input, _) => None,
-                    (Output, true) => Some("fmi2SetContinuousStates sets the state"),
+                    // FMI 2.0.4 §3.2.3: in Event Mode "for a variable with causality = "input", or
+                    // (causality = "parameter" and variability = "tunable")" (condition 4).
+                    (Output, true) if event_mode => Some("inputs and tunable parameters only (condition 4)"),
+                    // Condition 5, Continuous-Time Mode: "… and for a continuous-time state
+                    // variable": below.
+                    (Output, true) => {
+                        a_state_set_by_reference_is_a_state_set(model, v.name);
+                        continue;
+                    }
                     (Output, false) => Some("output computed by the FMU"),
                     (Parameter, _) => Some("fixed parameter"),
                     (CalculatedParameter, _) => Some("calculatedParameter"),

@@ -175,7 +175,8 @@ fn table() -> Vec<(&'static str, Call, Option<[bool; 6]>, Option<[bool; 6]>)> {
                 let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
                 fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t)
             }, only(3), None),
-            ("fmi3SetTime", |f| fmi3SetTime(f.c, 0.0), None, Some([false, false, true, true, false, false])),
+            // FMI 3.0.2 §3.2.1 lists fmi3SetTime among Continuous-Time Mode's calls only.
+            ("fmi3SetTime", |f| fmi3SetTime(f.c, 0.0), None, only(3)),
             ("fmi3SetContinuousStates", |f| {
                 let mut x = vec![0.0; f.nx()];
                 // Read in the same state; the values only matter where the set is legal.
@@ -193,6 +194,12 @@ fn table() -> Vec<(&'static str, Call, Option<[bool; 6]>, Option<[bool; 6]>)> {
                 Some([false, true, true, true, true, true]), Some([false, true, true, true, true, true])),
             ("fmi3SetFloat64", |f| fmi3SetFloat64(f.c, [f.vr("tau_m")].as_ptr(), 1, [0.5].as_ptr(), 1),
                 Some([true, true, true, true, false, false]), Some([true, true, true, true, false, false])),
+            // A continuous-time state: §2.3.5, Event Mode (either interface): "… and continuous-time
+            // states with reinit = false"; §3.2.1, Continuous-Time Mode: "Only for variables with
+            // causality = input and variability = continuous, and continuous-time states"; not in
+            // Step Mode (§4.2.1: inputs and tunable parameters).
+            ("fmi3SetFloat64(theta_m)", |f| fmi3SetFloat64(f.c, [f.vr("theta_m")].as_ptr(), 1, [1e-4].as_ptr(), 1),
+                Some([true, true, true, false, false, false]), Some([true, true, true, true, false, false])),
             ("fmi3GetFMUState", |f| {
                 let mut s = null_mut();
                 let status = fmi3GetFMUState(f.c, &mut s);
@@ -230,6 +237,9 @@ fn every_call_in_every_fmi3_state_follows_the_standard_table() {
                     _ => {
                         let reason = if legal.is_none() {
                             other.to_string()
+                        } else if name.contains('(') && *state == "StepMode" {
+                            // The function is legal there; the variable is refused.
+                            "theta_m cannot be set in state StepComplete".to_string()
                         } else {
                             "not allowed in state".to_string()
                         };
@@ -244,7 +254,7 @@ fn every_call_in_every_fmi3_state_follows_the_standard_table() {
         }
     }
     println!("{checked} (function, state) cases checked");
-    assert_eq!(checked, 17 * 12);
+    assert_eq!(checked, 18 * 12);
     assert!(
         failures.is_empty(),
         "{} disagreements:\n{}",
@@ -271,6 +281,224 @@ fn co_simulation_without_event_mode_refuses_event_mode_with_the_reason() {
         "{:?}",
         f.since(before)
     );
+}
+
+/// An ME instance of `model` in Continuous-Time Mode at the start time 0.
+fn me_continuous(model: usize) -> Inst {
+    let f = Inst::new(model, true, true);
+    init(&f);
+    assert_eq!(fmi3ExitInitializationMode(f.c), OK);
+    assert_eq!(fmi3EnterContinuousTimeMode(f.c), OK);
+    f
+}
+
+/// Runs `call` and asserts it was refused with fmi3Error and a logged reason containing `reason`.
+#[track_caller]
+fn refuses(f: &Inst, reason: &str, call: impl FnOnce() -> fmi3Status) {
+    let before = f.log_len();
+    assert_eq!(call(), ERROR);
+    let log = f.since(before);
+    assert!(log.iter().any(|m| m.contains(reason)), "{reason:?} not in {log:?}");
+}
+
+fn float64(f: &Inst, names: &[&str]) -> Vec<u64> {
+    let vrs: Vec<u32> = names.iter().map(|n| f.vr(n)).collect();
+    let mut out = vec![f64::NAN; vrs.len()];
+    // SAFETY: arrays of the announced lengths.
+    let s = unsafe { fmi3GetFloat64(f.c, vrs.as_ptr(), vrs.len(), out.as_mut_ptr(), out.len()) };
+    assert_eq!(s, OK);
+    out.iter().map(|x| x.to_bits()).collect()
+}
+
+/// FMI 3.0.2 §3.2.1, fmi3SetTime: "time must be larger or equal to: startTime, the time at the
+/// second last call to fmi3CompletedIntegratorStep, the time at the last call to
+/// fmi3EnterEventMode", whatever needsCompletedIntegratorStep says; on every model.
+#[test]
+fn fmi3_set_time_goes_back_no_further_than_the_text_allows() {
+    for model in 0..MODELS.len() {
+        let completed = |f: &Inst, t: f64| {
+            assert_eq!(fmi3SetTime(f.c, t), OK);
+            // SAFETY: pointers to locals.
+            assert_eq!(
+                unsafe { fmi3CompletedIntegratorStep(f.c, true, &mut true, &mut true) },
+                OK
+            );
+        };
+        let f = me_continuous(model);
+        completed(&f, 0.01);
+        completed(&f, 0.02);
+        assert_eq!(fmi3SetTime(f.c, 0.01), OK, "the second-last completed step");
+        refuses(
+            &f,
+            "time 0.005 is before 0.01, the time of the second-last completed integrator step: FMI 3.0.2 §3.2.1",
+            || fmi3SetTime(f.c, 0.005),
+        );
+        let f = me_continuous(model);
+        assert_eq!(fmi3SetTime(f.c, 0.04), OK);
+        assert_eq!(fmi3EnterEventMode(f.c), OK);
+        // §3.2.1 lists fmi3SetTime among Continuous-Time Mode's calls only.
+        refuses(
+            &f,
+            "fmi3SetTime is not allowed in state EventMode: FMI 3.0.2 §3.2.1",
+            || fmi3SetTime(f.c, 0.04),
+        );
+        let f = me_continuous(model);
+        assert_eq!(fmi3SetTime(f.c, 0.04), OK);
+        assert_eq!(fmi3EnterEventMode(f.c), OK);
+        assert_eq!(fmi3EnterContinuousTimeMode(f.c), OK);
+        assert_eq!(fmi3SetTime(f.c, 0.04), OK, "the event's time itself");
+        refuses(&f, "time 0.03 is before 0.04, the time of the last event", || {
+            fmi3SetTime(f.c, 0.03)
+        });
+    }
+}
+
+/// A continuous-time state set by fmi3SetFloat64 is a state set: in Continuous-Time Mode (§3.2.1)
+/// as fmi3SetContinuousStates with the other entries unchanged; in Event Mode of either
+/// interface (§2.3.5, "continuous-time states with reinit = false"), and in Co-Simulation the
+/// steps then start from it exactly as from that start value. Each pair computes the plant's
+/// state from the same numbers by the same function, so the values agree bit for bit.
+#[test]
+fn fmi3_continuous_states_set_by_value_reference_are_states_set() {
+    for model in 0..MODELS.len() {
+        let outputs = [
+            "theta_m",
+            "omega_m",
+            "theta_L",
+            "omega_L",
+            "psi",
+            "u_minus_g",
+            "der(omega_m)",
+            "der(omega_L)",
+        ];
+        for event_mode in [false, true] {
+            let (by_name, by_vector) = (me_continuous(model), me_continuous(model));
+            if event_mode {
+                assert_eq!(fmi3EnterEventMode(by_name.c), OK);
+                assert_eq!(fmi3EnterEventMode(by_vector.c), OK);
+                assert_eq!(fmi3EnterContinuousTimeMode(by_vector.c), OK);
+            }
+            let mut x = vec![0.0; by_vector.nx()];
+            x[0] = 3e-4;
+            // SAFETY: arrays of the announced lengths.
+            unsafe {
+                assert_eq!(
+                    fmi3SetFloat64(by_name.c, [by_name.vr("theta_m")].as_ptr(), 1, [3e-4].as_ptr(), 1),
+                    OK
+                );
+                assert_eq!(fmi3SetContinuousStates(by_vector.c, x.as_ptr(), x.len()), OK);
+            }
+            assert_eq!(
+                float64(&by_name, &outputs),
+                float64(&by_vector, &outputs),
+                "event mode: {event_mode}"
+            );
+        }
+        // Co-Simulation: set in Event Mode at the start, then stepped, against an instance that
+        // starts there.
+        let set = Inst::new(model, false, true);
+        let started = Inst::new(model, false, true);
+        // SAFETY: arrays of length 1.
+        unsafe {
+            assert_eq!(
+                fmi3SetFloat64(started.c, [started.vr("theta_m")].as_ptr(), 1, [3e-4].as_ptr(), 1),
+                OK
+            );
+        }
+        for f in [&set, &started] {
+            init(f);
+            assert_eq!(fmi3ExitInitializationMode(f.c), OK);
+        }
+        // SAFETY: arrays of length 1.
+        unsafe {
+            assert_eq!(
+                fmi3SetFloat64(set.c, [set.vr("theta_m")].as_ptr(), 1, [3e-4].as_ptr(), 1),
+                OK
+            );
+        }
+        for f in [&set, &started] {
+            assert_eq!(fmi3EnterStepMode(f.c), OK);
+            for k in 0..20 {
+                let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
+                // SAFETY: pointers to locals.
+                let s = unsafe { fmi3DoStep(f.c, k as f64 * 0.01, 0.01, true, &mut a, &mut b, &mut c, &mut t) };
+                assert_eq!(s, OK);
+            }
+        }
+        let all: Vec<&str> = ["theta_m", "omega_m", "theta_L", "omega_L", "psi", "bound"].to_vec();
+        assert_eq!(
+            float64(&set, &all),
+            float64(&started, &all),
+            "{}",
+            MODELS[model].identifier
+        );
+    }
+}
+
+unsafe extern "C" fn counting_logger(env: fmi3InstanceEnvironment, _s: fmi3Status, _c: fmi3String, _m: fmi3String) {
+    // SAFETY: `env` is the &AtomicUsize given at instantiation.
+    unsafe { &*(env as *const std::sync::atomic::AtomicUsize) }.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+}
+
+/// FMI 3.0.2 §2.3.1: "If loggingOn = fmi3False, then any logging is disabled and the logMessage
+/// callback function must not be called by the FMU", errors included, until fmi3SetDebugLogging
+/// enables categories. (FMI 2.0 reports errors and warnings whatever loggingOn says.)
+#[test]
+fn fmi3_logging_off_calls_no_logger_until_enabled() {
+    use std::sync::atomic::{AtomicUsize, Ordering::SeqCst};
+    for me in [false, true] {
+        let calls = AtomicUsize::new(0);
+        let env = &calls as *const AtomicUsize as *mut c_void;
+        let token = CString::new(MODELS[0].instantiation_token).unwrap();
+        // SAFETY: NUL-terminated strings; `calls` outlives the instances (freed below).
+        let instantiate = |token: &CStr| unsafe {
+            if me {
+                fmi3InstantiateModelExchange(
+                    c"me".as_ptr(),
+                    token.as_ptr(),
+                    null(),
+                    false,
+                    false,
+                    env,
+                    Some(counting_logger),
+                )
+            } else {
+                fmi3InstantiateCoSimulation(
+                    c"cs".as_ptr(),
+                    token.as_ptr(),
+                    null(),
+                    false,
+                    false,
+                    true,
+                    true,
+                    null(),
+                    0,
+                    env,
+                    Some(counting_logger),
+                    None,
+                )
+            }
+        };
+        assert!(instantiate(c"not a token").is_null());
+        let c = instantiate(&token);
+        assert!(!c.is_null());
+        // An illegal call and a refused value: nothing logged.
+        assert_eq!(fmi3ExitInitializationMode(c), ERROR);
+        assert_eq!(fmi3Reset(c), OK);
+        // SAFETY: arrays of length 1.
+        assert_eq!(
+            unsafe { fmi3SetFloat64(c, [MODELS[0].vr("J_m")].as_ptr(), 1, [-1.0].as_ptr(), 1) },
+            ERROR
+        );
+        assert_eq!(calls.load(SeqCst), 0, "the logger was called with loggingOn = false");
+        // Enabled for every category: the next refusal is logged.
+        assert_eq!(fmi3Reset(c), OK);
+        // SAFETY: no categories, NULL as §2.3.1 asks for nCategories = 0.
+        assert_eq!(unsafe { fmi3SetDebugLogging(c, true, 0, null()) }, OK);
+        assert_eq!(fmi3ExitInitializationMode(c), ERROR);
+        assert!(calls.load(SeqCst) > 0, "no reason logged once logging was enabled");
+        fmi3FreeInstance(c);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

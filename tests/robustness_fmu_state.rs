@@ -50,7 +50,7 @@ fn truncated_extended_and_empty_bytes_are_refused() {
         }
         let mut longer = bytes.clone();
         longer.push(0);
-        refused(&f, &longer, "bytes, a version-2 state");
+        refused(&f, &longer, "bytes, a version-3 state");
         // The instance, in state Error now, comes back with fmi2Reset.
         f.reset_and_check();
     }
@@ -91,8 +91,8 @@ fn garbage_and_other_model_bytes_are_refused() {
     refused(&f, &vec![0u8; shaft.len()], "magic");
     refused(&f, &vec![0xffu8; shaft.len()], "magic");
     let mut version = shaft.clone();
-    version[8] = 3;
-    refused(&f, &version, "format version 3");
+    version[8] = 4;
+    refused(&f, &version, "format version 4");
     // A guid length pointing past the end.
     let mut long_guid = shaft.clone();
     long_guid[10..12].copy_from_slice(&u16::MAX.to_le_bytes());
@@ -184,6 +184,11 @@ fn invalid_fields_are_refused(model: usize) {
     edit(last, &f64::NAN.to_le_bytes(), "a bound's state");
     edit(lag_offset(&bytes), &f64::NAN.to_le_bytes(), "the bounds' lag");
     edit(lag_offset(&bytes), &(-1e-3f64).to_le_bytes(), "the bounds' lag");
+    // The time marks: finite, and not before the start time (0 here).
+    let marks = marks_offset(&bytes);
+    edit(marks, &f64::NAN.to_le_bytes(), "second-last completed integrator step");
+    edit(marks + 8, &(-1e-3f64).to_le_bytes(), "is before the start time");
+    edit(marks + 16, &f64::INFINITY.to_le_bytes(), "the last event");
     f.reset_and_check();
 }
 

@@ -136,7 +136,7 @@ fn a_panic_in_a_model_exchange_function_is_caught_and_leaves_error() {
     // the work itself.
     let cases = [
         (Function::GetNominalsOfContinuousStates, "Instantiated"),
-        (Function::SetTime, "EventMode"),
+        (Function::SetTime, "ContinuousTimeMode"),
         (Function::NewDiscreteStates, "EventMode"),
         (Function::EnterContinuousTimeMode, "EventMode"),
         (Function::SetContinuousStates, "ContinuousTimeMode"),

@@ -348,6 +348,7 @@ fn me_table() -> Vec<MeCase> {
             case("fmi2SetupExperiment", |f| fmi2SetupExperiment(f.c, 1, 1e-6, 0.5, 1, 10.0), I, OK, Some(|f, _| {
                 assert_eq!(fmi2EnterInitializationMode(f.c), OK);
                 assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+                assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
                 f.refuses("start time 0.5", |c| fmi2SetTime(c, 0.25));
             })),
             case("fmi2EnterInitializationMode", |f| fmi2EnterInitializationMode(f.c), I, OK, Some(|f, _| {
@@ -485,7 +486,8 @@ fn me_table() -> Vec<MeCase> {
                 }
                 s
             }, N, OK, None),
-            case("fmi2SetTime", |f| fmi2SetTime(f.c, 0.3), V_N, OK, Some(|f, _| {
+            // Event Mode: condition 8, "only for a Pure Discrete-Time FMU"; this one has states.
+            case("fmi2SetTime", |f| fmi2SetTime(f.c, 0.3), N, OK, Some(|f, _| {
                 // The bounds follow time: those of an instance set to 0.3, not those at 0 (= 0).
                 let (s, bound) = f.get_real("bound");
                 assert_eq!(s, OK);
@@ -603,13 +605,17 @@ fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them
         assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), OK);
         assert_eq!(fmi2EnterInitializationMode(f.c), OK);
         assert_eq!(fmi2ExitInitializationMode(f.c), OK);
-        // EventMode <-> ContinuousTimeMode, many times, with time moving forwards and backwards.
+        // EventMode <-> ContinuousTimeMode, many times, with time moving forwards and, within
+        // the last integrator step, backwards.
         for k in 0..5 {
             let mut info = event_info();
             // SAFETY: pointer to a local.
             assert_eq!(unsafe { fmi2NewDiscreteStates(f.c, &mut info) }, OK);
-            assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64), OK, "fmi2SetTime in Event Mode");
             assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+            assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64 + 0.05), OK);
+            // SAFETY: pointers to locals.
+            assert_eq!(unsafe { fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1) }, OK);
+            assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64 + 0.02), OK, "back within the step");
             assert_eq!(fmi2SetTime(f.c, 0.1 * k as f64 + 0.05), OK);
             let x: Vec<f64> = table_states(model).iter().map(|x| x * k as f64).collect();
             assert_eq!(f.set_continuous_states(&x), OK);
@@ -626,6 +632,75 @@ fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them
         // Reset leads back to Instantiated, from which everything starts again.
         f.reset_and_check();
     }
+}
+
+/// The rules of FMI 2.0.4 on time and states that the state table does not show, on every
+/// model, each with its sentence.
+#[test]
+fn model_exchange_time_and_states_follow_the_text_beside_the_table() {
+    for model in 0..MODELS.len() {
+        // §3.2.2: "After fmi2CompletedIntegratorStep is called, it is still allowed to go back in
+        // time (calling fmi2SetTime) [...]. However, it is not allowed to go back in time over the
+        // previous fmi2CompletedIntegratorStep or the previous fmi2EnterEventMode call."
+        let completed = |f: &Fmu, t: f64| {
+            assert_eq!(fmi2SetTime(f.c, t), OK);
+            // SAFETY: pointers to locals.
+            assert_eq!(unsafe { fmi2CompletedIntegratorStep(f.c, 1, &mut 1, &mut 1) }, OK);
+        };
+        let f = Fmu::me_continuous(model);
+        completed(&f, 0.01);
+        completed(&f, 0.02);
+        assert_eq!(fmi2SetTime(f.c, 0.015), OK, "back within the last step");
+        assert_eq!(fmi2SetTime(f.c, 0.01), OK, "back to the previous step");
+        f.refuses(
+            "time 0.005 is before 0.01, the time of the second-last completed integrator step: FMI 2.0.4 §3.2.2",
+            |c| fmi2SetTime(c, 0.005),
+        );
+        f.reset_and_check();
+        // §3.2.3: "As soon as an event occurred (fmi2EnterEventMode was called), going back in
+        // time is forbidden".
+        let f = Fmu::me_continuous(model);
+        assert_eq!(fmi2SetTime(f.c, 0.04), OK);
+        assert_eq!(fmi2EnterEventMode(f.c), OK);
+        // SAFETY: pointer to a local.
+        assert_eq!(unsafe { fmi2NewDiscreteStates(f.c, &mut event_info()) }, OK);
+        assert_eq!(fmi2EnterContinuousTimeMode(f.c), OK);
+        assert_eq!(fmi2SetTime(f.c, 0.04), OK, "the event's time itself");
+        f.refuses("time 0.03 is before 0.04, the time of the last event", |c| {
+            fmi2SetTime(c, 0.03)
+        });
+        f.reset_and_check();
+        // The table, fmi2SetTime in Event Mode, condition 8: "only for a Pure Discrete-Time FMU".
+        let f = Fmu::me_initialized(model, None);
+        f.refuses("only for a Pure Discrete-Time FMU", |c| fmi2SetTime(c, 0.0));
+        f.reset_and_check();
+        // An FMU state keeps how far back the time may go: restored after a step at 0.02 it
+        // refuses 0.005 again, and a state from before the steps allows it.
+        let f = Fmu::me_continuous(model);
+        let early = serialized(&f);
+        completed(&f, 0.01);
+        completed(&f, 0.02);
+        let late = serialized(&f);
+        assert_eq!(load(&f, &early), (OK, OK));
+        assert_eq!(fmi2SetTime(f.c, 0.005), OK, "before any completed step");
+        assert_eq!(load(&f, &late), (OK, OK));
+        f.refuses("time 0.005 is before 0.01", |c| fmi2SetTime(c, 0.005));
+        f.reset_and_check();
+        // Condition 5, fmi2SetReal in Continuous-Time Mode: "for a variable with causality =
+        // "input" and variability = "continuous", and for a continuous-time state variable"; in
+        // Event Mode (condition 4) inputs and tunable parameters only.
+        let (by_name, by_vector) = (Fmu::me_continuous(model), Fmu::me_continuous(model));
+        let mut x = by_vector.continuous_states().1;
+        x[0] = 2e-4;
+        assert_eq!(by_name.set_real("theta_m", 2e-4), OK);
+        assert_eq!(by_vector.set_continuous_states(&x), OK);
+        assert_eq!(bits(&by_name.continuous_states().1), bits(&x));
+        assert_eq!(bits(&by_name.derivatives().1), bits(&by_vector.derivatives().1));
+        assert_eq!(by_name.event_indicators(), by_vector.event_indicators());
+        let events = Fmu::me_initialized(model, None);
+        events.refuses("condition 4", |_| events.set_real("theta_m", 2e-4));
+    }
+    fresh_instances_of_every_model_work();
 }
 
 #[test]

@@ -19,8 +19,22 @@ pub enum Status {
 
 #[derive(Clone, Debug, PartialEq, Error)]
 pub enum FmuError {
-    #[error("{function} is not allowed in state {phase}")]
-    IllegalCall { function: &'static str, phase: Phase },
+    /// `rule`: the standard's sentence behind the refusal, where the state table alone would
+    /// leave the importer guessing.
+    #[error("{function} is not allowed in state {phase}{}", rule.map_or(String::new(), |r| format!(": {r}")))]
+    IllegalCall {
+        function: &'static str,
+        phase: Phase,
+        rule: Option<&'static str>,
+    },
+    /// fmi2SetTime / fmi3SetTime back over a completed integrator step or an event.
+    #[error("time {time} is before {earliest}, the time of {mark}: {rule}")]
+    TimeGoesBack {
+        time: f64,
+        earliest: f64,
+        mark: &'static str,
+        rule: &'static str,
+    },
     #[error("{function} belongs to FMI for {belongs_to}; this instance was instantiated for {serves}")]
     OtherInterface {
         function: &'static str,

@@ -2,6 +2,7 @@
 //! importer's logger (FMI 2.0.4 §2.1.5 fmi2SetDebugLogging).
 
 use super::error::{FmuError, Status};
+use super::state_machine::Standard;
 
 // `LogCategory` with `ALL` and `name`, generated from the description's `<LogCategories>`.
 include!(concat!(env!("OUT_DIR"), "/log_categories.rs"));
@@ -33,12 +34,16 @@ pub struct Logging {
 }
 
 impl Logging {
-    /// Errors and warnings reach the logger from the start, so every refusal comes with its
-    /// reason; contact events and call traces only when `logging_on` (fmi2Instantiate).
-    pub fn new(sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Logging {
+    /// FMI 2.0: errors and warnings reach the logger from the start, so every refusal comes
+    /// with its reason; contact events and call traces only when `logging_on` (fmi2Instantiate).
+    /// FMI 3.0.2 §2.3.1: "If loggingOn = fmi3False, then any logging is disabled and the
+    /// logMessage callback function must not be called by the FMU" (fmi3SetDebugLogging can
+    /// enable categories later).
+    pub fn new(sink: Option<Box<dyn LogSink>>, logging_on: bool, standard: Standard) -> Logging {
         let mut enabled = [false; LogCategory::ALL.len()];
         for c in LogCategory::ALL {
-            enabled[c as usize] = logging_on || matches!(c, LogCategory::Errors | LogCategory::Warnings);
+            let always = standard == Standard::Fmi2 && matches!(c, LogCategory::Errors | LogCategory::Warnings);
+            enabled[c as usize] = logging_on || always;
         }
         Logging { enabled, sink }
     }

@@ -1,11 +1,11 @@
 //! FMU states (fmi2GetFMUstate) and their pointer-free serialized form.
 //!
-//! Byte format, version 2, all numbers little-endian, f64 as IEEE-754 bits:
+//! Byte format, version 3, all numbers little-endian, f64 as IEEE-754 bits:
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `BKLSHFMU` |
-//! | 8 | 2 | format version (1) |
+//! | 8 | 2 | format version (3) |
 //! | 10 | 2 | length n of the guid |
 //! | 12 | n | guid of the model description (ASCII) |
 //! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error, 6 EventMode, 7 ContinuousTimeMode) |
@@ -17,6 +17,7 @@
 //! | | 8·7 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', mode (signed byte −1/0/+1) |
 //! | | 8·b | bounds: elapsed, response[n], integral[n], l1 of each loop bound; b = 12 for the drive trains (one bound, n = 5), 32 for the web line (speed and tension, n = 7) |
 //! | | 8 | how far the bounds lag behind the plant [s] (Co-Simulation: the steps since they were last read) |
+//! | | 8·3 | how far back the time may be set (Model Exchange): the times of the second-last and the last completed integrator step, and of the last event |
 //! | end−8 | 8 | FNV-1a-64 checksum of all bytes before it |
 //!
 //! Loading checks, in order: length, magic, version, guid (a state of the other model is
@@ -25,13 +26,13 @@
 use super::adapter::{input_name, InputSlopes, Values, MAX_INPUTS};
 use super::bounds::Bounds;
 use super::error::FmuError;
-use super::instance::Experiment;
+use super::instance::{Experiment, TimeMarks};
 use super::state_machine::{Flavour, Interface, Phase, Standard};
 use super::variables::{model_by_guid, ModelInfo, Symbol};
 use crate::physics::{ContactMode, PlantState};
 
 pub const MAGIC: &[u8; 8] = b"BKLSHFMU";
-pub const FORMAT_VERSION: u16 = 2;
+pub const FORMAT_VERSION: u16 = 3;
 
 /// The plant and bound state of an initialized instance.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,6 +52,7 @@ pub struct Snapshot {
     pub flavour: Flavour,
     pub phase: Phase,
     pub time: f64,
+    pub time_marks: TimeMarks,
     pub experiment: Experiment,
     pub values: Values,
     pub input_slopes: InputSlopes,
@@ -64,10 +66,10 @@ const FLAG_MODEL_EXCHANGE: u8 = 8;
 const FLAG_FMI3: u8 = 16;
 
 /// Bytes after the guid of a state of `model`: phase, flags, count, 4 times, values, slopes,
-/// plant, bounds, checksum.
+/// plant, bounds, their lag, the time marks, checksum.
 fn body_len(model: &ModelInfo) -> usize {
     let bounds = Bounds::word_count(model.drive_train.has_web());
-    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8 + 8
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8 + 8 * 3 + 8
 }
 
 fn fnv1a_64(bytes: &[u8]) -> u64 {
@@ -132,6 +134,10 @@ impl Snapshot {
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
         let behind = self.physics.as_ref().map_or(0.0, |p| p.bounds_behind);
         b.extend_from_slice(&behind.to_le_bytes());
+        let marks = self.time_marks;
+        for x in [marks.completed_steps[0], marks.completed_steps[1], marks.event] {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
         let checksum = fnv1a_64(&b);
         b.extend_from_slice(&checksum.to_le_bytes());
         debug_assert_eq!(b.len(), self.serialized_len());
@@ -264,6 +270,23 @@ impl Snapshot {
         if bounds_behind < 0.0 {
             return refuse(format!("the bounds' lag {bounds_behind} s is negative"));
         }
+        let mut marks = [0.0; 3];
+        for (x, name) in marks.iter_mut().zip([
+            "the second-last completed integrator step",
+            "the last completed integrator step",
+            "the last event",
+        ]) {
+            *x = r.finite(&format!("the time of {name}"))?;
+            if *x < start_time {
+                return refuse(format!(
+                    "the time of {name}, {x}, is before the start time {start_time}"
+                ));
+            }
+        }
+        let time_marks = TimeMarks {
+            completed_steps: [marks[0], marks[1]],
+            event: marks[2],
+        };
         debug_assert_eq!(r.at, payload.len());
 
         let has_physics = flags & FLAG_PHYSICS != 0;
@@ -298,6 +321,7 @@ impl Snapshot {
             flavour,
             phase,
             time,
+            time_marks,
             experiment,
             values,
             input_slopes,

@@ -368,7 +368,9 @@ impl Function {
             EnterEventMode => both(V | N, 0),
             NewDiscreteStates | EnterContinuousTimeMode => both(V, 0),
             CompletedIntegratorStep | SetContinuousStates => both(N, 0),
-            SetTime => both(V | N, 0),
+            // Condition 8 admits Event Mode "only for a Pure Discrete-Time FMU"; these have
+            // continuous states.
+            SetTime => both(N, 0),
             GetEventIndicators | GetContinuousStates => both(M | V | N | T | E, 0),
             GetDerivatives => both(V | N | T | E, 0),
             GetNominalsOfContinuousStates => both(I | V | N | T | E, 0),
@@ -410,7 +412,9 @@ impl Function {
             NewDiscreteStates => both(V, V),
             EnterContinuousTimeMode => both(V, 0),
             CompletedIntegratorStep | SetContinuousStates => both(N, 0),
-            SetTime => both(V | N, 0),
+            // §3.2.1 lists fmi3SetTime among Continuous-Time Mode's calls only; Event Mode's
+            // (§2.3.5) do not include it.
+            SetTime => both(N, 0),
             GetEventIndicators | GetContinuousStates | GetDerivatives => both(M | V | N | T | E, 0),
             GetNominalsOfContinuousStates => both(I | M | V | N | T | E, 0),
             GetNumberOfEventIndicators | GetNumberOfContinuousStates => both(I | M | V | N | T | E, 0),
@@ -421,6 +425,21 @@ impl Function {
             | GetIntegerStatus
             | GetBooleanStatus
             | GetStringStatus => both(0, 0),
+        }
+    }
+
+    /// The standard's words behind a refusal of this call in `phase`, where the state table's
+    /// bare "not allowed" would leave the importer guessing.
+    pub fn rule(self, standard: Standard, phase: Phase) -> Option<&'static str> {
+        match (self, standard, phase) {
+            (Function::SetTime, Standard::Fmi2, Phase::EventMode) => Some(
+                "FMI 2.0.4 §3.2.3 allows it in Event Mode \"only for a Pure Discrete-Time FMU\" (condition 8); \
+                 this FMU has continuous states, so time is set in Continuous-Time Mode",
+            ),
+            (Function::SetTime, Standard::Fmi3, Phase::EventMode) => {
+                Some("FMI 3.0.2 §3.2.1 allows it in Continuous-Time Mode only; in Event Mode the time is the event's")
+            }
+            _ => None,
         }
     }
 
@@ -506,7 +525,8 @@ mod tests {
         assert_eq!(me(EnterContinuousTimeMode), vec![EventMode]);
         assert_eq!(me(CompletedIntegratorStep), vec![ContinuousTimeMode]);
         assert_eq!(me(SetContinuousStates), vec![ContinuousTimeMode]);
-        assert_eq!(me(SetTime), vec![EventMode, ContinuousTimeMode]);
+        // Condition 8: Event Mode only for a pure discrete-time FMU.
+        assert_eq!(me(SetTime), vec![ContinuousTimeMode]);
         assert_eq!(
             me(SetReal),
             vec![Instantiated, InitializationMode, EventMode, ContinuousTimeMode]
@@ -549,6 +569,8 @@ mod tests {
         assert!(cs(SetRealInputDerivatives).is_empty() && cs(GetStatus).is_empty());
         assert_eq!(EnterStepMode.only_for(Standard::Fmi3), Some(Interface::CoSimulation));
         assert_eq!(SetTime.only_for(Standard::Fmi3), Some(Interface::ModelExchange));
+        // §3.2.1: fmi3SetTime is among Continuous-Time Mode's calls, not Event Mode's (§2.3.5).
+        assert_eq!(me(SetTime), vec![ContinuousTimeMode]);
         assert_eq!(GetReal.name(Standard::Fmi3), "fmi3GetFloat64");
         assert_eq!(GetDerivatives.name(Standard::Fmi3), "fmi3GetContinuousStateDerivatives");
     }

@@ -34,7 +34,8 @@ fn illegal_call_is_refused_logged_and_enters_error() {
         err,
         FmuError::IllegalCall {
             function: "fmi2DoStep",
-            phase: Phase::Instantiated
+            phase: Phase::Instantiated,
+            rule: None,
         }
     );
     assert_eq!(inst.phase(), Phase::Error);
@@ -368,6 +369,7 @@ fn model_exchange_bound_far_out_on_an_undamped_loop_is_refused_promptly() {
     inst.setup_experiment(None, 0.0, None).unwrap();
     inst.enter_initialization_mode().unwrap();
     inst.exit_initialization_mode().unwrap_or_else(|e| panic!("{e}"));
+    inst.enter_continuous_time_mode().unwrap();
     inst.set_time(1e300).unwrap();
     let started = std::time::Instant::now();
     let mut out = [0.0];

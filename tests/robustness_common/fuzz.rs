@@ -16,8 +16,9 @@
 //! its own number of continuous states in Model Exchange ([`nx`]). Model Exchange calls get
 //! random finite, extreme and non-finite arguments and random vector lengths; mostly they
 //! follow an explicit Euler integration, so that sequences reach Continuous-Time Mode with
-//! moving states. Times are kept within `FAR_TIME` of the start time unless
-//! [`Driver::far_times`] is set: fmi2SetTime accepts any finite time, and reading the bounds
+//! moving states; their fmi2SetTime goes back no further than the standard allows (the previous
+//! completed integrator step, the last event). Times are kept within `FAR_TIME` of the start time
+//! unless [`Driver::far_times`] is set: fmi2SetTime accepts any finite time ahead, and reading the bounds
 //! after a far one takes work proportional to the time (see
 //! `model_exchange_far_times_are_refused_or_answered_promptly` in tests/robustness_arguments.rs).
 //!
@@ -139,6 +140,13 @@ const ME_RANDOM_OPS: [u64; 43] = [
     40, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40,
 ];
 
+impl Slot {
+    /// At the start time, before any step or event: back to the start time at most.
+    fn at_start(&mut self) {
+        (self.earliest, self.last_step) = (self.start, self.start);
+    }
+}
+
 struct Slot {
     f: Fmu,
     /// Whether logErrors is on: fmi2SetDebugLogging(fmi2False) with no categories switches
@@ -152,6 +160,12 @@ struct Slot {
     phase: u8,
     /// Our belief of its start time (Model Exchange: times are picked around it).
     start: f64,
+    /// Our belief of how far back fmi2SetTime may go (FMI 2.0.4 §3.2.2: not over the previous
+    /// completed integrator step or the last event), and of the last completed step's time:
+    /// careful calls go back no further. After an FMU state is loaded, its time (no further
+    /// back than the state allows).
+    earliest: f64,
+    last_step: f64,
     /// The continuous states and derivatives last read or set (Model Exchange), from which
     /// the next states are stepped: [`nx`] of each.
     x: Vec<f64>,
@@ -235,13 +249,13 @@ impl<S: Source> Driver<S> {
 
     /// A time for fmi2SetTime or a start time: mostly a little after `now`, sometimes before it
     /// or before the start, sometimes anything (within `FAR_TIME` of the start unless
-    /// `far_times`).
-    fn time_near(&mut self, now: f64, start: f64) -> Option<f64> {
+    /// `far_times`). Careful calls go back to `earliest` at most.
+    fn time_near(&mut self, now: f64, start: f64, earliest: f64) -> Option<f64> {
         if self.careful {
             return Some(match self.below(20)? {
                 0..=17 => now + 1e-4 * (1 + self.below(100)?) as f64,
-                18 => now - 1e-5 * (1 + self.below(100)?) as f64,
-                _ => start,
+                18 => (now - 1e-5 * (1 + self.below(100)?) as f64).max(earliest),
+                _ => earliest,
             });
         }
         let t = match self.below(20)? {
@@ -310,11 +324,12 @@ impl<S: Source> Driver<S> {
                 (0, _) => 1,
                 (1, _) => [2, 5][self.below(2)? as usize],
                 (2, false) => [14, 14, 14, 20, 21, 24, 26, 8][self.below(8)? as usize],
+                // Not fmi2SetTime: FMI 2.0.4 §3.2.3, condition 8 (pure discrete-time FMUs only).
                 (2, true) => [
                     NEW_DISCRETE_STATES,
                     ENTER_CONTINUOUS_TIME_MODE,
                     ENTER_CONTINUOUS_TIME_MODE,
-                    SET_TIME,
+                    NEW_DISCRETE_STATES,
                     5,
                     8,
                     20,
@@ -378,7 +393,7 @@ impl<S: Source> Driver<S> {
                 0 => {
                     let start = match (self.chance(80)?, me) {
                         (true, _) => 0.0,
-                        (false, true) => self.time_near(0.0, 0.0)?,
+                        (false, true) => self.time_near(0.0, 0.0, 0.0)?,
                         (false, false) => self.real()?,
                     };
                     let stop = self.real()?;
@@ -393,6 +408,7 @@ impl<S: Source> Driver<S> {
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = start;
                         self.slots[i].start = start;
+                        self.slots[i].at_start();
                     }
                     s
                 }
@@ -401,12 +417,16 @@ impl<S: Source> Driver<S> {
                     // (Not in the Co-Simulation-only driver, whose sequences must not change.)
                     if s == fmi2Status::fmi2OK && self.model_exchange {
                         self.slots[i].time = self.slots[i].start;
+                        self.slots[i].at_start();
                     }
                     s
                 }
                 2 => {
                     let s = fmi2ExitInitializationMode(c);
                     check_all = matches!(s, fmi2Status::fmi2OK | fmi2Status::fmi2Warning);
+                    if check_all {
+                        self.slots[i].at_start();
+                    }
                     s
                 }
                 3 => fmi2Terminate(c),
@@ -415,6 +435,7 @@ impl<S: Source> Driver<S> {
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = 0.0;
                         self.slots[i].start = 0.0;
+                        self.slots[i].at_start();
                     }
                     s
                 }
@@ -542,6 +563,7 @@ impl<S: Source> Driver<S> {
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = t;
                         self.slots[i].start = start;
+                        (self.slots[i].earliest, self.slots[i].last_step) = (t, t);
                     }
                     s
                 }
@@ -633,7 +655,13 @@ impl<S: Source> Driver<S> {
                         _ => fmi2GetStringStatus(c, kind, &mut null()),
                     }
                 }
-                ENTER_EVENT_MODE => fmi2EnterEventMode(c),
+                ENTER_EVENT_MODE => {
+                    let s = fmi2EnterEventMode(c);
+                    if s == fmi2Status::fmi2OK {
+                        self.slots[i].earliest = self.slots[i].time;
+                    }
+                    s
+                }
                 NEW_DISCRETE_STATES => {
                     let mut info = event_info();
                     let out = if self.wild(5)? { null_mut() } else { &mut info as *mut _ };
@@ -668,6 +696,8 @@ impl<S: Source> Driver<S> {
                     };
                     let s = fmi2CompletedIntegratorStep(c, self.below(2)? as i32, enter_ptr, terminate_ptr);
                     if s == fmi2Status::fmi2OK {
+                        let slot = &mut self.slots[i];
+                        (slot.earliest, slot.last_step) = (slot.earliest.max(slot.last_step), slot.time);
                         assert_eq!(
                             (enter, terminate),
                             (fmi2False, fmi2False),
@@ -677,8 +707,8 @@ impl<S: Source> Driver<S> {
                     s
                 }
                 SET_TIME => {
-                    let (now, start) = (self.slots[i].time, self.slots[i].start);
-                    let t = self.time_near(now, start)?;
+                    let (now, start, earliest) = (self.slots[i].time, self.slots[i].start, self.slots[i].earliest);
+                    let t = self.time_near(now, start, earliest)?;
                     let s = fmi2SetTime(c, t);
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = t;
@@ -863,6 +893,8 @@ impl<S: Source> Driver<S> {
             phase: 0,
             errors_logged: true,
             start: 0.0,
+            earliest: 0.0,
+            last_step: 0.0,
             x: vec![0.0; nx(model)],
             dx: vec![0.0; nx(model)],
         });

@@ -635,14 +635,21 @@ pub fn model_of_state(bytes: &[u8]) -> &'static ModelInfo {
 }
 
 /// Offset of the contact-mode byte of a state: counted from the end, before the bound part
-/// ([`bound_words`] f64), the bounds' lag (one f64) and the checksum (8 bytes).
+/// ([`bound_words`] f64), the bounds' lag (one f64), the time marks (three) and the checksum
+/// (8 bytes).
 pub fn mode_offset(bytes: &[u8]) -> usize {
-    bytes.len() - 8 - 8 - 8 * bound_words(model_of_state(bytes)) - 1
+    lag_offset(bytes) - 8 * bound_words(model_of_state(bytes)) - 1
 }
 
-/// Offset of the bounds' lag behind the plant, the last f64 before the checksum.
+/// Offset of the bounds' lag behind the plant, the f64 before the time marks.
 pub fn lag_offset(bytes: &[u8]) -> usize {
-    bytes.len() - 8 - 8
+    marks_offset(bytes) - 8
+}
+
+/// Offset of the time marks (the times of the second-last and the last completed integrator
+/// step, and of the last event: three f64), the last field before the checksum.
+pub fn marks_offset(bytes: &[u8]) -> usize {
+    bytes.len() - 8 - 8 * 3
 }
 
 /// fmi2DeSerializeFMUstate + fmi2SetFMUstate: (status of deserialize, status of set).

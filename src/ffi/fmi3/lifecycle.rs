@@ -60,8 +60,10 @@ fn try_instantiate(request: Request) -> fmi3Instance {
         log_message,
         environment: request.environment,
     });
+    // §2.3.1: with loggingOn = fmi3False "the logMessage callback function must not be called".
+    let logging_on = request.logging_on;
     let refuse = |logger: Option<CLogger3>, function: &str, reason: String| {
-        if let Some(mut l) = logger {
+        if let (Some(mut l), true) = (logger, logging_on) {
             l.log(Status::Error, LogCategory::Errors, &format!("{function}: {reason}"));
         }
         std::ptr::null_mut()

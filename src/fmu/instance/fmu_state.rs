@@ -13,6 +13,7 @@ impl Instance {
             flavour: self.flavour,
             phase: self.phase,
             time: self.time,
+            time_marks: self.time_marks,
             experiment: self.experiment,
             values: self.values,
             input_slopes: self.input_slopes,
@@ -57,6 +58,7 @@ impl Instance {
         };
         self.phase = snapshot.phase;
         self.time = snapshot.time;
+        self.time_marks = snapshot.time_marks;
         self.experiment = snapshot.experiment;
         self.values = snapshot.values;
         self.input_slopes = snapshot.input_slopes;

@@ -52,7 +52,7 @@ pub enum StatusKind {
     Terminated,
 }
 
-pub use model_exchange::EventInfo;
+pub use model_exchange::{EventInfo, TimeMarks};
 pub use stepping::StepOutcome;
 
 /// The choices of fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1).
@@ -78,6 +78,8 @@ pub struct Instance {
     experiment: Experiment,
     /// Co-Simulation: the communication point; Model Exchange: the time set by fmi2SetTime.
     time: f64,
+    /// Model Exchange: how far back the time may be set.
+    time_marks: TimeMarks,
     /// Present from fmi2ExitInitializationMode on. In Model Exchange its plant state is the
     /// one set by fmi2SetContinuousStates, and its bound is brought to `time` when read.
     sim: Option<Simulation>,
@@ -123,9 +125,10 @@ impl Instance {
             input_slopes: [0.0; adapter::MAX_INPUTS],
             experiment: Experiment::default(),
             time: 0.0,
+            time_marks: TimeMarks::at_start(0.0),
             sim: None,
             preview: None,
-            log: Logging::new(sink, logging_on),
+            log: Logging::new(sink, logging_on, flavour.standard),
         }
     }
 
@@ -211,6 +214,7 @@ impl Instance {
             _ => Err(FmuError::IllegalCall {
                 function: self.name_of(function),
                 phase: self.phase,
+                rule: function.rule(self.flavour.standard, self.phase),
             }),
         }
     }
@@ -405,12 +409,14 @@ impl Instance {
             tolerance,
         };
         self.time = start;
+        self.time_marks = TimeMarks::at_start(start);
         Ok(Status::Ok)
     }
 
     pub(crate) fn enter_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
         self.phase = Phase::InitializationMode;
         self.time = self.experiment.start_time;
+        self.time_marks = TimeMarks::at_start(self.time);
         Ok(Status::Ok)
     }
 
@@ -431,6 +437,7 @@ impl Instance {
         let slack = sim.bound.sup_slack();
         self.sim = Some(sim);
         self.time = self.experiment.start_time;
+        self.time_marks = TimeMarks::at_start(self.time);
         self.phase = match self.flavour.interface {
             Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,
             Interface::CoSimulation | Interface::ModelExchange => Phase::EventMode,
@@ -469,6 +476,7 @@ impl Instance {
         self.input_slopes = [0.0; adapter::MAX_INPUTS];
         self.experiment = Experiment::default();
         self.time = 0.0;
+        self.time_marks = TimeMarks::at_start(0.0);
         self.sim = None;
         self.preview = None;
         Ok(Status::Ok)

@@ -7,7 +7,7 @@
 use super::Instance;
 use crate::fmu::adapter::{self, Calculated, Source, StateEntry, StateVector, MAX_INPUTS, MAX_STATES};
 use crate::fmu::error::{FmuError, Status};
-use crate::fmu::state_machine::{Function, Interface, Phase};
+use crate::fmu::state_machine::{Function, Interface, Phase, Standard};
 use crate::fmu::variables::VarType;
 use crate::physics::finite;
 
@@ -24,6 +24,48 @@ pub struct EventInfo {
 /// Number of event indicators.
 const EVENT_INDICATORS: usize = 2;
 
+/// How far back fmi2SetTime / fmi3SetTime may go: not before the start time, the second-last
+/// completed integrator step or the last event. FMI 3.0.2 §3.2.1: time "must be larger or equal
+/// to: startTime, the time at the second last call to fmi3CompletedIntegratorStep, the time at
+/// the last call to fmi3EnterEventMode". FMI 2.0.4 §3.2.2 says the same of FMI 2.0: "After
+/// fmi2CompletedIntegratorStep is called, it is still allowed to go back in time […]. However,
+/// it is not allowed to go back in time over the previous fmi2CompletedIntegratorStep or the
+/// previous fmi2EnterEventMode call" (going back over the call just made is what the first
+/// sentence allows, so the previous call is the one before it). Kept in FMU states.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeMarks {
+    /// The times of the second-last and the last completed integrator step (the start time
+    /// before there were two).
+    pub completed_steps: [f64; 2],
+    /// The time of the last fmi2EnterEventMode; initialization ends in Event Mode, so the start
+    /// time before any.
+    pub event: f64,
+}
+
+impl TimeMarks {
+    /// The marks of an instance at `start`, before any step or event.
+    pub fn at_start(start: f64) -> TimeMarks {
+        TimeMarks {
+            completed_steps: [start; 2],
+            event: start,
+        }
+    }
+
+    /// The earliest time that may be set, and what sets it (the start time is at or before
+    /// both marks).
+    pub fn earliest(&self) -> (f64, &'static str) {
+        let [second_last, _] = self.completed_steps;
+        if self.event >= second_last {
+            (
+                self.event,
+                "the last event (Event Mode entered, or initialization ended)",
+            )
+        } else {
+            (second_last, "the second-last completed integrator step")
+        }
+    }
+}
+
 impl Instance {
     /// Model Exchange, and FMI 3.0 Co-Simulation with Event Mode (after a step that stopped at
     /// a contact switch, or whenever the importer wants to act).
@@ -34,6 +76,7 @@ impl Instance {
             ));
         }
         self.phase = Phase::EventMode;
+        self.time_marks.event = self.time;
         Ok(Status::Ok)
     }
 
@@ -72,18 +115,39 @@ impl Instance {
     /// Returns (enterEventMode, terminateSimulation): neither is ever needed, modes being a
     /// function of the state.
     pub(crate) fn completed_integrator_step_body(&mut self) -> Result<(bool, bool), FmuError> {
+        let [_, last] = self.time_marks.completed_steps;
+        self.time_marks.completed_steps = [last, self.time];
         Ok((false, false))
     }
 
-    /// Any finite time from the start time on, forwards or backwards. A time past the stop time
-    /// is accepted: variable-step solvers evaluate the right-hand side beyond the end of the
-    /// interval they integrate (fmpy's CVode does), and the model is defined there.
+    /// Any finite time from the start time on, forwards, or backwards as far as [`TimeMarks`]
+    /// allows. A time past the stop time is accepted: variable-step solvers evaluate the
+    /// right-hand side beyond the end of the interval they integrate (fmpy's CVode does), and
+    /// the model is defined there.
     pub(crate) fn set_time_body(&mut self, time: f64) -> Result<Status, FmuError> {
         let start = self.experiment.start_time;
         if !(finite(time) && time >= start) {
             return Err(FmuError::InvalidArgument(format!(
                 "time {time} must be finite and >= the start time {start} of the experiment"
             )));
+        }
+        let (earliest, mark) = self.time_marks.earliest();
+        if time < earliest {
+            return Err(FmuError::TimeGoesBack {
+                time,
+                earliest,
+                mark,
+                rule: match self.flavour.standard {
+                    Standard::Fmi2 => {
+                        "FMI 2.0.4 §3.2.2: \"it is not allowed to go back in time over the previous \
+                         fmi2CompletedIntegratorStep or the previous fmi2EnterEventMode call\""
+                    }
+                    Standard::Fmi3 => {
+                        "FMI 3.0.2 §3.2.1: time \"must be larger or equal to: startTime, the time at the second \
+                         last call to fmi3CompletedIntegratorStep, the time at the last call to fmi3EnterEventMode\""
+                    }
+                },
+            });
         }
         self.time = time;
         Ok(Status::Ok)

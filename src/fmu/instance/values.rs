@@ -186,9 +186,10 @@ impl Instance {
         self.get_untyped_body(vrs, count, requested)
     }
 
-    /// FMI 2.0.4 tables of allowed calls, per variable: before and during initialization
-    /// inputs, parameters and initial = exact outputs (the initial state); in StepComplete,
-    /// Event Mode and Continuous-Time Mode inputs only (all parameters are fixed).
+    /// The tables of allowed calls, per variable: before and during initialization inputs,
+    /// parameters and initial = exact outputs (the initial state); afterwards inputs (all
+    /// parameters are fixed) and, where the standard allows it, the continuous-time states
+    /// ([`Instance::states_settable`]).
     fn check_settable(&self, v: &Variable) -> Result<(), FmuError> {
         let refuse = |reason| {
             Err(FmuError::NotSettable {
@@ -209,19 +210,45 @@ impl Instance {
                     Causality::Parameter => {
                         refuse("it is a fixed parameter; it can change only before fmi2ExitInitializationMode")
                     }
-                    _ => refuse(
-                        "its start value is the initial state; it can change only before fmi2ExitInitializationMode \
-                         (in Model Exchange, fmi2SetContinuousStates sets the state)",
-                    ),
+                    _ if v.is_continuous_state() && self.states_settable() => Ok(()),
+                    _ => refuse(match (self.flavour.standard, self.phase) {
+                        (Standard::Fmi2, Phase::EventMode) => {
+                            "FMI 2.0.4 §3.2.3 allows in Event Mode inputs and tunable parameters only \
+                             (condition 4); a continuous-time state can be set in Continuous-Time Mode"
+                        }
+                        _ => {
+                            "its start value is the initial state; it can change only before \
+                             fmi2ExitInitializationMode (in Model Exchange, also in Continuous-Time Mode)"
+                        }
+                    }),
                 },
                 _ => refuse("no variable can be set in this state"),
             },
         }
     }
 
-    /// All values are checked before any is stored, so a refused call changes nothing.
+    /// Whether a continuous-time state can be set by value reference now. FMI 2.0.4 §3.2.3,
+    /// condition 5 of fmi2SetReal in Continuous-Time Mode: "for a variable with causality =
+    /// "input" and variability = "continuous", and for a continuous-time state variable". FMI
+    /// 3.0.2 §3.2.1, Continuous-Time Mode: "Only for variables with causality = input and
+    /// variability = continuous, and continuous-time states"; §2.3.5, Event Mode (of either
+    /// interface): "… and continuous-time states with reinit = false" (no state declares
+    /// reinit, whose default is false).
+    fn states_settable(&self) -> bool {
+        match self.phase {
+            Phase::ContinuousTimeMode => true,
+            Phase::EventMode => self.flavour.standard == Standard::Fmi3,
+            _ => false,
+        }
+    }
+
+    /// All values are checked before any is stored, so a refused call changes nothing. A
+    /// continuous-time state set after initialization sets the plant's state exactly as
+    /// fmi2SetContinuousStates with the other entries unchanged would.
     pub(crate) fn set_real_body(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
         Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
+        let mut z = self.sim.as_ref().map(|sim| adapter::entries_of(&sim.state));
+        let mut states_set = false;
         // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
             if self.is_time(*vr) {
@@ -240,13 +267,30 @@ impl Instance {
                     range: v.range.describe(),
                 });
             }
+            if let (Source::State(entry), Some(z)) = (adapter::source(v.symbol), z.as_mut()) {
+                z[entry.index()] = *value;
+                states_set = true;
+            }
         }
+        let state = match (&self.sim, z) {
+            (Some(sim), Some(z)) if states_set => {
+                let state = adapter::state_of(sim.plant(), &z);
+                sim.check_state(&state, format_args!("the continuous states overflow"))?;
+                Some(state)
+            }
+            _ => None,
+        };
         for (vr, value) in vrs.iter().zip(values) {
             let v = self.typed_variable(*vr, VarType::Real)?;
-            self.values[v.symbol.index()] = *value;
+            // After initialization a state's slot keeps its start value; the plant holds the state.
+            if !(self.sim.is_some() && matches!(adapter::source(v.symbol), Source::State(_))) {
+                self.values[v.symbol.index()] = *value;
+            }
         }
-        if self.sim.is_none() {
-            self.preview = None;
+        match (&mut self.sim, state) {
+            (Some(sim), Some(state)) => sim.state = state,
+            (Some(_), None) => {}
+            (None, _) => self.preview = None,
         }
         Ok(Status::Ok)
     }
