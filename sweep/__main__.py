@@ -71,6 +71,9 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--accuracy", type=float, help="required load-speed accuracy [m/s] (overrides the config)")
     ap.add_argument("--connect-timeout", type=float, default=10.0, help="seconds to reach the scheduler")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ap.add_argument("--check", action="store_true",
+                    help="check the arguments, the config and the output directory, then stop (needs only the "
+                         "standard library: `cargo xtask sweep` runs it before building anything)")
     args = ap.parse_args(argv)
     if args.serial and (args.scheduler or args.workers):
         raise UsageError("--serial runs without Dask: it takes neither --scheduler nor --workers")
@@ -83,18 +86,26 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     from . import config as config_mod
-    from . import engine, report
 
     try:
         args = parse(argv)
         config = config_mod.load(args.config)
         if args.accuracy is not None:
             config.accuracy = args.accuracy
+        _check_writable(args.out)
+    except (UsageError, config_mod.ConfigError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if args.check:
+        return 0
+
+    from . import engine, report
+
+    try:
         try:
             fmu_bytes = args.fmu.read_bytes()
         except OSError as e:
             raise UsageError(f"cannot read the FMU archive {args.fmu}: {e.strerror} (build it with `cargo xtask fmu`)")
-        _check_writable(args.out)
         draws = config.draw(args.samples, args.seed)
         settings = config.settings()
         if args.serial:
@@ -102,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             outcome = engine.run_dask(fmu_bytes, draws, settings, scheduler=args.scheduler, workers=args.workers,
                                       timeout=args.connect_timeout, progress=not args.no_progress)
-    except (UsageError, config_mod.ConfigError, engine.SchedulerError) as e:
+    except (UsageError, engine.SchedulerError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except Exception as e:  # noqa: BLE001 - one line for the user, not a traceback; 1 is reserved

@@ -33,8 +33,6 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 # Order of the draws inside one sample, and of the table's columns: fixed, so a sample's values
 # depend only on the seed and its index.
 PARAMETERS = ("Delta", "k", "J_L", "J_m", "b_m", "b_L", "Kp", "Ki")
@@ -103,6 +101,8 @@ class Config:
     def draw(self, samples: int, seed: int) -> list[dict[str, float]]:
         """Every sample's parameters, drawn here once: sample i's values depend only on the seed
         and i (draws in PARAMETERS order, sample after sample), never on who runs it."""
+        import numpy as np  # here, so that a config can be checked without the venv (--check)
+
         rng = np.random.default_rng(seed)
         out = []
         for _ in range(samples):

@@ -205,6 +205,22 @@ def test_bad_config_is_refused_in_one_line(tmp_path, text, says):
     assert not (tmp_path / "out").exists()
 
 
+def test_cargo_xtask_sweep_refuses_a_bad_config_before_building(tmp_path):
+    """The config is checked by `python3 -m sweep --check` (standard library only) before the
+    FMUs and the venv are built: the refusal is the sweep's one line, and no build step ran."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[parameters]\nk = { low = 220.0, high = 180.0 }\n")
+    cargo = os.environ.get("CARGO", "cargo")
+    done = subprocess.run([cargo, "xtask", "sweep", "--samples", "2", "--seed", "1", "--config", str(bad),
+                           "--out", str(tmp_path / "out")], cwd=fmu_driver.REPO, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 2, done.stderr
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error")]
+    assert len(errors) == 1 and "inverted range" in errors[0], done.stderr
+    assert "building the FMUs" not in done.stdout + done.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_unreachable_scheduler_is_refused_in_one_line(tmp_path, config_file):
     done = sweep(tmp_path / "out", config_file, "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "2",
                  timeout=60)

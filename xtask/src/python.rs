@@ -38,6 +38,11 @@ fn requirements() -> [PathBuf; 2] {
     ]
 }
 
+/// The Python the venv is made from: `$PYTHON`, else `python3`.
+pub fn base_python() -> String {
+    std::env::var("PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
 /// Records what the venv was installed from; pip runs again only when this text changes.
 fn stamp_path() -> PathBuf {
     venv_dir().join("requirements.stamp")
@@ -54,8 +59,7 @@ pub fn ensure_venv() -> Result<(), String> {
     }
 
     if !venv_python().is_file() {
-        let base = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
-        util::run(Command::new(&base).args(["-m", "venv"]).arg(venv_dir())).map_err(|e| {
+        util::run(Command::new(base_python()).args(["-m", "venv"]).arg(venv_dir())).map_err(|e| {
             format!("{e}\ncreating the venv needs python3 with the venv module (Debian: apt-get install python3-venv)")
         })?;
     }

@@ -1,6 +1,8 @@
-//! `cargo xtask sweep`: the tolerance sweep. Builds the FMUs, makes sure the Python environment
-//! exists, then runs `python -m sweep` (the package sweep/) from the repository root on
-//! BacklashShaft.fmu with the flags given here.
+//! `cargo xtask sweep`: the tolerance sweep. Has the flags, the config and the output directory
+//! checked first (`python3 -m sweep --check`, standard library only, so a bad config is refused
+//! in a second rather than after minutes of building), builds the FMUs, makes sure the Python
+//! environment exists, then runs `python -m sweep` (the package sweep/) from the repository root
+//! on BacklashShaft.fmu with the flags given here.
 
 use std::process::Command;
 
@@ -68,6 +70,14 @@ pub fn run(args: &[String]) -> Result<(), String> {
         }
     }
 
+    step("checking the sweep's flags and config (python3 -m sweep --check)");
+    let mut check = Command::new(python::base_python());
+    check
+        .current_dir(util::repo_root())
+        .args(["-m", "sweep", "--check"])
+        .args(&forwarded);
+    sweep_status(&mut check)?;
+
     step("building the FMUs");
     fmu::package_all()?;
     python::ensure_venv()?;
@@ -79,8 +89,12 @@ pub fn run(args: &[String]) -> Result<(), String> {
         .args(["-m", "sweep", "--fmu"])
         .arg(util::fmu_dir().join("BacklashShaft.fmu"))
         .args(&forwarded);
-    let status = util::status(&mut cmd)?;
-    // The sweep has already said what went wrong in one line; pass its exit code on.
+    sweep_status(&mut cmd)
+}
+
+/// Runs `python -m sweep`; it says what went wrong in one line, so its exit code is passed on.
+fn sweep_status(cmd: &mut Command) -> Result<(), String> {
+    let status = util::status(cmd)?;
     match status.code() {
         Some(0) => Ok(()),
         Some(code) => std::process::exit(code),
