@@ -90,6 +90,13 @@ class _Logged:
 
         return log
 
+    @staticmethod
+    def _log_reasons(instance, everything: bool) -> None:
+        """FMI 3.0.2 §2.3.1: with loggingOn = false the FMU calls no logger at all, so instances
+        are made with it on; unless `everything`, only errors and warnings stay on."""
+        if not everything:
+            instance.setDebugLogging(False, ["logContactEvents", "logCalls"])
+
     def refused(self, call, *mentions: str) -> list[str]:
         """call() must fail with fmi3Error and log, under logErrors, a reason naming each of
         `mentions`; returns the new reasons."""
@@ -126,8 +133,9 @@ class Slave3(_Logged):
             instanceName=name,
         )
         self.slave.instantiate(
-            loggingOn=logging, eventModeUsed=event_mode, earlyReturnAllowed=early_return, logMessage=self._init_log()
+            loggingOn=True, eventModeUsed=event_mode, earlyReturnAllowed=early_return, logMessage=self._init_log()
         )
+        self._log_reasons(self.slave, logging)
         self.params = dict(params or {})
         self.t0 = self.time = start_time
         self._in = (ctypes.c_uint * 2)(self.vr["tau_m"], self.vr["tau_L"])
@@ -187,7 +195,8 @@ class Model3(_Logged):
             modelIdentifier=fmu.md.modelExchange.modelIdentifier,
             instanceName=name,
         )
-        self.model.instantiate(logMessage=self._init_log())
+        self.model.instantiate(loggingOn=True, logMessage=self._init_log())
+        self._log_reasons(self.model, False)
         self.c = self.model.component
         self.nx = len(fmu.md.derivatives)
         self._x = (ctypes.c_double * self.nx)()

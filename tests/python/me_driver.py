@@ -300,7 +300,9 @@ def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, a
 
 def outputs_along(inst: ModelInstance, run: LoopRun, names=("psi", "bound", "bound_paper")) -> dict[str, np.ndarray]:
     """The FMU's outputs at the run's output times, each read after fmi2SetTime and
-    fmi2SetContinuousStates (in Continuous-Time Mode): Real outputs and `contact`."""
+    fmi2SetContinuousStates (in Continuous-Time Mode): Real outputs and `contact`. `inst` must
+    be one that has not integrated past the first output time: time cannot go back over a
+    completed integrator step or an event (FMI 2.0.4 §3.2.2), so a fresh instance reads them."""
     rows, contact = [], []
     for t, z in zip(run.t, run.z):
         inst.set_state(t, z)

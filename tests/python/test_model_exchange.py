@@ -67,13 +67,17 @@ def fmu_loop(model: str, delta: float | None = None):
     params, gains = RIGS[model]
     params = params if delta is None else with_delta(params, delta)
     inst = ModelInstance(fmu_driver.require(model), f"loop-{delta}", {**params, **gains})
+    # The outputs along the run are read by a second instance from the start: the first has
+    # completed steps and events, over which time cannot go back (FMI 2.0.4 §3.2.2).
+    reader = ModelInstance(fmu_driver.require(model), f"read-{delta}", {**params, **gains})
     try:
         # Delta = 0: linear right-hand side, nothing to locate (run_loop's events=False)
         events = params["Delta"] > 0.0
         run = run_loop(inst, gains["Kp"], gains["Ki"], loop_holds(), LOOP_TIMES, (0.0, 0.0, 0.0, 0.0), events=events)
-        out = me_driver.outputs_along(inst, run)
+        out = me_driver.outputs_along(reader, run)
     finally:
         inst.free()
+        reader.free()
     return run, out
 
 
