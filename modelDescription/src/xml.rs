@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use crate::common::{
     causality_name, derivative_dependencies, hash_name, initial_attribute, initial_dependencies, output_dependencies,
-    variability_name, vr_of, write_type_attributes, write_units_categories_and_experiment,
+    variability_name, vr_of, write_type_attributes, write_units_categories_and_experiment, EVENT_INDICATORS,
 };
 use crate::{model, Causality, Model, Type};
 
@@ -29,10 +29,11 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     x.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     let _ = writeln!(
         x,
-        "<fmiModelDescription fmiVersion=\"2.0\" modelName=\"{}\" guid=\"{}\" description=\"{}\" generationTool=\"backlash-fmu (model-description crate)\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"2\">",
+        "<fmiModelDescription fmiVersion=\"2.0\" modelName=\"{}\" guid=\"{}\" description=\"{}\" generationTool=\"backlash-fmu (model-description crate)\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"{}\">",
         model.identifier,
         guid,
-        escape(model.description)
+        escape(model.description),
+        EVENT_INDICATORS.len()
     );
     // Event indicators u - g and u + g; no event needs an iteration, so completed integrator
     // steps need not be reported.

@@ -3,7 +3,7 @@
 use super::fmu_state::free_states_of;
 use super::guard::{c_str, guard, input_array, register, to_c_string, unregister, CLogger, Component};
 use super::types::*;
-use crate::fmu::{model_by_guid, Function, Instance, Interface, LogCategory, LogSink, Status, MODELS};
+use crate::fmu::{model_for_instantiation, Function, Instance, Interface, LogCategory, LogSink, Standard, Status};
 use std::ffi::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -112,18 +112,9 @@ fn instantiate(
         Ok(g) => g,
         Err(e) => return refuse(&logger, e.to_string()),
     };
-    let model = match model_by_guid(guid) {
-        Some(model) => model,
-        None => {
-            return refuse(
-                &logger,
-                format!(
-                    "fmuGUID {guid:?} is not the guid of BacklashShaft ({}) or BacklashBelt ({}): the \
-                     modelDescription.xml and the binary come from different builds",
-                    MODELS[0].guid, MODELS[1].guid
-                ),
-            )
-        }
+    let model = match model_for_instantiation(Standard::Fmi2, guid) {
+        Ok(model) => model,
+        Err(why) => return refuse(&logger, why),
     };
     let sink = logger.map(|l| Box::new(l) as Box<dyn LogSink>);
     let mut instance = Instance::new_for(model, interface, sink, logging_on != fmi2False);

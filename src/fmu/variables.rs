@@ -3,6 +3,7 @@
 //! `modelDescription.xml` comes from), and the lookups the instance serves get/set with.
 
 // The kinds of variables are those the description is written with: one definition.
+use super::state_machine::Standard;
 pub use model_description::{Causality, DefaultExperiment, DriveTrain, Initial, Range, Type as VarType, Variability};
 
 /// One scalar variable of a model, with the [`Symbol`] that says what it is.
@@ -62,6 +63,26 @@ pub fn model_by_instantiation_token(token: &str) -> Option<&'static ModelInfo> {
     MODELS.iter().find(|m| m.instantiation_token == token)
 }
 
+/// The model whose description carries `key`: its guid for FMI 2.0 (`fmi2Instantiate`'s
+/// fmuGUID), its instantiation token for FMI 3.0; else why none does, naming every model served.
+pub fn model_for_instantiation(standard: Standard, key: &str) -> Result<&'static ModelInfo, String> {
+    let (argument, key_of): (&str, fn(&ModelInfo) -> &'static str) = match standard {
+        Standard::Fmi2 => ("fmuGUID", |m| m.guid),
+        Standard::Fmi3 => ("instantiationToken", |m| m.instantiation_token),
+    };
+    MODELS.iter().find(|m| key_of(m) == key).ok_or_else(|| {
+        let served: Vec<String> = MODELS
+            .iter()
+            .map(|m| format!("{} {}", m.identifier, key_of(m)))
+            .collect();
+        format!(
+            "{argument} {key:?} is not that of any model of this binary ({}): the modelDescription.xml and the \
+             binary come from different builds",
+            served.join(", ")
+        )
+    })
+}
+
 pub fn model_by_identifier(identifier: &str) -> Option<&'static ModelInfo> {
     MODELS.iter().find(|m| m.identifier == identifier)
 }
@@ -95,5 +116,44 @@ mod tests {
             Some("BacklashBelt")
         );
         assert!(model_by_guid("").is_none());
+    }
+
+    /// Each description declares as many event indicators as the physics computes.
+    #[test]
+    fn every_model_declares_the_physics_event_indicators() {
+        use crate::fmu::adapter::{source, Calculated, Source};
+        for m in &MODELS {
+            let declared = m
+                .variables
+                .iter()
+                .filter(|v| {
+                    matches!(
+                        source(v.symbol),
+                        Source::Calculated(Calculated::UMinusG | Calculated::UPlusG)
+                    )
+                })
+                .count();
+            assert_eq!(
+                declared,
+                crate::physics::vector_field::EVENT_INDICATORS,
+                "{}",
+                m.identifier
+            );
+        }
+    }
+
+    #[test]
+    fn a_key_of_no_model_is_refused_naming_every_model() {
+        for standard in [Standard::Fmi2, Standard::Fmi3] {
+            let why = model_for_instantiation(standard, "{0}").unwrap_err();
+            for m in &MODELS {
+                assert!(why.contains(m.identifier), "{why}");
+            }
+        }
+        let token = MODELS[2].instantiation_token;
+        assert_eq!(
+            model_for_instantiation(Standard::Fmi3, token).map(|m| m.identifier),
+            Ok(MODELS[2].identifier)
+        );
     }
 }

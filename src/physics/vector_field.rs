@@ -13,6 +13,10 @@ use super::params::Plant;
 /// Modelica Standard Library's ElastoBacklash).
 const ANGLE_SCALE_WITHOUT_GAP: f64 = 1e-4;
 
+/// How many event indicators every plant has ([`Plant::event_indicators`]); the descriptions
+/// declare as many (a test of `fmu` ties them).
+pub const EVENT_INDICATORS: usize = 2;
+
 impl Plant {
     /// z' = d/dt [θ_m, ω_m, θ_L, ω_L] at `state` with torques τ_m, τ_L (docs/model.md §1):
     /// θ_m' = ω_m, J_m ω_m' = τ_m − b_m ω_m − r_m ψ, θ_L' = ω_L, J_L ω_L' = τ_L − b_L ω_L + r_L ψ
@@ -80,7 +84,7 @@ impl Plant {
 
     /// The event indicators [u − g, u + g]: a contact switch is a sign change of one of them.
     #[inline]
-    pub fn event_indicators(&self, state: &PlantState) -> [f64; 2] {
+    pub fn event_indicators(&self, state: &PlantState) -> [f64; EVENT_INDICATORS] {
         let g = self.half_gap();
         [state.u - g, state.u + g]
     }

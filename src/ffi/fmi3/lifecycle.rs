@@ -5,8 +5,8 @@ use super::super::guard::{c_str, input_array, register, unregister, Component};
 use super::types::*;
 use super::{guard3, CLogger3};
 use crate::fmu::{
-    model_by_instantiation_token, CoSimulationOptions, Flavour, Function, Instance, Interface, LogCategory, LogSink,
-    Status, MODELS,
+    model_for_instantiation, CoSimulationOptions, Flavour, Function, Instance, Interface, LogCategory, LogSink,
+    Standard, Status,
 };
 use std::ffi::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -83,16 +83,9 @@ fn try_instantiate(request: Request) -> fmi3Instance {
         Ok(t) => t,
         Err(e) => return refuse(logger, function, e.to_string()),
     };
-    let Some(model) = model_by_instantiation_token(token) else {
-        return refuse(
-            logger,
-            function,
-            format!(
-                "instantiationToken {token:?} is not the token of BacklashShaft ({}) or BacklashBelt ({}): the \
-                 modelDescription.xml and the binary come from different builds",
-                MODELS[0].instantiation_token, MODELS[1].instantiation_token
-            ),
-        );
+    let model = match model_for_instantiation(Standard::Fmi3, token) {
+        Ok(model) => model,
+        Err(why) => return refuse(logger, function, why),
     };
     let sink = logger.map(|l| Box::new(l) as Box<dyn LogSink>);
     let mut instance = Instance::with(model, request.flavour, request.options, sink, request.logging_on);

@@ -18,7 +18,7 @@ use super::logging::{LogCategory, LogSink, Logging};
 use super::simulation::Simulation;
 use super::snapshot::Snapshot;
 use super::state_machine::{Flavour, Function, Interface, Phase, Standard};
-use super::variables::{model_by_guid, ModelInfo, MODELS};
+use super::variables::ModelInfo;
 
 /// Relative slack of bound_sup or bound_T_sup (see `LoopBound::sup_slack`) above which
 /// exitInitializationMode warns.
@@ -130,19 +130,6 @@ impl Instance {
             preview: None,
             log: Logging::new(sink, logging_on, flavour.standard),
         }
-    }
-
-    /// fmi2Instantiate for Co-Simulation: the model is chosen by its guid.
-    pub fn instantiate(guid: &str, sink: Option<Box<dyn LogSink>>, logging_on: bool) -> Result<Instance, FmuError> {
-        let model = model_by_guid(guid).ok_or_else(|| {
-            let served: Vec<&str> = MODELS.iter().map(|m| m.identifier).collect();
-            FmuError::InvalidArgument(format!(
-                "guid {guid:?} is not the guid of any model in this binary ({}): the modelDescription.xml and \
-                 the binary come from different builds",
-                served.join(", ")
-            ))
-        })?;
-        Ok(Instance::new(model, sink, logging_on))
     }
 
     pub fn model(&self) -> &'static ModelInfo {

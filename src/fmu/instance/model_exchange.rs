@@ -10,6 +10,7 @@ use crate::fmu::error::{FmuError, Status};
 use crate::fmu::state_machine::{Function, Interface, Phase, Standard};
 use crate::fmu::variables::VarType;
 use crate::physics::finite;
+use crate::physics::vector_field::EVENT_INDICATORS;
 
 /// The answer of fmi2NewDiscreteStates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,9 +21,6 @@ pub struct EventInfo {
     pub values_changed: bool,
     pub next_event_time: Option<f64>,
 }
-
-/// Number of event indicators.
-const EVENT_INDICATORS: usize = 2;
 
 /// How far back fmi2SetTime / fmi3SetTime may go: not before the start time, the second-last
 /// completed integrator step or the last event. FMI 3.0.2 §3.2.1: time "must be larger or equal
@@ -259,7 +257,7 @@ impl Instance {
             match adapter::source(v.symbol) {
                 Source::State(entry) => dz[entry.index()] += dv,
                 Source::Input(slot) => dinput[slot] += dv,
-                _ => {
+                Source::Parameter | Source::Calculated(_) | Source::Derivative(_) | Source::Contact => {
                     return Err(FmuError::InvalidArgument(format!(
                         "{} is not a known of the Jacobian: the knowns are the continuous states and the inputs",
                         v.name
@@ -270,24 +268,12 @@ impl Instance {
         let mut rows = Vec::with_capacity(unknowns.len());
         for vr in unknowns {
             let v = self.typed_variable(*vr, VarType::Real)?;
-            match adapter::source(v.symbol) {
-                Source::Derivative(_)
-                | Source::State(_)
-                | Source::Calculated(
-                    Calculated::Psi
-                    | Calculated::UMinusG
-                    | Calculated::UPlusG
-                    | Calculated::Bound
-                    | Calculated::BoundPaper
-                    | Calculated::BoundT,
-                ) => rows.push(adapter::source(v.symbol)),
-                _ => {
-                    return Err(FmuError::InvalidArgument(format!(
-                        "{} is not an unknown of the Jacobian: the unknowns are the state derivatives and the outputs",
-                        v.name
-                    )))
-                }
-            }
+            rows.push(Unknown::of(adapter::source(v.symbol)).ok_or_else(|| {
+                FmuError::InvalidArgument(format!(
+                    "{} is not an unknown of the Jacobian: the unknowns are the state derivatives and the outputs",
+                    v.name
+                ))
+            })?);
         }
         let sim = self.physics()?;
         let plant = sim.plant();
@@ -300,18 +286,17 @@ impl Instance {
         let mut values = Vec::with_capacity(rows.len());
         for row in rows {
             let value = match row {
-                Source::Derivative(entry) => {
+                Unknown::Derivative(entry) => {
                     let i = entry.index();
                     (0..MAX_STATES).map(|j| jz[i][j] * dz[j]).sum::<f64>()
                         + jinputs[i][0] * dforcing[0]
                         + jinputs[i][1] * dforcing[1]
                         + jinputs[i][2] * dforcing[2]
                 }
-                Source::State(entry) => dz[entry.index()],
-                Source::Calculated(Calculated::Psi) => psi_rate(&dz),
-                Source::Calculated(Calculated::UMinusG | Calculated::UPlusG) => plant.transmission(dz[0], dz[2]),
-                // The bounds: functions of time alone.
-                _ => 0.0,
+                Unknown::State(entry) => dz[entry.index()],
+                Unknown::Psi => psi_rate(&dz),
+                Unknown::Indicator => plant.transmission(dz[0], dz[2]),
+                Unknown::TimeOnly => 0.0,
             };
             if !value.is_finite() {
                 return Err(FmuError::Overflow(format!(
@@ -322,6 +307,36 @@ impl Instance {
         }
         dv_unknown.copy_from_slice(&values);
         Ok(Status::Ok)
+    }
+}
+
+/// A row of the Jacobian an importer may ask for (docs/model.md §6).
+#[derive(Clone, Copy)]
+enum Unknown {
+    Derivative(StateEntry),
+    State(StateEntry),
+    Psi,
+    /// u − g or u + g: both move with u.
+    Indicator,
+    /// The bounds: functions of time alone, so their rows are 0.
+    TimeOnly,
+}
+
+impl Unknown {
+    /// The row of a variable, or None for one that is no unknown of the Jacobian. Exhaustive: a
+    /// new output must be placed here.
+    fn of(source: Source) -> Option<Unknown> {
+        match source {
+            Source::Derivative(entry) => Some(Unknown::Derivative(entry)),
+            Source::State(entry) => Some(Unknown::State(entry)),
+            Source::Calculated(quantity) => match quantity {
+                Calculated::Psi => Some(Unknown::Psi),
+                Calculated::UMinusG | Calculated::UPlusG => Some(Unknown::Indicator),
+                Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
+                Calculated::BoundSup | Calculated::BoundTSup => None,
+            },
+            Source::Input(_) | Source::Parameter | Source::Contact => None,
+        }
     }
 }
 
