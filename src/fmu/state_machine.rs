@@ -208,6 +208,13 @@ struct Masks {
     co_simulation: u8,
 }
 
+/// A function's C name and masks in FMI 2.0 and in FMI 3.0.
+#[derive(Clone, Copy)]
+struct Spec {
+    fmi2: (&'static str, Masks),
+    fmi3: (&'static str, Masks),
+}
+
 const fn both(model_exchange: u8, co_simulation: u8) -> Masks {
     Masks {
         model_exchange,
@@ -218,213 +225,188 @@ const fn both(model_exchange: u8, co_simulation: u8) -> Masks {
 impl Function {
     /// The C name in `standard`, for messages.
     pub fn name(self, standard: Standard) -> &'static str {
-        match standard {
-            Standard::Fmi2 => self.c_name(),
-            Standard::Fmi3 => self.fmi3_name(),
-        }
-    }
-
-    /// The FMI 3.0 C name.
-    fn fmi3_name(self) -> &'static str {
-        use Function::*;
-        match self {
-            SetDebugLogging => "fmi3SetDebugLogging",
-            FreeInstance => "fmi3FreeInstance",
-            SetupExperiment | EnterInitializationMode => "fmi3EnterInitializationMode",
-            ExitInitializationMode => "fmi3ExitInitializationMode",
-            Terminate => "fmi3Terminate",
-            Reset => "fmi3Reset",
-            GetReal => "fmi3GetFloat64",
-            GetInteger => "fmi3GetInt32",
-            GetBoolean => "fmi3GetBoolean",
-            GetString => "fmi3GetString",
-            SetReal => "fmi3SetFloat64",
-            SetInteger => "fmi3SetInt32",
-            SetBoolean => "fmi3SetBoolean",
-            SetString => "fmi3SetString",
-            GetFmuState => "fmi3GetFMUState",
-            SetFmuState => "fmi3SetFMUState",
-            FreeFmuState => "fmi3FreeFMUState",
-            SerializedFmuStateSize => "fmi3SerializedFMUStateSize",
-            SerializeFmuState => "fmi3SerializeFMUState",
-            DeSerializeFmuState => "fmi3DeserializeFMUState",
-            GetDirectionalDerivative => "fmi3GetDirectionalDerivative",
-            GetRealOutputDerivatives => "fmi3GetOutputDerivatives",
-            DoStep => "fmi3DoStep",
-            EnterEventMode => "fmi3EnterEventMode",
-            NewDiscreteStates => "fmi3UpdateDiscreteStates",
-            EnterContinuousTimeMode => "fmi3EnterContinuousTimeMode",
-            CompletedIntegratorStep => "fmi3CompletedIntegratorStep",
-            SetTime => "fmi3SetTime",
-            SetContinuousStates => "fmi3SetContinuousStates",
-            GetDerivatives => "fmi3GetContinuousStateDerivatives",
-            GetEventIndicators => "fmi3GetEventIndicators",
-            GetContinuousStates => "fmi3GetContinuousStates",
-            GetNominalsOfContinuousStates => "fmi3GetNominalsOfContinuousStates",
-            EnterStepMode => "fmi3EnterStepMode",
-            GetNumberOfEventIndicators => "fmi3GetNumberOfEventIndicators",
-            GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates",
-            GetOtherType(name) | SetOtherType(name) | NotProvided(name) => name,
-            // FMI 2.0 only; never called through the FMI 3.0 functions.
-            SetRealInputDerivatives
-            | CancelStep
-            | GetStatus
-            | GetRealStatus
-            | GetIntegerStatus
-            | GetBooleanStatus
-            | GetStringStatus => self.c_name(),
-        }
+        self.in_standard(standard).0
     }
 
     /// The FMI 2.0 C name, for messages.
     pub fn c_name(self) -> &'static str {
-        use Function::*;
-        match self {
-            SetDebugLogging => "fmi2SetDebugLogging",
-            FreeInstance => "fmi2FreeInstance",
-            SetupExperiment => "fmi2SetupExperiment",
-            EnterInitializationMode => "fmi2EnterInitializationMode",
-            ExitInitializationMode => "fmi2ExitInitializationMode",
-            Terminate => "fmi2Terminate",
-            Reset => "fmi2Reset",
-            GetReal => "fmi2GetReal",
-            GetInteger => "fmi2GetInteger",
-            GetBoolean => "fmi2GetBoolean",
-            GetString => "fmi2GetString",
-            SetReal => "fmi2SetReal",
-            SetInteger => "fmi2SetInteger",
-            SetBoolean => "fmi2SetBoolean",
-            SetString => "fmi2SetString",
-            GetFmuState => "fmi2GetFMUstate",
-            SetFmuState => "fmi2SetFMUstate",
-            FreeFmuState => "fmi2FreeFMUstate",
-            SerializedFmuStateSize => "fmi2SerializedFMUstateSize",
-            SerializeFmuState => "fmi2SerializeFMUstate",
-            DeSerializeFmuState => "fmi2DeSerializeFMUstate",
-            GetDirectionalDerivative => "fmi2GetDirectionalDerivative",
-            SetRealInputDerivatives => "fmi2SetRealInputDerivatives",
-            GetRealOutputDerivatives => "fmi2GetRealOutputDerivatives",
-            DoStep => "fmi2DoStep",
-            CancelStep => "fmi2CancelStep",
-            GetStatus => "fmi2GetStatus",
-            GetRealStatus => "fmi2GetRealStatus",
-            GetIntegerStatus => "fmi2GetIntegerStatus",
-            GetBooleanStatus => "fmi2GetBooleanStatus",
-            GetStringStatus => "fmi2GetStringStatus",
-            EnterEventMode => "fmi2EnterEventMode",
-            NewDiscreteStates => "fmi2NewDiscreteStates",
-            EnterContinuousTimeMode => "fmi2EnterContinuousTimeMode",
-            CompletedIntegratorStep => "fmi2CompletedIntegratorStep",
-            SetTime => "fmi2SetTime",
-            SetContinuousStates => "fmi2SetContinuousStates",
-            GetDerivatives => "fmi2GetDerivatives",
-            GetEventIndicators => "fmi2GetEventIndicators",
-            GetContinuousStates => "fmi2GetContinuousStates",
-            GetNominalsOfContinuousStates => "fmi2GetNominalsOfContinuousStates",
-            EnterStepMode => "fmi3EnterStepMode",
-            GetNumberOfEventIndicators => "fmi3GetNumberOfEventIndicators",
-            GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates",
-            GetOtherType(name) | SetOtherType(name) | NotProvided(name) => name,
-        }
+        self.name(Standard::Fmi2)
     }
 
     /// The states in which the call is legal for an instance of `standard`.
     #[inline]
     fn masks(self, standard: Standard) -> Masks {
+        self.in_standard(standard).1
+    }
+
+    #[inline]
+    fn in_standard(self, standard: Standard) -> (&'static str, Masks) {
+        let spec = self.spec();
         match standard {
-            Standard::Fmi2 => self.masks2(),
-            Standard::Fmi3 => self.masks3(),
+            Standard::Fmi2 => spec.fmi2,
+            Standard::Fmi3 => spec.fmi3,
         }
     }
 
-    /// FMI 2.0.4 §3.2.3 and §4.2.4, "allowed calls". Get calls in StepFailed and Error are legal;
-    /// their values are for debugging.
+    /// The one table of the functions: each one's C name and the states it is legal in, in FMI
+    /// 2.0 (FMI 2.0.4 §3.2.3 and §4.2.4, "allowed calls") and in FMI 3.0 (FMI 3.0.2 §2.3, §3.2
+    /// and §4.2; Co-Simulation's Step Mode is `StepComplete`, and the FMU never enters
+    /// Configuration, Reconfiguration or Clock Activation Mode). A function of one standard only
+    /// has masks 0 in the other and keeps its own name there. Get calls in StepFailed and Error
+    /// are legal; their values are for debugging. Which variables may be set in which state is
+    /// checked per variable.
     #[inline]
-    fn masks2(self) -> Masks {
+    fn spec(self) -> Spec {
         use Function::*;
-        const ANY: Masks = both(I | M | V | N | T | E, I | M | C | F | T | E);
+        const ANY2: Masks = both(I | M | V | N | T | E, I | M | C | F | T | E);
+        const ANY3: Masks = both(I | M | V | N | T | E, I | M | V | C | T | E);
+        const READ2: Masks = both(M | V | N | T | E, M | C | F | T | E);
+        const READ3: Masks = both(M | V | N | T | E, M | V | C | T | E);
+        const NONE: Masks = both(0, 0);
+        let spec = |fmi2, masks2, fmi3, masks3| Spec {
+            fmi2: (fmi2, masks2),
+            fmi3: (fmi3, masks3),
+        };
+        // A function of FMI 2.0 only, under its FMI 2.0 name in both.
+        let fmi2_only = |name, masks2| spec(name, masks2, name, NONE);
+        let fmi3_only = |name, masks3| spec(name, NONE, name, masks3);
         match self {
-            SetDebugLogging | FreeInstance | Reset => ANY,
-            SetupExperiment | EnterInitializationMode => both(I, I),
-            ExitInitializationMode => both(M, M),
-            Terminate => both(V | N, C | F),
-            GetReal | GetInteger | GetBoolean | GetString => both(M | V | N | T | E, M | C | F | T | E),
-            // Which variables may be set in which state is checked per variable.
-            SetReal => both(I | M | V | N, I | M | C),
-            SetInteger | SetBoolean | SetString => both(I | M | V, I | M | C),
-            GetFmuState
-            | SetFmuState
-            | FreeFmuState
-            | SerializedFmuStateSize
-            | SerializeFmuState
-            | DeSerializeFmuState => ANY,
-            GetDirectionalDerivative => both(M | V | N | T | E, M | C | F | T | E),
-            SetRealInputDerivatives => both(0, I | M | C),
-            GetRealOutputDerivatives => both(0, C | F | T | E),
-            DoStep => both(0, C),
+            SetDebugLogging => spec("fmi2SetDebugLogging", ANY2, "fmi3SetDebugLogging", ANY3),
+            FreeInstance => spec("fmi2FreeInstance", ANY2, "fmi3FreeInstance", ANY3),
+            SetupExperiment => spec(
+                "fmi2SetupExperiment",
+                both(I, I),
+                "fmi3EnterInitializationMode",
+                both(I, I),
+            ),
+            EnterInitializationMode => spec(
+                "fmi2EnterInitializationMode",
+                both(I, I),
+                "fmi3EnterInitializationMode",
+                both(I, I),
+            ),
+            ExitInitializationMode => spec(
+                "fmi2ExitInitializationMode",
+                both(M, M),
+                "fmi3ExitInitializationMode",
+                both(M, M),
+            ),
+            Terminate => spec("fmi2Terminate", both(V | N, C | F), "fmi3Terminate", both(V | N, V | C)),
+            Reset => spec("fmi2Reset", ANY2, "fmi3Reset", ANY3),
+            GetReal => spec("fmi2GetReal", READ2, "fmi3GetFloat64", READ3),
+            GetInteger => spec("fmi2GetInteger", READ2, "fmi3GetInt32", READ3),
+            GetBoolean => spec("fmi2GetBoolean", READ2, "fmi3GetBoolean", READ3),
+            GetString => spec("fmi2GetString", READ2, "fmi3GetString", READ3),
+            SetReal => spec(
+                "fmi2SetReal",
+                both(I | M | V | N, I | M | C),
+                "fmi3SetFloat64",
+                both(I | M | V | N, I | M | V | C),
+            ),
+            SetInteger => spec(
+                "fmi2SetInteger",
+                both(I | M | V, I | M | C),
+                "fmi3SetInt32",
+                both(I | M | V, I | M | V | C),
+            ),
+            SetBoolean => spec(
+                "fmi2SetBoolean",
+                both(I | M | V, I | M | C),
+                "fmi3SetBoolean",
+                both(I | M | V, I | M | V | C),
+            ),
+            SetString => spec(
+                "fmi2SetString",
+                both(I | M | V, I | M | C),
+                "fmi3SetString",
+                both(I | M | V, I | M | V | C),
+            ),
+            GetFmuState => spec("fmi2GetFMUstate", ANY2, "fmi3GetFMUState", ANY3),
+            SetFmuState => spec("fmi2SetFMUstate", ANY2, "fmi3SetFMUState", ANY3),
+            FreeFmuState => spec("fmi2FreeFMUstate", ANY2, "fmi3FreeFMUState", ANY3),
+            SerializedFmuStateSize => spec("fmi2SerializedFMUstateSize", ANY2, "fmi3SerializedFMUStateSize", ANY3),
+            SerializeFmuState => spec("fmi2SerializeFMUstate", ANY2, "fmi3SerializeFMUState", ANY3),
+            DeSerializeFmuState => spec("fmi2DeSerializeFMUstate", ANY2, "fmi3DeserializeFMUState", ANY3),
+            GetDirectionalDerivative => spec(
+                "fmi2GetDirectionalDerivative",
+                READ2,
+                "fmi3GetDirectionalDerivative",
+                READ3,
+            ),
+            SetRealInputDerivatives => fmi2_only("fmi2SetRealInputDerivatives", both(0, I | M | C)),
+            GetRealOutputDerivatives => spec(
+                "fmi2GetRealOutputDerivatives",
+                both(0, C | F | T | E),
+                "fmi3GetOutputDerivatives",
+                both(0, V | C | T | E),
+            ),
+            DoStep => spec("fmi2DoStep", both(0, C), "fmi3DoStep", both(0, C)),
             // Legal only while an asynchronous step is in progress, which never happens here.
-            CancelStep => both(0, 0),
-            GetStatus | GetRealStatus | GetIntegerStatus | GetBooleanStatus | GetStringStatus => both(0, C | F | T),
-            EnterEventMode => both(V | N, 0),
-            NewDiscreteStates | EnterContinuousTimeMode => both(V, 0),
-            CompletedIntegratorStep | SetContinuousStates => both(N, 0),
-            // Condition 8 admits Event Mode "only for a Pure Discrete-Time FMU"; these have
-            // continuous states.
-            SetTime => both(N, 0),
-            GetEventIndicators | GetContinuousStates => both(M | V | N | T | E, 0),
-            GetDerivatives => both(V | N | T | E, 0),
-            GetNominalsOfContinuousStates => both(I | V | N | T | E, 0),
-            EnterStepMode
-            | GetNumberOfEventIndicators
-            | GetNumberOfContinuousStates
-            | GetOtherType(_)
-            | SetOtherType(_)
-            | NotProvided(_) => both(0, 0),
-        }
-    }
-
-    /// FMI 3.0.2 §3.2 and §4.2 (Co-Simulation's Step Mode is `StepComplete`; the FMU never
-    /// enters Configuration, Reconfiguration or Clock Activation Mode).
-    #[inline]
-    fn masks3(self) -> Masks {
-        use Function::*;
-        const ANY: Masks = both(I | M | V | N | T | E, I | M | V | C | T | E);
-        const READ: Masks = both(M | V | N | T | E, M | V | C | T | E);
-        match self {
-            SetDebugLogging | FreeInstance | Reset | NotProvided(_) => ANY,
-            GetFmuState
-            | SetFmuState
-            | FreeFmuState
-            | SerializedFmuStateSize
-            | SerializeFmuState
-            | DeSerializeFmuState => ANY,
-            SetupExperiment | EnterInitializationMode => both(I, I),
-            ExitInitializationMode => both(M, M),
-            Terminate => both(V | N, V | C),
-            GetReal | GetInteger | GetBoolean | GetString | GetOtherType(_) | GetDirectionalDerivative => READ,
-            // Which variables may be set in which state is checked per variable.
-            SetReal => both(I | M | V | N, I | M | V | C),
-            SetInteger | SetBoolean | SetString | SetOtherType(_) => both(I | M | V, I | M | V | C),
-            GetRealOutputDerivatives => both(0, V | C | T | E),
-            DoStep => both(0, C),
-            EnterStepMode => both(0, V),
-            EnterEventMode => both(N, C),
-            NewDiscreteStates => both(V, V),
-            EnterContinuousTimeMode => both(V, 0),
-            CompletedIntegratorStep | SetContinuousStates => both(N, 0),
-            // §3.2.1 lists fmi3SetTime among Continuous-Time Mode's calls only; Event Mode's
-            // (§2.3.5) do not include it.
-            SetTime => both(N, 0),
-            GetEventIndicators | GetContinuousStates | GetDerivatives => both(M | V | N | T | E, 0),
-            GetNominalsOfContinuousStates => both(I | M | V | N | T | E, 0),
-            GetNumberOfEventIndicators | GetNumberOfContinuousStates => both(I | M | V | N | T | E, 0),
-            SetRealInputDerivatives
-            | CancelStep
-            | GetStatus
-            | GetRealStatus
-            | GetIntegerStatus
-            | GetBooleanStatus
-            | GetStringStatus => both(0, 0),
+            CancelStep => fmi2_only("fmi2CancelStep", NONE),
+            GetStatus => fmi2_only("fmi2GetStatus", both(0, C | F | T)),
+            GetRealStatus => fmi2_only("fmi2GetRealStatus", both(0, C | F | T)),
+            GetIntegerStatus => fmi2_only("fmi2GetIntegerStatus", both(0, C | F | T)),
+            GetBooleanStatus => fmi2_only("fmi2GetBooleanStatus", both(0, C | F | T)),
+            GetStringStatus => fmi2_only("fmi2GetStringStatus", both(0, C | F | T)),
+            EnterEventMode => spec("fmi2EnterEventMode", both(V | N, 0), "fmi3EnterEventMode", both(N, C)),
+            NewDiscreteStates => spec(
+                "fmi2NewDiscreteStates",
+                both(V, 0),
+                "fmi3UpdateDiscreteStates",
+                both(V, V),
+            ),
+            EnterContinuousTimeMode => spec(
+                "fmi2EnterContinuousTimeMode",
+                both(V, 0),
+                "fmi3EnterContinuousTimeMode",
+                both(V, 0),
+            ),
+            CompletedIntegratorStep => spec(
+                "fmi2CompletedIntegratorStep",
+                both(N, 0),
+                "fmi3CompletedIntegratorStep",
+                both(N, 0),
+            ),
+            SetContinuousStates => spec(
+                "fmi2SetContinuousStates",
+                both(N, 0),
+                "fmi3SetContinuousStates",
+                both(N, 0),
+            ),
+            // FMI 2.0.4 condition 8 admits Event Mode "only for a Pure Discrete-Time FMU"; these
+            // have continuous states. FMI 3.0.2 §3.2.1 lists fmi3SetTime among Continuous-Time
+            // Mode's calls only; Event Mode's (§2.3.5) do not include it.
+            SetTime => spec("fmi2SetTime", both(N, 0), "fmi3SetTime", both(N, 0)),
+            GetEventIndicators => spec(
+                "fmi2GetEventIndicators",
+                both(M | V | N | T | E, 0),
+                "fmi3GetEventIndicators",
+                both(M | V | N | T | E, 0),
+            ),
+            GetContinuousStates => spec(
+                "fmi2GetContinuousStates",
+                both(M | V | N | T | E, 0),
+                "fmi3GetContinuousStates",
+                both(M | V | N | T | E, 0),
+            ),
+            GetDerivatives => spec(
+                "fmi2GetDerivatives",
+                both(V | N | T | E, 0),
+                "fmi3GetContinuousStateDerivatives",
+                both(M | V | N | T | E, 0),
+            ),
+            GetNominalsOfContinuousStates => spec(
+                "fmi2GetNominalsOfContinuousStates",
+                both(I | V | N | T | E, 0),
+                "fmi3GetNominalsOfContinuousStates",
+                both(I | M | V | N | T | E, 0),
+            ),
+            EnterStepMode => fmi3_only("fmi3EnterStepMode", both(0, V)),
+            GetNumberOfEventIndicators => fmi3_only("fmi3GetNumberOfEventIndicators", both(I | M | V | N | T | E, 0)),
+            GetNumberOfContinuousStates => fmi3_only("fmi3GetNumberOfContinuousStates", both(I | M | V | N | T | E, 0)),
+            GetOtherType(name) => fmi3_only(name, READ3),
+            SetOtherType(name) => fmi3_only(name, both(I | M | V, I | M | V | C)),
+            NotProvided(name) => fmi3_only(name, ANY3),
         }
     }
 
