@@ -1,5 +1,5 @@
 //! Compliance and backlash in series: an exact drive-train model (docs/model.md), served as
-//! FMI 2.0 Co-Simulation units.
+//! FMUs of FMI 2.0 and FMI 3.0, Model Exchange and Co-Simulation, from one library.
 //!
 //! Layers, each depending only on the one before: [`physics`] (pure numerics) ←
 //! [`fmu`] (instance state machine, variables, FMU state) ← [`ffi`] (the C ABI).

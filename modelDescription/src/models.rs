@@ -265,8 +265,9 @@ fn state_derivatives(v: &[Var]) -> [Var; 4] {
     ]
 }
 
-/// Inputs, the state outputs (with `nominals` of θ_m, ω_m, θ_L, ω_L: see `fmu::adapter::
-/// state_nominals`, which computes them for any parameters) and the calculated outputs.
+/// Inputs, the state outputs (with `nominals` of θ_m, ω_m, θ_L, ω_L at the default parameters:
+/// the library's `Plant::state_nominals` computes them for any parameters) and the calculated
+/// outputs.
 fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
     use Causality::*;
     let (psi_unit, psi_quantity, psi_text) = match drive_train {
