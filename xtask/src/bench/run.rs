@@ -49,6 +49,16 @@ impl Results {
     }
 }
 
+#[cfg(test)]
+impl Results {
+    /// The results of a text of `@ key values…` lines, as the tools print them (report.rs's tests).
+    pub(super) fn parse(text: &str) -> Results {
+        let mut results = Results::default();
+        results.collect(text);
+        results
+    }
+}
+
 pub(super) fn number(row: &[String], index: usize, key: &str) -> Result<f64, String> {
     row.get(index)
         .and_then(|s| s.parse().ok())
