@@ -1,9 +1,10 @@
 //! Version inquiry, instantiation, logging, and the lifecycle calls of FMI 2.0.4 §2.1.
 
 use super::fmu_state::free_states_of;
-use super::guard::{c_str, guard, input_array, register, to_c_string, unregister, CLogger, Component};
+use super::guard::{c_str, guard, input_array, to_c_string, unregister, CLogger};
+use super::instantiate::Request;
 use super::types::*;
-use crate::fmu::{model_for_instantiation, Function, Instance, Interface, LogCategory, LogSink, Standard, Status};
+use crate::fmu::{CoSimulationOptions, Flavour, Function, Interface, LogSink, Standard};
 use std::ffi::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -76,67 +77,35 @@ fn instantiate(
     // struct valid for the call (and we copy it).
     let callbacks = unsafe { *functions };
     // SAFETY: fmi2String arguments are NUL-terminated strings or NULL.
-    let name = unsafe { c_str(instance_name, "instanceName") };
-    let logger = callbacks.logger.map(|logger| CLogger {
-        logger,
-        environment: callbacks.componentEnvironment,
-        instance_name: to_c_string(name.as_ref().map(|n| *n).unwrap_or("")),
+    let name = unsafe { c_str(instance_name, "instanceName") }.unwrap_or("");
+    let sink = callbacks.logger.map(|logger| {
+        Box::new(CLogger {
+            logger,
+            environment: callbacks.componentEnvironment,
+            instance_name: to_c_string(name),
+        }) as Box<dyn LogSink>
     });
-    let refuse = |logger: &Option<CLogger>, reason: String| {
-        if let Some(l) = logger {
-            l.send(
-                fmi2Status::fmi2Error,
-                LogCategory::Errors.name(),
-                &format!("fmi2Instantiate: {reason}"),
-            );
-        }
-        std::ptr::null_mut()
-    };
-    let name = match name {
-        Ok(n) if !n.trim().is_empty() => n,
-        Ok(_) => return refuse(&logger, "instanceName is blank".into()),
-        Err(e) => return refuse(&logger, e.to_string()),
-    };
     let interface = match fmu_type {
-        fmi2CoSimulation => Interface::CoSimulation,
-        fmi2ModelExchange => Interface::ModelExchange,
-        other => {
-            return refuse(
-                &logger,
-                format!("fmuType {other} is neither fmi2ModelExchange nor fmi2CoSimulation"),
-            )
-        }
+        fmi2CoSimulation => Ok(Interface::CoSimulation),
+        fmi2ModelExchange => Ok(Interface::ModelExchange),
+        other => Err(format!(
+            "fmuType {other} is neither fmi2ModelExchange nor fmi2CoSimulation"
+        )),
     };
-    // SAFETY: as for instanceName.
-    let guid = match unsafe { c_str(guid, "fmuGUID") } {
-        Ok(g) => g,
-        Err(e) => return refuse(&logger, e.to_string()),
+    let request = Request {
+        function: "fmi2Instantiate",
+        name: instance_name,
+        key: guid,
+        flavour: interface.map(|interface| Flavour {
+            standard: Standard::Fmi2,
+            interface,
+        }),
+        options: CoSimulationOptions::default(),
+        logging_on: logging_on != fmi2False,
+        sink,
     };
-    let model = match model_for_instantiation(Standard::Fmi2, guid) {
-        Ok(model) => model,
-        Err(why) => return refuse(&logger, why),
-    };
-    let sink = logger.map(|l| Box::new(l) as Box<dyn LogSink>);
-    let mut instance = Instance::new_for(model, interface, sink, logging_on != fmi2False);
-    instance.log(Status::Ok, LogCategory::Calls, || {
-        format!(
-            "fmi2Instantiate: {} instance {name:?} of {}",
-            interface.name(),
-            model.identifier
-        )
-    });
-    match register(Box::new(Component { instance })) {
-        Ok(handle) => handle,
-        Err(mut component) => {
-            component.instance.log(Status::Error, LogCategory::Errors, || {
-                format!(
-                    "fmi2Instantiate: {} instances are live, the most this library serves at once; free one first",
-                    super::registry::CAPACITY
-                )
-            });
-            std::ptr::null_mut()
-        }
-    }
+    // SAFETY: fmi2String arguments are NUL-terminated strings or NULL.
+    unsafe { super::instantiate::instantiate(request) }
 }
 
 /// Frees the instance and every FMU state it allocated. Unknown or already freed pointers are

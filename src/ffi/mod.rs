@@ -13,6 +13,7 @@ pub mod cosim;
 pub mod fmi3;
 pub mod fmu_state;
 pub mod guard;
+mod instantiate;
 pub mod lifecycle;
 pub mod model_exchange;
 mod registry;

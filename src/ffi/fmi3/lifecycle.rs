@@ -1,13 +1,11 @@
 //! Version, logging, instantiation and the lifecycle calls of FMI 3.0 (§2.3.1–§2.3.4).
 
 use super::super::fmu_state::free_states_of;
-use super::super::guard::{c_str, input_array, register, unregister, Component};
+use super::super::guard::{c_str, input_array, unregister};
+use super::super::instantiate::Request;
 use super::types::*;
 use super::{guard3, CLogger3};
-use crate::fmu::{
-    model_for_instantiation, CoSimulationOptions, Flavour, Function, Instance, Interface, LogCategory, LogSink,
-    Standard, Status,
-};
+use crate::fmu::{CoSimulationOptions, Flavour, Function, Interface, LogCategory, LogSink, Status};
 use std::ffi::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -38,8 +36,8 @@ pub unsafe extern "C" fn fmi3SetDebugLogging(
     })
 }
 
-/// What both instantiation functions check before an instance exists.
-struct Request {
+/// What both instantiation functions were given.
+struct Request3 {
     name: fmi3String,
     token: fmi3String,
     logging_on: bool,
@@ -49,61 +47,33 @@ struct Request {
     options: CoSimulationOptions,
 }
 
-/// Creates the instance, or NULL after logging the reason (when a logger was given); never
-/// unwinds into C.
-fn instantiate(request: Request) -> fmi3Instance {
-    catch_unwind(AssertUnwindSafe(|| try_instantiate(request))).unwrap_or(std::ptr::null_mut())
-}
-
-fn try_instantiate(request: Request) -> fmi3Instance {
-    let logger = request.log_message.map(|log_message| CLogger3 {
-        log_message,
-        environment: request.environment,
-    });
-    // §2.3.1: with loggingOn = fmi3False "the logMessage callback function must not be called".
-    let logging_on = request.logging_on;
-    let refuse = |logger: Option<CLogger3>, function: &str, reason: String| {
-        if let (Some(mut l), true) = (logger, logging_on) {
-            l.log(Status::Error, LogCategory::Errors, &format!("{function}: {reason}"));
-        }
-        std::ptr::null_mut()
-    };
+/// Creates the instance, or NULL after logging the reason (when a logger was given and logging
+/// is on); never unwinds into C.
+fn instantiate(request: Request3) -> fmi3Instance {
     let function = match request.flavour.interface {
         Interface::ModelExchange => "fmi3InstantiateModelExchange",
         Interface::CoSimulation => "fmi3InstantiateCoSimulation",
     };
-    // SAFETY: fmi3String arguments are NUL-terminated strings or NULL.
-    let name = match unsafe { c_str(request.name, "instanceName") } {
-        Ok(n) if !n.trim().is_empty() => n,
-        Ok(_) => return refuse(logger, function, "instanceName is blank".into()),
-        Err(e) => return refuse(logger, function, e.to_string()),
-    };
-    // SAFETY: as for instanceName.
-    let token = match unsafe { c_str(request.token, "instantiationToken") } {
-        Ok(t) => t,
-        Err(e) => return refuse(logger, function, e.to_string()),
-    };
-    let model = match model_for_instantiation(Standard::Fmi3, token) {
-        Ok(model) => model,
-        Err(why) => return refuse(logger, function, why),
-    };
-    let sink = logger.map(|l| Box::new(l) as Box<dyn LogSink>);
-    let mut instance = Instance::with(model, request.flavour, request.options, sink, request.logging_on);
-    instance.log(Status::Ok, LogCategory::Calls, || {
-        format!("{function}: instance {name:?} of {}", model.identifier)
+    let sink = request.log_message.map(|log_message| {
+        Box::new(CLogger3 {
+            log_message,
+            environment: request.environment,
+        }) as Box<dyn LogSink>
     });
-    match register(Box::new(Component { instance })) {
-        Ok(handle) => handle,
-        Err(mut component) => {
-            component.instance.log(Status::Error, LogCategory::Errors, || {
-                format!(
-                    "{function}: {} instances are live, the most this library serves at once; free one first",
-                    super::super::registry::CAPACITY
-                )
-            });
-            std::ptr::null_mut()
-        }
-    }
+    let request = Request {
+        function,
+        name: request.name,
+        key: request.token,
+        flavour: Ok(request.flavour),
+        options: request.options,
+        logging_on: request.logging_on,
+        sink,
+    };
+    // SAFETY: fmi3String arguments are NUL-terminated strings or NULL.
+    catch_unwind(AssertUnwindSafe(|| unsafe {
+        super::super::instantiate::instantiate(request)
+    }))
+    .unwrap_or(std::ptr::null_mut())
 }
 
 /// # Safety
@@ -121,7 +91,7 @@ pub unsafe extern "C" fn fmi3InstantiateModelExchange(
 ) -> fmi3Instance {
     // Resources are not needed, and the FMU has no window.
     let _ = (resourcePath, visible);
-    instantiate(Request {
+    instantiate(Request3 {
         name: instanceName,
         token: instantiationToken,
         logging_on: loggingOn,
@@ -159,7 +129,7 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
         nRequiredIntermediateVariables,
         intermediateUpdate,
     );
-    instantiate(Request {
+    instantiate(Request3 {
         name: instanceName,
         token: instantiationToken,
         logging_on: loggingOn,
