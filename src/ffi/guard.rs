@@ -196,7 +196,7 @@ pub unsafe fn c_str<'a>(ptr: fmi2String, argument: &'static str) -> Result<&'a s
 /// Messages as C strings: an interior NUL (impossible in our messages, possible in an
 /// instance name echoed back) is replaced rather than truncating the text.
 pub fn to_c_string(text: &str) -> CString {
-    CString::new(text.replace('\0', "\u{FFFD}")).expect("no NUL left")
+    CString::new(text.replace('\0', "\u{FFFD}")).unwrap_or_default()
 }
 
 /// The importer's logger, called as `logger(env, name, status, category, "%s", message)` so

@@ -90,14 +90,18 @@ pub fn insert(component: Box<Component>) -> Result<usize, Box<Component>> {
         return Err(component);
     };
     let table = &CHUNK_TABLE[index >> CHUNK_BITS];
-    if table.load(Ordering::Acquire).is_null() {
-        let chunk: Box<Chunk> = Box::new(std::array::from_fn(|_| Slot {
+    let mut chunk = table.load(Ordering::Acquire);
+    if chunk.is_null() {
+        let fresh: Box<Chunk> = Box::new(std::array::from_fn(|_| Slot {
             handle: AtomicUsize::new(0),
             component: AtomicPtr::new(std::ptr::null_mut()),
         }));
-        table.store(Box::leak(chunk), Ordering::Release);
+        chunk = Box::leak(fresh);
+        table.store(chunk, Ordering::Release);
     }
-    let slot = slot(index).expect("the chunk was just ensured");
+    // SAFETY: non-null, from `Box::leak` (here or by an earlier insert, under the same lock),
+    // never freed or replaced.
+    let slot = unsafe { &(*chunk)[index & (CHUNK - 1)] };
     let previous = decode(slot.handle.load(Ordering::Relaxed)).map_or(0, |(generation, _)| generation);
     let generation = if previous >= GENERATIONS { 1 } else { previous + 1 };
     let handle = encode(generation, index);

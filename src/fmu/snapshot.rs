@@ -28,7 +28,7 @@ use super::bounds::Bounds;
 use super::error::FmuError;
 use super::instance::{Experiment, TimeMarks};
 use super::state_machine::{Flavour, Interface, Phase, Standard};
-use super::variables::{model_by_guid, ModelInfo, Symbol};
+use super::variables::{ModelInfo, Symbol};
 use crate::physics::{ContactMode, PlantState};
 
 pub const MAGIC: &[u8; 8] = b"BKLSHFMU";
@@ -48,7 +48,8 @@ pub struct PhysicsSnapshot {
 /// matrices, exponentials) are rebuilt from the values on restore.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snapshot {
-    pub guid: &'static str,
+    /// The model it was taken of (its guid is written into the bytes).
+    pub model: &'static ModelInfo,
     pub flavour: Flavour,
     pub phase: Phase,
     pub time: f64,
@@ -82,21 +83,16 @@ fn fnv1a_64(bytes: &[u8]) -> u64 {
 }
 
 impl Snapshot {
-    /// The model the state belongs to.
-    fn model(&self) -> &'static ModelInfo {
-        model_by_guid(self.guid).expect("a snapshot is taken of a model this library serves")
-    }
-
     pub fn serialized_len(&self) -> usize {
-        8 + 2 + 2 + self.guid.len() + body_len(self.model())
+        8 + 2 + 2 + self.model.guid.len() + body_len(self.model)
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut b = Vec::with_capacity(self.serialized_len());
         b.extend_from_slice(MAGIC);
         b.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-        b.extend_from_slice(&(self.guid.len() as u16).to_le_bytes());
-        b.extend_from_slice(self.guid.as_bytes());
+        b.extend_from_slice(&(self.model.guid.len() as u16).to_le_bytes());
+        b.extend_from_slice(self.model.guid.as_bytes());
         b.push(self.phase.code());
         let mut flags = 0;
         if self.experiment.stop_time.is_some() {
@@ -129,7 +125,7 @@ impl Snapshot {
             .unwrap_or([0.0; 7]);
         z.iter().for_each(|x| put(*x));
         b.push(plant.map(|s| s.mode.as_i32() as i8).unwrap_or(0) as u8);
-        let no_bounds = vec![0.0; Bounds::word_count(self.model().drive_train.has_web())];
+        let no_bounds = vec![0.0; Bounds::word_count(self.model.drive_train.has_web())];
         let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
         let behind = self.physics.as_ref().map_or(0.0, |p| p.bounds_behind);
@@ -317,7 +313,7 @@ impl Snapshot {
             bounds_behind,
         });
         Ok(Snapshot {
-            guid: model.guid,
+            model,
             flavour,
             phase,
             time,

@@ -10,7 +10,7 @@ pub use model_description::{Causality, DefaultExperiment, DriveTrain, Initial, R
 pub type Variable = model_description::Variable<Symbol>;
 
 /// One model: identifier, guid (FMI 2.0), instantiation token (FMI 3.0) and its variables in
-/// value-reference order.
+/// value-reference order. Models are equal when they are the same model (the same guid).
 #[derive(Debug)]
 pub struct ModelInfo {
     pub identifier: &'static str,
@@ -52,6 +52,12 @@ impl ModelInfo {
 
 // `Symbol` (with `COUNT` and `index`) and `MODELS`.
 include!(concat!(env!("OUT_DIR"), "/model_variables.rs"));
+
+impl PartialEq for ModelInfo {
+    fn eq(&self, other: &ModelInfo) -> bool {
+        self.guid == other.guid
+    }
+}
 
 /// The model whose description carries `guid`.
 pub fn model_by_guid(guid: &str) -> Option<&'static ModelInfo> {

@@ -1,6 +1,7 @@
 //! FMU states: the snapshot of an instance and its restoration (checked before anything
 //! changes).
 
+use super::lifecycle::Lifecycle;
 use super::Instance;
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
@@ -9,15 +10,15 @@ use crate::fmu::snapshot::{PhysicsSnapshot, Snapshot};
 impl Instance {
     pub(crate) fn snapshot(&self) -> Snapshot {
         Snapshot {
-            guid: self.model.guid,
+            model: self.model,
             flavour: self.flavour,
-            phase: self.phase,
+            phase: self.phase(),
             time: self.time,
             time_marks: self.time_marks,
             experiment: self.experiment,
             values: self.values,
             input_slopes: self.input_slopes,
-            physics: self.sim.as_ref().map(|sim| PhysicsSnapshot {
+            physics: self.life.sim().map(|sim| PhysicsSnapshot {
                 plant: sim.state,
                 bound: sim.bound.words(),
                 bounds_behind: sim.bounds_behind,
@@ -26,10 +27,10 @@ impl Instance {
     }
 
     pub(crate) fn restore_body(&mut self, snapshot: &Snapshot) -> Result<Status, FmuError> {
-        if snapshot.guid != self.model.guid {
+        if snapshot.model.guid != self.model.guid {
             return Err(FmuError::StateRefused(format!(
                 "it belongs to the model with guid {}, this instance is {} ({})",
-                snapshot.guid, self.model.identifier, self.model.guid
+                snapshot.model.guid, self.model.identifier, self.model.guid
             )));
         }
         if snapshot.flavour.standard != self.flavour.standard {
@@ -56,14 +57,21 @@ impl Instance {
             )?),
             None => None,
         };
-        self.phase = snapshot.phase;
+        self.life = match sim {
+            Some(sim) => Lifecycle::Running {
+                phase: snapshot.phase,
+                sim,
+            },
+            None => Lifecycle::Setup {
+                phase: snapshot.phase,
+                preview: None,
+            },
+        };
         self.time = snapshot.time;
         self.time_marks = snapshot.time_marks;
         self.experiment = snapshot.experiment;
         self.values = snapshot.values;
         self.input_slopes = snapshot.input_slopes;
-        self.sim = sim;
-        self.preview = None;
         Ok(Status::Ok)
     }
 }

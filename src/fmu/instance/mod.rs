@@ -7,6 +7,7 @@
 //! failure one place that logs the reason and (for fmi2Error) enters state Error.
 
 mod fmu_state;
+mod lifecycle;
 mod model_exchange;
 mod status;
 mod stepping;
@@ -19,6 +20,7 @@ use super::simulation::Simulation;
 use super::snapshot::Snapshot;
 use super::state_machine::{Flavour, Function, Interface, Phase, Standard};
 use super::variables::ModelInfo;
+use lifecycle::Lifecycle;
 
 /// Relative slack of bound_sup or bound_T_sup (see `LoopBound::sup_slack`) above which
 /// exitInitializationMode warns.
@@ -69,7 +71,8 @@ pub struct Instance {
     model: &'static ModelInfo,
     flavour: Flavour,
     options: CoSimulationOptions,
-    phase: Phase,
+    /// The state, with the simulation in the states that have one.
+    life: Lifecycle,
     /// Inputs, parameters and start values (θ, ω before initialization), by [`Symbol`].
     values: Values,
     /// The input lines' slopes (dτ_m/dt, dτ_L/dt, and dv_in/dt, dT_in/dt on a web line) set by
@@ -80,11 +83,6 @@ pub struct Instance {
     time: f64,
     /// Model Exchange: how far back the time may be set.
     time_marks: TimeMarks,
-    /// Present from fmi2ExitInitializationMode on. In Model Exchange its plant state is the
-    /// one set by fmi2SetContinuousStates, and its bound is brought to `time` when read.
-    sim: Option<Simulation>,
-    /// Built on demand for fmi2GetXXX in Initialization Mode, dropped on every set.
-    preview: Option<Simulation>,
     log: Logging,
 }
 
@@ -120,14 +118,12 @@ impl Instance {
             model,
             flavour,
             options,
-            phase: Phase::Instantiated,
+            life: Lifecycle::instantiated(),
             values: adapter::start_values(model),
             input_slopes: [0.0; adapter::MAX_INPUTS],
             experiment: Experiment::default(),
             time: 0.0,
             time_marks: TimeMarks::at_start(0.0),
-            sim: None,
-            preview: None,
             log: Logging::new(sink, logging_on, flavour.standard),
         }
     }
@@ -137,7 +133,7 @@ impl Instance {
     }
 
     pub fn phase(&self) -> Phase {
-        self.phase
+        self.life.phase()
     }
 
     pub fn interface(&self) -> Interface {
@@ -182,7 +178,7 @@ impl Instance {
     /// Inlined, so that the mask of a known `function` is a constant.
     #[inline]
     pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
-        if function.is_legal_in(self.flavour, self.phase) {
+        if function.is_legal_in(self.flavour, self.phase()) {
             return Ok(());
         }
         self.illegal(function)
@@ -197,11 +193,11 @@ impl Instance {
                 belongs_to: other.name(),
                 serves: self.flavour.interface.name(),
             }),
-            _ if function.is_legal_in(self.flavour, self.phase) => Ok(()),
+            _ if function.is_legal_in(self.flavour, self.phase()) => Ok(()),
             _ => Err(FmuError::IllegalCall {
                 function: self.name_of(function),
-                phase: self.phase,
-                rule: function.rule(self.flavour.standard, self.phase),
+                phase: self.phase(),
+                rule: function.rule(self.flavour.standard, self.phase()),
             }),
         }
     }
@@ -215,7 +211,7 @@ impl Instance {
             format!("{} -> {status:?}", function.name(self.flavour.standard))
         });
         if status == Status::Error {
-            self.phase = Phase::Error;
+            self.life.enter(Phase::Error);
         }
     }
 
@@ -226,7 +222,7 @@ impl Instance {
             message,
         };
         self.fail(function, &e);
-        self.phase = Phase::Error;
+        self.life.enter(Phase::Error);
     }
 
     /// Logs through the instance's filter (used by the C layer for its own messages).
@@ -401,14 +397,18 @@ impl Instance {
     }
 
     pub(crate) fn enter_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
-        self.phase = Phase::InitializationMode;
+        self.life.enter(Phase::InitializationMode);
         self.time = self.experiment.start_time;
         self.time_marks = TimeMarks::at_start(self.time);
         Ok(Status::Ok)
     }
 
     pub(crate) fn exit_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
-        let sim = match self.preview.take() {
+        let preview = match &mut self.life {
+            Lifecycle::Setup { preview, .. } => preview.take(),
+            Lifecycle::Running { .. } => None,
+        };
+        let sim = match preview {
             Some(sim) => sim,
             None => Simulation::build(self.model, &self.values)?,
         };
@@ -422,13 +422,13 @@ impl Instance {
             _ => None,
         };
         let slack = sim.bound.sup_slack();
-        self.sim = Some(sim);
         self.time = self.experiment.start_time;
         self.time_marks = TimeMarks::at_start(self.time);
-        self.phase = match self.flavour.interface {
+        let phase = match self.flavour.interface {
             Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,
             Interface::CoSimulation | Interface::ModelExchange => Phase::EventMode,
         };
+        self.life = Lifecycle::Running { phase, sim };
         match unbounded {
             None if slack > SUP_SLACK_WARNING => {
                 self.log.emit(Status::Warning, LogCategory::Warnings, || {
@@ -451,21 +451,19 @@ impl Instance {
     }
 
     pub(crate) fn terminate_body(&mut self) -> Result<Status, FmuError> {
-        self.phase = Phase::Terminated;
+        self.life.enter(Phase::Terminated);
         Ok(Status::Ok)
     }
 
     /// Back to the state right after fmi2Instantiate; the logging configuration is the
     /// importer's and stays.
     pub(crate) fn reset_body(&mut self) -> Result<Status, FmuError> {
-        self.phase = Phase::Instantiated;
+        self.life = Lifecycle::instantiated();
         self.values = adapter::start_values(self.model);
         self.input_slopes = [0.0; adapter::MAX_INPUTS];
         self.experiment = Experiment::default();
         self.time = 0.0;
         self.time_marks = TimeMarks::at_start(0.0);
-        self.sim = None;
-        self.preview = None;
         Ok(Status::Ok)
     }
 }

@@ -73,14 +73,14 @@ impl Instance {
                 "the instance was created with eventModeUsed = false: it has no Event Mode".into(),
             ));
         }
-        self.phase = Phase::EventMode;
+        self.life.enter(Phase::EventMode);
         self.time_marks.event = self.time;
         Ok(Status::Ok)
     }
 
     /// FMI 3.0 Co-Simulation: from Event Mode back to stepping.
     pub(crate) fn enter_step_mode_body(&mut self) -> Result<Status, FmuError> {
-        self.phase = Phase::StepComplete;
+        self.life.enter(Phase::StepComplete);
         Ok(Status::Ok)
     }
 
@@ -106,7 +106,7 @@ impl Instance {
     }
 
     pub(crate) fn enter_continuous_time_mode_body(&mut self) -> Result<Status, FmuError> {
-        self.phase = Phase::ContinuousTimeMode;
+        self.life.enter(Phase::ContinuousTimeMode);
         Ok(Status::Ok)
     }
 
@@ -153,7 +153,7 @@ impl Instance {
 
     pub(crate) fn set_continuous_states_body(&mut self, x: &[f64]) -> Result<Status, FmuError> {
         let z = self.state_vector(x)?;
-        let sim = self.sim.as_mut().expect("Continuous-Time Mode implies a simulation");
+        let sim = self.life.running()?;
         let state = adapter::state_of(sim.plant(), &z);
         sim.check_state(&state, format_args!("the continuous states overflow"))?;
         sim.state = state;

@@ -49,9 +49,7 @@ impl Instance {
             Some(stop) => stop + TIME_TOLERANCE * stop.abs().max(1.0),
             None => f64::MAX,
         };
-        let Some(sim) = self.sim.as_mut() else {
-            unreachable!("StepComplete implies a simulation")
-        };
+        let sim = self.life.running()?;
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         // The input lines at the end of the step (see below); refused before stepping if they
         // leave f64, so that a refused step changes nothing.
@@ -129,7 +127,7 @@ impl Instance {
                 lines_end[i]
             ));
         }
-        let max_step = self.sim.as_ref().map_or(f64::NAN, |sim| sim.max_step);
+        let max_step = self.life.sim().map_or(f64::NAN, |sim| sim.max_step);
         bad(format!(
             "communicationStepSize {h} exceeds {max_step:e} s ({MAX_PERIODS_PER_STEP:e} periods of the contact \
              oscillation); split it into smaller steps"
@@ -170,7 +168,7 @@ impl Instance {
             )),
             e => e.into(),
         };
-        let sim = self.sim.as_mut().expect("StepComplete implies a simulation");
+        let sim = self.life.running()?;
         // The plant steps a copy of its state, and the bound fails (on a bad h, excluded above)
         // before changing anything: a failed step leaves the instance as it was.
         let mut state = sim.state;

@@ -1,6 +1,7 @@
 //! Get and set by value reference (all or nothing), input and output derivatives: every
 //! variable is reached through the model adapter.
 
+use super::lifecycle::Lifecycle;
 use super::Instance;
 use crate::fmu::adapter::{self, Calculated, Source};
 use crate::fmu::error::{FmuError, Status};
@@ -49,13 +50,17 @@ impl Instance {
     /// The physics in force: the simulation after initialization, before it the plant the
     /// current parameters and start values describe (built once per change).
     pub(super) fn physics(&mut self) -> Result<&Simulation, FmuError> {
-        if let Some(sim) = &self.sim {
-            return Ok(sim);
+        match &mut self.life {
+            Lifecycle::Running { sim, .. } => Ok(sim),
+            Lifecycle::Setup { preview, .. } => {
+                if preview.is_none() {
+                    *preview = Some(Simulation::build(self.model, &self.values)?);
+                }
+                preview
+                    .as_ref()
+                    .ok_or_else(|| FmuError::InvalidArgument("the plant could not be built".into()))
+            }
         }
-        if self.preview.is_none() {
-            self.preview = Some(Simulation::build(self.model, &self.values)?);
-        }
-        Ok(self.preview.as_ref().expect("built above"))
     }
 
     /// The bounds at the instance's time (docs/model.md §4: measured from the start time), for
@@ -64,7 +69,7 @@ impl Instance {
     pub(super) fn bound_to_time(&mut self) -> Result<(), FmuError> {
         let elapsed = self.time - self.experiment.start_time;
         let model_exchange = self.flavour.interface == Interface::ModelExchange;
-        match self.sim.as_mut() {
+        match self.life.sim_mut() {
             Some(sim) => match model_exchange {
                 true => sim.bound_at(elapsed),
                 false => sim.bounds_current(),
@@ -83,7 +88,7 @@ impl Instance {
     fn real_value(&mut self, v: &Variable) -> Result<f64, FmuError> {
         Ok(match adapter::source(v.symbol) {
             Source::Input(_) | Source::Parameter => self.values[v.symbol.index()],
-            Source::State(entry) => match &self.sim {
+            Source::State(entry) => match self.life.sim() {
                 Some(sim) => entry.of(&sim.state),
                 None => self.values[v.symbol.index()],
             },
@@ -194,7 +199,7 @@ impl Instance {
         let refuse = |reason| {
             Err(FmuError::NotSettable {
                 name: v.name,
-                phase: self.phase,
+                phase: self.phase(),
                 reason,
             })
         };
@@ -203,7 +208,7 @@ impl Instance {
             Causality::Local if v.derivative_of.is_some() => refuse("it is a state derivative, computed by the FMU"),
             Causality::Local => refuse("it is computed by the FMU from the state"),
             Causality::Output if !v.is_initial_state() => refuse("it is an output computed by the FMU"),
-            _ => match self.phase {
+            _ => match self.phase() {
                 Phase::Instantiated | Phase::InitializationMode => Ok(()),
                 Phase::StepComplete | Phase::EventMode | Phase::ContinuousTimeMode => match v.causality {
                     Causality::Input => Ok(()),
@@ -211,7 +216,7 @@ impl Instance {
                         refuse("it is a fixed parameter; it can change only before fmi2ExitInitializationMode")
                     }
                     _ if v.is_continuous_state() && self.states_settable() => Ok(()),
-                    _ => refuse(match (self.flavour.standard, self.phase) {
+                    _ => refuse(match (self.flavour.standard, self.phase()) {
                         (Standard::Fmi2, Phase::EventMode) => {
                             "FMI 2.0.4 §3.2.3 allows in Event Mode inputs and tunable parameters only \
                              (condition 4); a continuous-time state can be set in Continuous-Time Mode"
@@ -235,7 +240,7 @@ impl Instance {
     /// interface): "… and continuous-time states with reinit = false" (no state declares
     /// reinit, whose default is false).
     fn states_settable(&self) -> bool {
-        match self.phase {
+        match self.phase() {
             Phase::ContinuousTimeMode => true,
             Phase::EventMode => self.flavour.standard == Standard::Fmi3,
             _ => false,
@@ -247,14 +252,14 @@ impl Instance {
     /// fmi2SetContinuousStates with the other entries unchanged would.
     pub(crate) fn set_real_body(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
         Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
-        let mut z = self.sim.as_ref().map(|sim| adapter::entries_of(&sim.state));
+        let mut z = self.life.sim().map(|sim| adapter::entries_of(&sim.state));
         let mut states_set = false;
         // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
             if self.is_time(*vr) {
                 return Err(FmuError::NotSettable {
                     name: TIME.0,
-                    phase: self.phase,
+                    phase: self.phase(),
                     reason: "it is the independent variable: fmi3DoStep and fmi3SetTime move it",
                 });
             }
@@ -272,7 +277,7 @@ impl Instance {
                 states_set = true;
             }
         }
-        let state = match (&self.sim, z) {
+        let state = match (self.life.sim(), z) {
             (Some(sim), Some(z)) if states_set => {
                 let state = adapter::state_of(sim.plant(), &z);
                 sim.check_state(&state, format_args!("the continuous states overflow"))?;
@@ -283,14 +288,14 @@ impl Instance {
         for (vr, value) in vrs.iter().zip(values) {
             let v = self.typed_variable(*vr, VarType::Real)?;
             // After initialization a state's slot keeps its start value; the plant holds the state.
-            if !(self.sim.is_some() && matches!(adapter::source(v.symbol), Source::State(_))) {
+            if !(self.life.sim().is_some() && matches!(adapter::source(v.symbol), Source::State(_))) {
                 self.values[v.symbol.index()] = *value;
             }
         }
-        match (&mut self.sim, state) {
-            (Some(sim), Some(state)) => sim.state = state,
-            (Some(_), None) => {}
-            (None, _) => self.preview = None,
+        match (&mut self.life, state) {
+            (Lifecycle::Running { sim, .. }, Some(state)) => sim.state = state,
+            (Lifecycle::Running { .. }, None) => {}
+            (Lifecycle::Setup { preview, .. }, _) => *preview = None,
         }
         Ok(Status::Ok)
     }
@@ -344,7 +349,7 @@ impl Instance {
     ) -> Result<Status, FmuError> {
         Self::same_length("fmi2GetRealOutputDerivatives orders", orders.len(), vrs.len())?;
         Self::same_length("fmi2GetRealOutputDerivatives values", out.len(), vrs.len())?;
-        if self.sim.is_none() {
+        if self.life.sim().is_none() {
             return Err(FmuError::InvalidArgument(
                 "no output derivatives before initialization has ended".into(),
             ));
@@ -361,7 +366,7 @@ impl Instance {
         if bounds {
             self.bound_to_time()?;
         }
-        let sim = self.sim.as_ref().expect("checked above");
+        let sim = self.life.simulation()?;
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         let mut rates: Option<adapter::StateVector> = None;
         for ((vr, order), slot) in vrs.iter().zip(orders).zip(out.iter_mut()) {

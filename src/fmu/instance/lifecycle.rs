@@ -1,0 +1,70 @@
+//! Where an instance is in its state machine, with what it holds there: before initialization
+//! has ended its values only, from then on the simulation too. Holding the simulation in the
+//! variant of the states that have one, rather than beside the phase, makes "this state has a
+//! simulation" a fact of the type.
+
+use crate::fmu::error::FmuError;
+use crate::fmu::simulation::Simulation;
+use crate::fmu::state_machine::Phase;
+
+pub(super) enum Lifecycle {
+    /// Instantiated or Initialization Mode, or Error entered from them: the values, and the
+    /// plant they describe, built on demand for reads and dropped on every set.
+    Setup { phase: Phase, preview: Option<Simulation> },
+    /// Every state from fmi2ExitInitializationMode on, Error included: the simulation. In Model
+    /// Exchange its plant state is the one the importer set, and its bound is brought to the
+    /// instance's time when read.
+    Running { phase: Phase, sim: Simulation },
+}
+
+impl Lifecycle {
+    /// A fresh instance's.
+    pub(super) fn instantiated() -> Lifecycle {
+        Lifecycle::Setup {
+            phase: Phase::Instantiated,
+            preview: None,
+        }
+    }
+
+    pub(super) fn phase(&self) -> Phase {
+        match self {
+            Lifecycle::Setup { phase, .. } | Lifecycle::Running { phase, .. } => *phase,
+        }
+    }
+
+    /// Moves to `next`, a state of the same stage (a state table's transition).
+    pub(super) fn enter(&mut self, next: Phase) {
+        match self {
+            Lifecycle::Setup { phase, .. } | Lifecycle::Running { phase, .. } => *phase = next,
+        }
+    }
+
+    pub(super) fn sim(&self) -> Option<&Simulation> {
+        match self {
+            Lifecycle::Running { sim, .. } => Some(sim),
+            Lifecycle::Setup { .. } => None,
+        }
+    }
+
+    pub(super) fn sim_mut(&mut self) -> Option<&mut Simulation> {
+        match self {
+            Lifecycle::Running { sim, .. } => Some(sim),
+            Lifecycle::Setup { .. } => None,
+        }
+    }
+
+    /// The simulation, for the calls that are legal only after initialization (the state table
+    /// lets no other call through; the refusal is there instead of a panic).
+    pub(super) fn running(&mut self) -> Result<&mut Simulation, FmuError> {
+        self.sim_mut().ok_or_else(not_running)
+    }
+
+    /// [`Lifecycle::running`] to read.
+    pub(super) fn simulation(&self) -> Result<&Simulation, FmuError> {
+        self.sim().ok_or_else(not_running)
+    }
+}
+
+fn not_running() -> FmuError {
+    FmuError::InvalidArgument("no simulation before initialization has ended".into())
+}
