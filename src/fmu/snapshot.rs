@@ -140,66 +140,143 @@ impl Snapshot {
         b
     }
 
-    /// Parses and validates bytes written by [`Snapshot::to_bytes`] for `model`.
+    /// Parses and validates bytes written by [`Snapshot::to_bytes`] for `model`: the frame
+    /// (length, magic, version, guid, checksum) first, then every field in order.
     pub fn from_bytes(model: &'static ModelInfo, bytes: &[u8]) -> Result<Snapshot, FmuError> {
-        let refuse = |why: String| Err(FmuError::StateRefused(why));
-        if bytes.is_empty() {
-            return refuse("the serialized state is empty (0 bytes)".into());
+        let (payload, at) = checked_payload(model, bytes)?;
+        let mut r = Reader { bytes: payload, at };
+        let (phase, flags, flavour) = r.state_machine()?;
+        let (time, experiment) = r.times(flags)?;
+        let (values, input_slopes) = r.values(model)?;
+        let plant = r.plant()?;
+        let mut bound = vec![0.0; Bounds::word_count(model.drive_train.has_web())];
+        for x in bound.iter_mut() {
+            *x = r.finite("a bound's state")?;
         }
-        if bytes.len() < 12 {
-            return refuse(format!(
-                "{} bytes are too few for a serialized FMU state (header is 12)",
-                bytes.len()
-            ));
+        let bounds_behind = r.finite("the bounds' lag")?;
+        if bounds_behind < 0.0 {
+            return refuse(format!("the bounds' lag {bounds_behind} s is negative"));
         }
-        if &bytes[0..8] != MAGIC {
-            return refuse("not a serialized state of this FMU (wrong magic bytes)".into());
-        }
-        let version = u16::from_le_bytes([bytes[8], bytes[9]]);
-        if version != FORMAT_VERSION {
-            return refuse(format!(
-                "format version {version}; this binary reads version {FORMAT_VERSION}"
-            ));
-        }
-        let guid_len = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
-        let expected = 12 + guid_len + body_len(model);
-        if bytes.len() < 12 + guid_len {
-            return refuse(format!(
-                "truncated: {} bytes, the guid alone needs {}",
-                bytes.len(),
-                12 + guid_len
-            ));
-        }
-        let guid = &bytes[12..12 + guid_len];
-        if guid != model.guid.as_bytes() {
-            return refuse(format!(
-                "it was saved by the model with guid {:?}; this instance is {} with guid {}",
-                String::from_utf8_lossy(guid),
-                model.identifier,
-                model.guid
-            ));
-        }
-        if bytes.len() != expected {
-            return refuse(format!(
-                "{} bytes, a version-{FORMAT_VERSION} state of {} has {expected}",
-                bytes.len(),
-                model.identifier
-            ));
-        }
-        let (payload, tail) = bytes.split_at(expected - 8);
-        let stored = u64::from_le_bytes(tail.try_into().expect("8 bytes"));
-        if stored != fnv1a_64(payload) {
-            return refuse("checksum mismatch: the bytes were altered or corrupted".into());
-        }
+        let time_marks = r.time_marks(experiment.start_time)?;
+        debug_assert_eq!(r.at, payload.len());
 
-        let mut r = Reader {
-            bytes: payload,
-            at: 12 + guid_len,
+        let has_physics = flags & FLAG_PHYSICS != 0;
+        let consistent = match phase {
+            Phase::Instantiated | Phase::InitializationMode => !has_physics,
+            Phase::StepComplete
+            | Phase::StepFailed
+            | Phase::EventMode
+            | Phase::ContinuousTimeMode
+            | Phase::Terminated => has_physics,
+            Phase::Error => true,
         };
-        let phase_code = r.u8();
+        if !consistent {
+            return refuse(format!("phase {phase} does not match the presence of a plant state"));
+        }
+        let physics = has_physics.then_some(PhysicsSnapshot {
+            plant,
+            bound,
+            bounds_behind,
+        });
+        Ok(Snapshot {
+            model,
+            flavour,
+            phase,
+            time,
+            time_marks,
+            experiment,
+            values,
+            input_slopes,
+            physics,
+        })
+    }
+}
+
+fn refuse<T>(why: String) -> Result<T, FmuError> {
+    Err(FmuError::StateRefused(why))
+}
+
+/// The bytes before the checksum, once length, magic, version, guid and checksum are right for
+/// `model`, and where the fields start.
+fn checked_payload<'a>(model: &ModelInfo, bytes: &'a [u8]) -> Result<(&'a [u8], usize), FmuError> {
+    if bytes.is_empty() {
+        return refuse("the serialized state is empty (0 bytes)".into());
+    }
+    if bytes.len() < 12 {
+        return refuse(format!(
+            "{} bytes are too few for a serialized FMU state (header is 12)",
+            bytes.len()
+        ));
+    }
+    if &bytes[0..8] != MAGIC {
+        return refuse("not a serialized state of this FMU (wrong magic bytes)".into());
+    }
+    let version = u16::from_le_bytes([bytes[8], bytes[9]]);
+    if version != FORMAT_VERSION {
+        return refuse(format!(
+            "format version {version}; this binary reads version {FORMAT_VERSION}"
+        ));
+    }
+    let guid_len = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
+    let expected = 12 + guid_len + body_len(model);
+    if bytes.len() < 12 + guid_len {
+        return refuse(format!(
+            "truncated: {} bytes, the guid alone needs {}",
+            bytes.len(),
+            12 + guid_len
+        ));
+    }
+    let guid = &bytes[12..12 + guid_len];
+    if guid != model.guid.as_bytes() {
+        return refuse(format!(
+            "it was saved by the model with guid {:?}; this instance is {} with guid {}",
+            String::from_utf8_lossy(guid),
+            model.identifier,
+            model.guid
+        ));
+    }
+    if bytes.len() != expected {
+        return refuse(format!(
+            "{} bytes, a version-{FORMAT_VERSION} state of {} has {expected}",
+            bytes.len(),
+            model.identifier
+        ));
+    }
+    let (payload, tail) = bytes.split_at(expected - 8);
+    let mut stored = [0u8; 8];
+    stored.copy_from_slice(tail);
+    if u64::from_le_bytes(stored) != fnv1a_64(payload) {
+        return refuse("checksum mismatch: the bytes were altered or corrupted".into());
+    }
+    Ok((payload, 12 + guid_len))
+}
+
+/// Reads fields from a buffer whose length was checked beforehand.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn u8(&mut self) -> u8 {
+        self.at += 1;
+        self.bytes[self.at - 1]
+    }
+
+    fn f64(&mut self) -> f64 {
+        let mut word = [0u8; 8];
+        word.copy_from_slice(&self.bytes[self.at..self.at + 8]);
+        let x = f64::from_le_bytes(word);
+        self.at += 8;
+        x
+    }
+
+    /// Phase, flags and the flavour they say, checked against each other.
+    fn state_machine(&mut self) -> Result<(Phase, u8, Flavour), FmuError> {
+        let phase_code = self.u8();
         let phase = Phase::from_code(phase_code)
             .ok_or_else(|| FmuError::StateRefused(format!("unknown phase code {phase_code}")))?;
-        let flags = r.u8();
+        let flags = self.u8();
         if flags & !(FLAG_STOP | FLAG_TOLERANCE | FLAG_PHYSICS | FLAG_MODEL_EXCHANGE | FLAG_FMI3) != 0 {
             return refuse(format!("unknown flag bits {flags:#04x}"));
         }
@@ -221,22 +298,32 @@ impl Snapshot {
                 flavour.name()
             ));
         }
-        let count = u16::from_le_bytes([r.u8(), r.u8()]) as usize;
+        let count = u16::from_le_bytes([self.u8(), self.u8()]) as usize;
         if count != Symbol::COUNT {
             return refuse(format!("{count} stored values, expected {}", Symbol::COUNT));
         }
-        let time = r.finite("time")?;
-        let start_time = r.finite("startTime")?;
-        let stop_time = r.finite("stopTime")?;
-        let tolerance = r.f64();
+        Ok((phase, flags, flavour))
+    }
+
+    /// The instance's time and its experiment.
+    fn times(&mut self, flags: u8) -> Result<(f64, Experiment), FmuError> {
+        let time = self.finite("time")?;
+        let start_time = self.finite("startTime")?;
+        let stop_time = self.finite("stopTime")?;
+        let tolerance = self.f64();
         let experiment = Experiment {
             start_time,
             stop_time: (flags & FLAG_STOP != 0).then_some(stop_time),
             tolerance: (flags & FLAG_TOLERANCE != 0).then_some(tolerance),
         };
+        Ok((time, experiment))
+    }
+
+    /// The stored values, each settable one in its range, and the input lines' slopes.
+    fn values(&mut self, model: &ModelInfo) -> Result<(Values, InputSlopes), FmuError> {
         let mut values = [0.0; Symbol::COUNT];
         for slot in values.iter_mut() {
-            *slot = r.finite("a variable value")?;
+            *slot = self.finite("a variable value")?;
         }
         for v in model.variables {
             let x = values[v.symbol.index()];
@@ -246,102 +333,54 @@ impl Snapshot {
         }
         let mut input_slopes = [0.0; MAX_INPUTS];
         for (slot, slope) in input_slopes.iter_mut().enumerate() {
-            *slope = r.finite(&format!("d{}/dt", input_name(slot)))?;
+            *slope = self.finite(&format!("d{}/dt", input_name(slot)))?;
         }
+        Ok((values, input_slopes))
+    }
+
+    /// The plant state: z, T, u, u' and the contact mode.
+    fn plant(&mut self) -> Result<PlantState, FmuError> {
         let mut z = [0.0; 7];
         for (x, name) in z
             .iter_mut()
             .zip(["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt"])
         {
-            *x = r.finite(name)?;
+            *x = self.finite(name)?;
         }
-        let mode_code = r.u8() as i8 as i32;
+        let mode_code = self.u8() as i8 as i32;
         let mode = ContactMode::from_i32(mode_code)
             .ok_or_else(|| FmuError::StateRefused(format!("unknown contact mode {mode_code}")))?;
-        let mut bound = vec![0.0; Bounds::word_count(model.drive_train.has_web())];
-        for x in bound.iter_mut() {
-            *x = r.finite("a bound's state")?;
-        }
-        let bounds_behind = r.finite("the bounds' lag")?;
-        if bounds_behind < 0.0 {
-            return refuse(format!("the bounds' lag {bounds_behind} s is negative"));
-        }
+        Ok(PlantState {
+            theta_m: z[0],
+            omega_m: z[1],
+            theta_l: z[2],
+            omega_l: z[3],
+            tension: z[4],
+            u: z[5],
+            du: z[6],
+            mode,
+        })
+    }
+
+    /// How far back the time may be set, none of it before the start time.
+    fn time_marks(&mut self, start_time: f64) -> Result<TimeMarks, FmuError> {
         let mut marks = [0.0; 3];
         for (x, name) in marks.iter_mut().zip([
             "the second-last completed integrator step",
             "the last completed integrator step",
             "the last event",
         ]) {
-            *x = r.finite(&format!("the time of {name}"))?;
+            *x = self.finite(&format!("the time of {name}"))?;
             if *x < start_time {
                 return refuse(format!(
                     "the time of {name}, {x}, is before the start time {start_time}"
                 ));
             }
         }
-        let time_marks = TimeMarks {
+        Ok(TimeMarks {
             completed_steps: [marks[0], marks[1]],
             event: marks[2],
-        };
-        debug_assert_eq!(r.at, payload.len());
-
-        let has_physics = flags & FLAG_PHYSICS != 0;
-        let consistent = match phase {
-            Phase::Instantiated | Phase::InitializationMode => !has_physics,
-            Phase::StepComplete
-            | Phase::StepFailed
-            | Phase::EventMode
-            | Phase::ContinuousTimeMode
-            | Phase::Terminated => has_physics,
-            Phase::Error => true,
-        };
-        if !consistent {
-            return refuse(format!("phase {phase} does not match the presence of a plant state"));
-        }
-        let physics = has_physics.then_some(PhysicsSnapshot {
-            plant: PlantState {
-                theta_m: z[0],
-                omega_m: z[1],
-                theta_l: z[2],
-                omega_l: z[3],
-                tension: z[4],
-                u: z[5],
-                du: z[6],
-                mode,
-            },
-            bound,
-            bounds_behind,
-        });
-        Ok(Snapshot {
-            model,
-            flavour,
-            phase,
-            time,
-            time_marks,
-            experiment,
-            values,
-            input_slopes,
-            physics,
         })
-    }
-}
-
-/// Reads fields from a buffer whose length was checked beforehand.
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl Reader<'_> {
-    fn u8(&mut self) -> u8 {
-        self.at += 1;
-        self.bytes[self.at - 1]
-    }
-
-    fn f64(&mut self) -> f64 {
-        let x = f64::from_le_bytes(self.bytes[self.at..self.at + 8].try_into().expect("8 bytes"));
-        self.at += 8;
-        x
     }
 
     fn finite(&mut self, what: &str) -> Result<f64, FmuError> {
