@@ -364,6 +364,7 @@ def check_cvode_against_exact(path: str, params: dict, plant: Plant):
         output=[*STATES, "psi", "contact"],
     )
     t = result["time"]  # the 401 output points and, twice each, the events (record_events)
+    # Exact: the start and stop times are the ones passed in, and fmpy records times in order.
     assert t[0] == 0.0 and t[-1] == n * h and np.all(np.diff(t) >= 0.0)
     assert np.all(np.min(np.abs(t[None, :] - np.linspace(0.0, n * h, 401)[:, None]), axis=1) <= 1e-12)
     exact = rc.solve(plant, rc.open_loop_holds(tau_m, tau_L, h), t, z0=z0)

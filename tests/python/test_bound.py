@@ -46,6 +46,7 @@ def test_twin_difference_never_exceeds_bound(shaft, name):
     diff, backlash, linear = _diff_and_bounds(name)
     bound = backlash["bound"]
     ratio = np.max(diff[1:] / bound[1:])
+    # Exactly 0.0, not to round-off: the FMU's bound is K g times its integral, and K g = 0.
     assert np.all(linear["bound"] == 0.0), "Delta = 0 carries no disturbance"
     assert np.all(diff <= bound + 1e-12), f"{name}: max |dw_L| / bound = {ratio}"
     assert np.max(diff) > 1e-3, "the backlash must make a visible difference"
@@ -112,9 +113,16 @@ def test_bound_sup_is_the_limit_of_bound(model):
         (sup_after,) = inst.get("bound_sup")
     finally:
         inst.free()
+    # The same stored number: bound_sup is a calculatedParameter, computed once at initialisation.
     assert sup == sup_after
     assert abs(sup - br.sup()) <= TOL * br.sup()
     bound = out["bound"]
+    # Monotone by construction, so exact: bound = K g * (running sum of non-negative piece
+    # integrals |int h|, src/physics/bound.rs), and a rounded sum never drops when a non-negative
+    # term is added. bound(12 s) meets sup, its limit, in exact arithmetic (e^-48 short of it),
+    # and sup errs upwards only (an upper bound, SUP_TOLERANCE 1e-13); both are sums of ~500
+    # pieces (0.05 s steps cut at 0.5 / rho = 0.035 s, rho = 14 /s; sup on its own grid), each
+    # within 500 eps = 1.1e-13 of exact, so they can round apart by 2.2e-13: 1e-12 covers it.
     assert np.all(np.diff(bound) >= 0.0) and np.all(bound <= sup * (1 + 1e-12))
     assert abs(bound[-1] - sup) <= 1e-9 * sup
 

@@ -83,7 +83,7 @@ def test_run_csv_matches_its_summary_row(demo_run):
         dev = np.abs(data["omega_L_b"] - data["omega_L_0"])
         assert dev.max() == pytest.approx(float(row["max_deviation"]), rel=1e-6, abs=1e-12)
         assert np.all(dev <= data["bound"] * (1 + 1e-9) + TOL)
-        assert data["t_s"][0] == 0.0 and data["t_s"][-1] > 1.0
+        assert data["t_s"][0] == 0.0 and data["t_s"][-1] > 1.0  # t_0 = 0 * h, written as "0"
 
 
 def test_pngs_are_written(demo_run):
@@ -106,7 +106,7 @@ def test_web_line_deviations_stay_within_their_bounds_at_every_row(web_run):
     every communication point, the CSV's deviation columns recomputed from its trajectories."""
     out, _ = web_run
     data = np.genfromtxt(out / "web_line.csv", delimiter=",", names=True)
-    assert data["t_s"][0] == 0.0 and data["t_s"][-1] == pytest.approx(0.5)
+    assert data["t_s"][0] == 0.0 and data["t_s"][-1] == pytest.approx(0.5)  # t_0 = 0 * h, written as "0"
     dT = np.abs(data["T_b"] - data["T_0"])
     dw = np.abs(data["omega_L_b"] - data["omega_L_0"])
     np.testing.assert_allclose(dT, data["dT"], rtol=1e-6, atol=1e-11 * np.abs(data["T_b"]).max())

@@ -62,6 +62,8 @@ def fmu_bound_sup(shaft, **params) -> float:
 def test_json_names_the_plant_and_the_answer(design):
     for key in ("delta_max", "k_min", "Kp", "Ki", "plant", "accuracy"):
         assert key in design
+    # Exact: given or default numbers passed through (decimal literals in, shortest round-trip
+    # JSON out), not computed.
     assert design["plant"] == {"form": "shaft", **RIG, "Delta": 0.775e-3}
     assert design["accuracy"] == EPS
     assert design["delta_max"] > 0 and design["k_min"] > 0
@@ -159,7 +161,7 @@ def test_belt_design_starts_from_the_belt_fmu_and_meets_the_accuracy(belt_design
     names = ("J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta")
     defaults = {n: float(belt.variables[n].start) for n in names}
     d = belt_design
-    assert d["plant"] == {"form": "belt", **defaults}
+    assert d["plant"] == {"form": "belt", **defaults}  # passed through, as in test_json_names_...
     kp, ki = d["Kp"], d["Ki"]
     at_max = {**defaults, "Delta": d["delta_max"]}
     assert belt_reference_sup(at_max, kp, ki) == pytest.approx(BELT_EPS, rel=1e-6)
@@ -208,7 +210,7 @@ def test_given_gains_are_used():
     out = run_design("--accuracy", "0.02", "--kp", "20", "--ki", "50", "--json")
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
-    assert (d["Kp"], d["Ki"], d["gain_rule"]) == (20.0, 50.0, "given")
+    assert (d["Kp"], d["Ki"], d["gain_rule"]) == (20.0, 50.0, "given")  # passed through
     assert d["delta_max"] == pytest.approx(0.02 / reference_sup(RIG["k"], 1.0, 20.0, 50.0), rel=1e-6)
 
 

@@ -77,6 +77,8 @@ def min_damping(A: np.ndarray) -> float:
 
 def test_json_names_the_plant_the_accuracies_and_stable_gains(case):
     name, d = case
+    # Exact: given or default numbers passed through (decimal literals in, shortest round-trip
+    # JSON out), not computed.
     assert d["plant"] == {"form": "web", **WEB}
     assert d["tension_accuracy"] == EPS_T
     assert d["accuracy"] == (EPS if name == "tension+speed" else None)

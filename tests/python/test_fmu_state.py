@@ -39,7 +39,8 @@ def test_serialized_state_continues_bit_for_bit_in_a_fresh_instance(fmu):
         state = inst.slave.getFMUstate()
         blob = inst.slave.serializeFMUstate(state)
         continuation = _drive(inst, SNAPSHOT, N, tau_m, tau_L)
-        # Same instance: roll back and redo.
+        # Same instance: roll back and redo. Exact equality throughout: the same library, state and
+        # inputs give the same arithmetic (no BLAS; the FMU spawns no threads), hence the same bits.
         inst.slave.setFMUstate(state)
         inst.slave.freeFMUstate(state)
         assert _drive(inst, SNAPSHOT, N, tau_m, tau_L) == continuation
@@ -55,7 +56,7 @@ def test_serialized_state_continues_bit_for_bit_in_a_fresh_instance(fmu):
         restored = fresh.slave.deSerializeFMUstate(blob)
         fresh.slave.setFMUstate(restored)
         fresh.slave.freeFMUstate(restored)
-        assert [float(x) for x in fresh.get(*params)] == list(params.values())
+        assert [float(x) for x in fresh.get(*params)] == list(params.values())  # values passed through
         assert _drive(fresh, SNAPSHOT, N, tau_m, tau_L) == continuation
     finally:
         fresh.free()
@@ -73,6 +74,7 @@ def test_reset_reproduces_the_first_run_bit_for_bit(fmu):
         inst.slave.setupExperiment(startTime=0.0)
         inst.slave.enterInitializationMode()
         starts = [float(fmu.variables[name].start) for name in params]
+        # Passed through: the XML's start strings are the shortest round-trip text of these floats.
         assert inst.get(*params) == starts
         assert inst.get(*fmu_driver.STATE_OUTPUTS) == [0.0] * 4
         # ... and the same experiment then reproduces the first run exactly.

@@ -433,7 +433,9 @@ def test_twin_deviation_never_exceeds_bound(model):
     diff = np.abs(run_b.z[:, 3] - run_0.z[:, 3])
     assert np.all(diff <= bound + 2 * LOOP_TOL * w_max), np.max(diff - bound)
     exact_diff = np.abs(exact_loop(model).z[:, 3] - exact_0.z[:, 3])
-    assert np.all(exact_diff <= bound * (1 + 1e-12) + 1e-15)
+    # No tie to round off: both are exactly 0 at t = 0, and the largest ratio after it is 0.997
+    # (shaft), 0.974 (belt, web line).
+    assert np.all(exact_diff <= bound)
     assert np.all(out_0["bound"] == 0.0), "Delta = 0 carries no disturbance"
     assert np.max(diff[1:] / bound[1:]) > 0.9
 

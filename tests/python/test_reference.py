@@ -93,6 +93,7 @@ def test_switches_alternate_between_free_and_contact():
     _, _, ref = run_open_loop(plant, tau_m, tau_L, 0.02)
     assert len(ref.switches) >= 10
     for (t0, a0, b0), (t1, a1, _) in zip(ref.switches, ref.switches[1:]):
+        # Exact: each event search starts at the previous event's time.
         assert t1 >= t0 and b0 == a1 and FREE in (a0, b0)
     assert {PLUS, MINUS} <= {b for _, _, b in ref.switches}
 
@@ -132,7 +133,12 @@ def test_bound_integral_is_consistent():
     first_root = grid[np.nonzero(hv[:-1] * hv[1:] < 0.0)[0][0]]
     before = np.arange(n + 1) * dt < first_root
     assert np.all(np.abs(abs_int[before] - signed[before]) <= 1e-13 * abs_int[-1])
-    assert np.all(abs_int >= signed - 1e-15) and np.all(np.diff(abs_int) >= 0.0)
+    # int |h| >= |int h| holds exactly, but just after a root the two meet within round-off: each
+    # is a recursive sum of the k cells up to its point (m per output step), off by at most
+    # k eps of its value. The cumulative sum of non-negative cells never drops (same arithmetic).
+    cells = np.arange(n + 1) * max(1, math.ceil(dt / br.max_cell))
+    assert np.all(abs_int >= signed - 2 * cells * np.finfo(float).eps * abs_int)
+    assert np.all(np.diff(abs_int) >= 0.0)
     coarse, _ = br.integrals(3 * dt, n // 3)
     assert np.max(np.abs(coarse - abs_int[::3])) <= 1e-12 * abs_int[-1]
     trapezoid = np.concatenate(([0.0], np.cumsum(0.5 * (np.abs(hv[1:]) + np.abs(hv[:-1])) * np.diff(grid))))
@@ -151,7 +157,8 @@ def test_bound_holds_for_the_open_loop_twin():
     bound, _ = BoundReference(plant).bounds(h, n)
     diff = np.abs(zb[:, 3] - z0[:, 3])
     assert len(ref.switches) >= 6
-    assert np.all(diff <= bound + 1e-12)
+    # No tie to round off: both are exactly 0 at t = 0, and after it the largest ratio is 0.72.
+    assert np.all(diff <= bound)
     assert np.max(diff) > 0.05 * np.max(bound)  # the comparison is not vacuous
 
 
@@ -182,4 +189,6 @@ def test_sup_of_the_bound():
     round_off = (2 * 512 * np.linalg.cond(V) + cells) * np.finfo(float).eps * sup
     assert abs(sup - bound[-1]) <= tail + round_off, (sup, bound[-1], tail, round_off)
     undamped = plant_of("BacklashShaft", {**SHAFT, "b_m": 0.0, "b_L": 0.0})
+    # sup() is +inf when the slowest excited mode has Re lambda >= -1e-12: here its modes lie on
+    # the imaginary axis (LAPACK gives Re lambda = 0 or 2e-16, within eps |A| = 2e-14 of it).
     assert BoundReference(undamped).sup() == math.inf

@@ -111,6 +111,7 @@ def test_units_are_defined_with_base_units_and_display_units(fmu):
         b = units[name].baseUnit
         assert b is not None, f"unit {name} has no BaseUnit"
         assert (b.kg, b.m, b.s, b.rad) == BASE[name], name
+        # factor and offset exact: attributes read back (or their defaults 1 and 0), not computed.
         assert (b.A, b.K, b.mol, b.cd, b.factor, b.offset) == (0, 0, 0, 0, 1.0, 0.0), name
     for name, (display, factor) in DISPLAY.items():
         if name not in used:
