@@ -30,36 +30,47 @@ use crate::{abi, python};
 use compare::{Agreement, Sample};
 use host::Host;
 
-/// A set of parameter values, by name.
-type Parameters = &'static [(&'static str, f64)];
-
-/// The drives of tests/python/rigs.py (SHAFT, BELT: the paper's inertias and damping) with the
-/// PI gains chosen there to damp each closed loop (SHAFT_GAINS, BELT_GAINS); the host's loop uses
-/// Kp and Ki as its gains.
-const PAPER: Parameters = &[("J_m", 2.28), ("J_L", 2.55), ("b_m", 0.05), ("b_L", 0.05)];
-const SHAFT: Parameters = &[("k", 200.0), ("Delta", 5.38e-3 / 2.0), ("Kp", 42.0), ("Ki", 180.0)];
-const BELT: Parameters = &[
-    ("K_b", 2.0e4),
-    ("R_1", 0.1),
-    ("R_2", 0.08),
-    ("R_g1", 0.05),
-    ("R_g2", 0.075),
-    ("Delta", 2.0e-3),
-    ("Kp", 38.0),
-    ("Ki", 200.0),
-];
-/// The web line's span on the belt rig: the FMU's film line (its start values) but for a web
-/// 100 times less stiff, whose pull on the load roller is of the order of the drive's torques
-/// rather than far above them; the tension PI's gains, so that bound_T is that of the loop with
-/// both PIs.
-const WEB_SPAN: Parameters = &[("EA", 1.0e3), ("Kp_T", 1.0e-3), ("Ki_T", 1.0e-2)];
-
-/// Each model's test rig: the parameter sets it is made of, set in this order.
-const RIGS: [(&str, &[Parameters]); 3] = [
-    ("BacklashShaft", &[PAPER, SHAFT]),
-    ("BacklashBelt", &[PAPER, BELT]),
-    ("BacklashWeb", &[PAPER, BELT, WEB_SPAN]),
-];
+/// Each model's test rig, from tests/fixtures/rigs.toml (shared with the Python tests): the
+/// parameter sets it names, applied in order, then its PI gains (the host's loop uses Kp and Ki
+/// as its gains); a rig's `cross_platform` sets, where given, instead of its `parameters`.
+fn rig(id: &str) -> Result<Vec<(String, f64)>, String> {
+    let path = util::repo_root().join("tests/fixtures/rigs.toml");
+    let text = fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", util::shown(&path)))?;
+    let fixture: toml::Table = text.parse().map_err(|e| format!("{}: {e}", util::shown(&path)))?;
+    let bad = |what: &str| format!("{}: {what}", util::shown(&path));
+    let rig = fixture
+        .get("rigs")
+        .and_then(|r| r.get(id))
+        .ok_or_else(|| bad(&format!("no rig for {id}")))?;
+    let names = |key: &str| -> Option<Vec<String>> {
+        match rig.get(key)? {
+            toml::Value::String(name) => Some(vec![name.clone()]),
+            toml::Value::Array(names) => names.iter().map(|n| n.as_str().map(str::to_string)).collect(),
+            _ => None,
+        }
+    };
+    let sets = names("cross_platform")
+        .or_else(|| names("parameters"))
+        .ok_or_else(|| bad(&format!("rig {id} names no parameter sets")))?;
+    let gains = names("gains").ok_or_else(|| bad(&format!("rig {id} names no gains")))?;
+    let mut values = Vec::new();
+    for set in sets.iter().chain(&gains) {
+        let table = fixture
+            .get("sets")
+            .and_then(|s| s.get(set))
+            .and_then(|t| t.as_table())
+            .ok_or_else(|| bad(&format!("no parameter set {set}")))?;
+        for (name, value) in table {
+            let value = match value {
+                toml::Value::Float(x) => *x,
+                toml::Value::Integer(n) => *n as f64,
+                _ => return Err(bad(&format!("{set}.{name} is not a number"))),
+            };
+            values.push((name.clone(), value));
+        }
+    }
+    Ok(values)
+}
 
 /// A scenario of the host that samples its outputs along the way (h = 1 ms in the host).
 struct Sampled {
@@ -327,13 +338,8 @@ fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, S
         ));
     }
     variables.extend(web);
-    let (_, rig) = RIGS
+    let parameters = rig(id)?
         .iter()
-        .find(|(model, _)| *model == id)
-        .ok_or_else(|| format!("no test rig for {id} in xtask/src/cross/mod.rs (RIGS)"))?;
-    let parameters = rig
-        .iter()
-        .flat_map(|set| set.iter())
         .map(|(name, value)| value_reference(name).map(|vr| format!("{vr}={:016x}", value.to_bits())))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((token.to_string(), variables.join(","), parameters.join(",")))
@@ -510,4 +516,25 @@ fn fmu_state(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), Str
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every model has a rig in the fixture, and a rig is its sets then its gains (the numbers
+    /// the Python tests read from the same file).
+    #[test]
+    fn every_model_has_its_rig_from_the_fixture() {
+        for id in model_description::model_identifiers() {
+            let values = rig(id).unwrap();
+            assert!(values.iter().any(|(name, _)| name == "Kp"), "{id}: {values:?}");
+            assert!(values.iter().any(|(name, _)| name == "J_m"), "{id}: {values:?}");
+        }
+        let shaft = rig("BacklashShaft").unwrap();
+        assert!(shaft.contains(&("Delta".to_string(), 5.38e-3 / 2.0)), "{shaft:?}");
+        let web = rig("BacklashWeb").unwrap();
+        assert!(web.contains(&("EA".to_string(), 1.0e3)), "the cross-platform sets: {web:?}");
+        assert!(rig("NoSuchModel").unwrap_err().contains("no rig for NoSuchModel"));
+    }
 }
