@@ -389,15 +389,16 @@ impl Function {
                 "fmi3GetContinuousStates",
                 both(M | V | N | T | E, 0),
             ),
+            // FMI 2.0.4 §3.2.3's table marks both in Initialization Mode too.
             GetDerivatives => spec(
                 "fmi2GetDerivatives",
-                both(V | N | T | E, 0),
+                both(M | V | N | T | E, 0),
                 "fmi3GetContinuousStateDerivatives",
                 both(M | V | N | T | E, 0),
             ),
             GetNominalsOfContinuousStates => spec(
                 "fmi2GetNominalsOfContinuousStates",
-                both(I | V | N | T | E, 0),
+                both(I | M | V | N | T | E, 0),
                 "fmi3GetNominalsOfContinuousStates",
                 both(I | M | V | N | T | E, 0),
             ),
@@ -516,11 +517,18 @@ mod tests {
         assert_eq!(me(SetInteger), vec![Instantiated, InitializationMode, EventMode]);
         assert_eq!(
             me(GetDerivatives),
-            vec![Terminated, Error, EventMode, ContinuousTimeMode]
+            vec![InitializationMode, Terminated, Error, EventMode, ContinuousTimeMode]
         );
         assert_eq!(
             me(GetNominalsOfContinuousStates),
-            vec![Instantiated, Terminated, Error, EventMode, ContinuousTimeMode]
+            vec![
+                Instantiated,
+                InitializationMode,
+                Terminated,
+                Error,
+                EventMode,
+                ContinuousTimeMode
+            ]
         );
         assert!(me(DoStep).is_empty() && DoStep.only_for(Standard::Fmi2) == Some(Interface::CoSimulation));
         assert_eq!(GetReal.only_for(Standard::Fmi2), None);
