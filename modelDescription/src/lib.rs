@@ -19,9 +19,10 @@ pub mod xml3;
 
 pub use models::model;
 
-/// The models this crate describes, in a fixed order.
+/// The models this crate describes, in a fixed order (that of the one list, `models::MODELS`).
 pub fn model_identifiers() -> &'static [&'static str] {
-    &["BacklashShaft", "BacklashBelt", "BacklashWeb"]
+    static IDENTIFIERS: std::sync::OnceLock<Vec<&'static str>> = std::sync::OnceLock::new();
+    IDENTIFIERS.get_or_init(|| models::MODELS.iter().map(|describe| describe().identifier).collect())
 }
 
 /// Scalar type of a variable.

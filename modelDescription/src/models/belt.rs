@@ -1,0 +1,147 @@
+//! BacklashBelt: a belt–pulley drive and gear backlash in series (the paper's Fig. 7, eqs.
+//! 20–21), a small servo drive; its drive train is also BacklashWeb's.
+
+use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives};
+use crate::{DefaultExperiment, DriveTrain, Model, Range, Var};
+
+pub(super) fn model() -> Model {
+    Model {
+        identifier: "BacklashBelt",
+        drive_train: DriveTrain::Belt,
+        description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
+        default_experiment: DefaultExperiment {
+            start_time: 0.0,
+            stop_time: 0.2,
+            step_size: 1e-4,
+        },
+        variables: belt_variables(DriveTrain::Belt),
+    }
+}
+
+/// The belt drive's variables (value references 1–29), of BacklashBelt and of the web line's
+/// drive.
+pub(super) fn belt_variables(drive_train: DriveTrain) -> Vec<Var> {
+    use Range::*;
+    // θ_m nominal g/r_m, θ_L nominal g/r_L, ω nominal ω₀ times those, with g = R_2 Delta/R_g1,
+    // r_m = R_1, r_L = R_2 R_g2/R_g1, ω₀ = sqrt(K_b (r_m²/J_m + r_L²/J_L)).
+    let mut v = common_head(
+        drive_train,
+        [
+            0.006666666666666668,
+            7.8202017592614315,
+            0.0011111111111111113,
+            1.303366959876905,
+        ],
+    );
+    // A small servo belt drive: 2:1 belt (R_2/R_1), 3:1 gear (R_g2/R_g1), 6:1 overall;
+    // belt-gear natural frequency about 190 Hz, half gap 50 um on the pitch circle.
+    v.extend([
+        parameter(
+            "J_m",
+            "JM",
+            12,
+            1e-4,
+            Positive,
+            "kg.m2",
+            "MomentOfInertia",
+            "Motor inertia including the motor pulley (> 0)",
+        ),
+        parameter(
+            "J_L",
+            "JL",
+            13,
+            5e-3,
+            Positive,
+            "kg.m2",
+            "MomentOfInertia",
+            "Load inertia including gear 2 (> 0)",
+        ),
+        parameter(
+            "b_m",
+            "BM",
+            14,
+            1e-4,
+            NonNegative,
+            "N.m.s/rad",
+            "RotationalDampingConstant",
+            "Motor viscous friction (>= 0)",
+        ),
+        parameter(
+            "b_L",
+            "BL",
+            15,
+            1e-3,
+            NonNegative,
+            "N.m.s/rad",
+            "RotationalDampingConstant",
+            "Load viscous friction (>= 0)",
+        ),
+        parameter(
+            "Delta",
+            "Delta",
+            16,
+            5e-5,
+            NonNegative,
+            "m",
+            "Length",
+            "Half backlash gap on the pitch circle of the gears (>= 0): total free play is 2*Delta",
+        ),
+    ]);
+    v.extend(pi_gains());
+    v.extend([
+        parameter(
+            "K_b",
+            "KB",
+            19,
+            2e5,
+            Positive,
+            "N/m",
+            "TranslationalSpringConstant",
+            "Belt stiffness (> 0)",
+        ),
+        parameter(
+            "R_1",
+            "R1",
+            20,
+            0.02,
+            Positive,
+            "m",
+            "Length",
+            "Radius of the motor pulley (> 0)",
+        ),
+        parameter(
+            "R_2",
+            "R2",
+            21,
+            0.04,
+            Positive,
+            "m",
+            "Length",
+            "Radius of the driven pulley (> 0)",
+        ),
+        parameter(
+            "R_g1",
+            "Rg1",
+            22,
+            0.015,
+            Positive,
+            "m",
+            "Length",
+            "Pitch radius of gear 1, on the driven pulley's shaft (> 0)",
+        ),
+        parameter(
+            "R_g2",
+            "Rg2",
+            23,
+            0.045,
+            Positive,
+            "m",
+            "Length",
+            "Pitch radius of gear 2, on the load (> 0)",
+        ),
+    ]);
+    let derivatives = state_derivatives(&v);
+    v.extend(derivatives);
+    v.extend(event_indicators(drive_train));
+    v
+}

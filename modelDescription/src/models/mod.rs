@@ -1,0 +1,368 @@
+//! The models, one module each (its variables: value references, kinds, start values, units
+//! and texts; its description and default experiment; docs/model.md §4), and what they share:
+//! the constructors of the kinds of variables and the variables every model has. [`MODELS`] is
+//! the one list of the models.
+
+mod belt;
+mod shaft;
+mod web;
+
+use crate::{Causality, DriveTrain, Initial, Model, Range, Type, Var, Variability};
+
+#[allow(clippy::too_many_arguments)]
+const fn var(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    ty: Type,
+    causality: Causality,
+    variability: Variability,
+    initial: Initial,
+    start: Option<f64>,
+    range: Range,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    Var {
+        name,
+        symbol,
+        vr,
+        ty,
+        causality,
+        variability,
+        initial,
+        start,
+        range,
+        unit,
+        quantity,
+        description,
+        nominal: None,
+        derivative_of: None,
+    }
+}
+
+fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
+    quantity_input(name, symbol, vr, "N.m", "Torque", description)
+}
+
+fn quantity_input(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    use Causality::*;
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Input,
+        Variability::Continuous,
+        Initial::Unset,
+        Some(0.0),
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
+fn state_output(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    nominal: f64,
+    description: &'static str,
+) -> Var {
+    use Causality::*;
+    let state = var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Output,
+        Variability::Continuous,
+        Initial::Exact,
+        Some(0.0),
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    );
+    Var {
+        nominal: Some(nominal),
+        ..state
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn parameter(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    start: f64,
+    range: Range,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    use Causality::*;
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Parameter,
+        Variability::Fixed,
+        Initial::Exact,
+        Some(start),
+        range,
+        unit,
+        quantity,
+        description,
+    )
+}
+
+/// Value references are unique across types, so a reference alone names a variable.
+/// The PI gains (value references 17 and 18), the same in every model: they parameterize
+/// the bounds only.
+fn pi_gains() -> [Var; 2] {
+    [
+        parameter(
+            "Kp",
+            "Kp",
+            17,
+            0.0,
+            Range::Finite,
+            "N.m.s/rad",
+            "",
+            "Proportional gain of the PI loop on omega_m used by the bounds only (0 with Ki = 0: open loop)",
+        ),
+        parameter(
+            "Ki",
+            "Ki",
+            18,
+            0.0,
+            Range::Finite,
+            "N.m/rad",
+            "",
+            "Integral gain of the PI loop on omega_m used by the bounds only",
+        ),
+    ]
+}
+
+/// The time derivative `der(x)` of the continuous state `x` (Model Exchange, docs/model.md §6).
+fn state_derivative(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    of: &Var,
+    unit: &'static str,
+    quantity: &'static str,
+) -> Var {
+    Var {
+        derivative_of: Some(of.vr),
+        ..continuous_local(
+            name,
+            symbol,
+            vr,
+            unit,
+            quantity,
+            "Time derivative of the continuous state (Model Exchange); a pure function of the state and the inputs",
+        )
+    }
+}
+
+/// A local Real computed from the state and the inputs (Model Exchange's derivatives and event
+/// indicators).
+fn continuous_local(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Causality::Local,
+        Variability::Continuous,
+        Initial::Calculated,
+        None,
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
+/// The event indicators u − g and u + g as variables, value references 28 and 29 in every model
+/// (FMI 3.0 lists event indicators by value reference; FMI 2.0 importers see two locals).
+fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
+    let unit = match drive_train {
+        DriveTrain::Shaft => "rad",
+        DriveTrain::Belt | DriveTrain::Web => "m",
+    };
+    let indicator = |name, symbol, vr, description| continuous_local(name, symbol, vr, unit, "", description);
+    [
+        indicator(
+            "u_minus_g",
+            "UMinusG",
+            28,
+            "Event indicator u - g (u = r_m*theta_m - r_L*theta_L): positive in contact on the positive flank",
+        ),
+        indicator(
+            "u_plus_g",
+            "UPlusG",
+            29,
+            "Event indicator u + g: negative in contact on the negative flank",
+        ),
+    ]
+}
+
+/// `der(theta_m)` … `der(omega_L)`, value references 24–27 in every model, after the state
+/// outputs of `v`.
+fn state_derivatives(v: &[Var]) -> [Var; 4] {
+    let state = |name: &str| v.iter().find(|w| w.name == name).expect("the state outputs come first");
+    [
+        state_derivative(
+            "der(theta_m)",
+            "DerThetaM",
+            24,
+            state("theta_m"),
+            "rad/s",
+            "AngularVelocity",
+        ),
+        state_derivative(
+            "der(omega_m)",
+            "DerOmegaM",
+            25,
+            state("omega_m"),
+            "rad/s2",
+            "AngularAcceleration",
+        ),
+        state_derivative(
+            "der(theta_L)",
+            "DerThetaL",
+            26,
+            state("theta_L"),
+            "rad/s",
+            "AngularVelocity",
+        ),
+        state_derivative(
+            "der(omega_L)",
+            "DerOmegaL",
+            27,
+            state("omega_L"),
+            "rad/s2",
+            "AngularAcceleration",
+        ),
+    ]
+}
+
+/// Inputs, the state outputs (with `nominals` of θ_m, ω_m, θ_L, ω_L at the default parameters:
+/// the library's `Plant::state_nominals` computes them for any parameters) and the calculated
+/// outputs.
+fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
+    use Causality::*;
+    let (psi_unit, psi_quantity, psi_text) = match drive_train {
+        DriveTrain::Shaft => ("N.m", "Torque", "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft"),
+        DriveTrain::Belt | DriveTrain::Web => (
+            "N",
+            "Force",
+            "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1",
+        ),
+    };
+    vec![
+        input("tau_m", "TauM", 1, "Motor torque, held over each communication step, or along a line where input derivatives are set"),
+        input("tau_L", "TauL", 2, "Load torque, held over each communication step, or along a line where input derivatives are set"),
+        state_output("theta_m", "ThetaM", 3, "rad", "Angle", nominals[0], "Motor angle; its start value is the initial state"),
+        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", nominals[1], "Motor speed; its start value is the initial state"),
+        state_output("theta_L", "ThetaL", 5, "rad", "Angle", nominals[2], "Load angle; its start value is the initial state"),
+        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", nominals[3], "Load speed; its start value is the initial state"),
+        var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
+        var(
+            "contact",
+            "Contact",
+            8,
+            Type::Integer,
+            Output,
+            Variability::Discrete,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "",
+            "",
+            "Contact mode at the communication point: +1 positive flank, 0 free (inside the gap), -1 negative flank",
+        ),
+        var(
+            "bound",
+            "Bound",
+            9,
+            Type::Real,
+            Output,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "rad/s",
+            "AngularVelocity",
+            "Rigorous bound on |omega_L with backlash - omega_L without backlash| since the start time: K*g*integral of |h|",
+        ),
+        var(
+            "bound_paper",
+            "BoundPaper",
+            10,
+            Type::Real,
+            Output,
+            Variability::Continuous,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "rad/s",
+            "AngularVelocity",
+            "Paper eq. (37)/(41) as printed: K*g*norm of the integral of exp(A s)*D_1; reproduction only, not a guarantee",
+        ),
+        var(
+            "bound_sup",
+            "BoundSup",
+            11,
+            Type::Real,
+            CalculatedParameter,
+            Variability::Fixed,
+            Initial::Calculated,
+            None,
+            Range::Finite,
+            "rad/s",
+            "AngularVelocity",
+            "Supremum of bound over all times: K*g*integral of |h| to infinity; +inf (with a warning) if the loop is not asymptotically stable",
+        ),
+    ]
+}
+
+/// Every model, in a fixed order: the function that describes it. A new model is a module here
+/// and a line in this list; its identifier is in its description, nowhere else.
+pub const MODELS: [fn() -> Model; 3] = [shaft::model, belt::model, web::model];
+
+/// The description of `identifier`. Panics on an identifier of no model in [`MODELS`].
+pub fn model(identifier: &str) -> Model {
+    MODELS
+        .iter()
+        .map(|describe| describe())
+        .find(|m| m.identifier == identifier)
+        .unwrap_or_else(|| {
+            panic!(
+                "unknown model identifier {identifier:?}; known: {:?}",
+                crate::model_identifiers()
+            )
+        })
+}
