@@ -534,7 +534,10 @@ mod tests {
         let shaft = rig("BacklashShaft").unwrap();
         assert!(shaft.contains(&("Delta".to_string(), 5.38e-3 / 2.0)), "{shaft:?}");
         let web = rig("BacklashWeb").unwrap();
-        assert!(web.contains(&("EA".to_string(), 1.0e3)), "the cross-platform sets: {web:?}");
+        assert!(
+            web.contains(&("EA".to_string(), 1.0e3)),
+            "the cross-platform sets: {web:?}"
+        );
         assert!(rig("NoSuchModel").unwrap_err().contains("no rig for NoSuchModel"));
     }
 }
