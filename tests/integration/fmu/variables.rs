@@ -287,3 +287,77 @@ fn calculated_outputs_at_the_start_match_the_model_formulas() {
     inst.get_integer(&[model.vr("contact")], &mut contact).unwrap();
     assert_eq!(contact, [-1]);
 }
+
+/// The ModelStructure's `<Derivatives>` dependencies are the Jacobian's sparsity: a state
+/// derivative depends on a known (a continuous state or an input) exactly when its column of
+/// the exact Jacobian (fmi2GetDirectionalDerivative) is non-zero in some contact mode, at a
+/// generic state of each mode (u at -3g, 0.3g and 2.5g, the speeds and the tension non-zero),
+/// every parameter at its start value. So the hand-written lists cannot drift from the physics.
+#[test]
+fn derivative_dependencies_are_the_jacobians_sparsity() {
+    use backlash_fmu::fmu::Interface;
+    use std::collections::{BTreeMap, BTreeSet};
+    for id in model_identifiers() {
+        let text = xml::model_description(id);
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        let vars = xml_variables(&doc);
+        let name_at = |index: &str| vars[index.parse::<usize>().unwrap() - 1].name.clone();
+        let declared: BTreeMap<String, BTreeSet<String>> = doc
+            .descendants()
+            .find(|n| n.has_tag_name("Derivatives"))
+            .unwrap()
+            .children()
+            .filter(|n| n.has_tag_name("Unknown"))
+            .map(|n| {
+                let deps = n.attribute("dependencies").unwrap_or("");
+                (
+                    name_at(n.attribute("index").unwrap()),
+                    deps.split_whitespace().map(name_at).collect(),
+                )
+            })
+            .collect();
+        let model = model_by_identifier(id).unwrap();
+        let states: Vec<&str> = model
+            .variables
+            .iter()
+            .filter(|v| v.is_continuous_state())
+            .map(|v| v.name)
+            .collect();
+        let inputs: Vec<&str> = model
+            .variables
+            .iter()
+            .filter(|v| v.causality == Causality::Input)
+            .map(|v| v.name)
+            .collect();
+        let mut found: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for u_over_g in [-3.0, 0.3, 2.5] {
+            let mut inst = Instance::new_for(model, Interface::ModelExchange, None, false);
+            inst.setup_experiment(None, 0.0, None).unwrap();
+            inst.enter_initialization_mode().unwrap();
+            inst.exit_initialization_mode().unwrap();
+            inst.enter_continuous_time_mode().unwrap();
+            // u = r_m θ_m with θ_L = 0: r_m and g from the event indicators' values and slope.
+            let [minus, plus] = [model.vr("u_minus_g"), model.vr("u_plus_g")];
+            let mut z = [0.0; 2];
+            inst.get_real(&[minus, plus], &mut z).unwrap();
+            let g = (z[1] - z[0]) / 2.0;
+            let mut r_m = [0.0];
+            inst.get_directional_derivative(&[minus], &[model.vr("theta_m")], &[1.0], &mut r_m)
+                .unwrap();
+            let mut x: Vec<f64> = vec![u_over_g * g / r_m[0], 0.7, 0.0, -0.4, 3.0];
+            x.truncate(states.len());
+            inst.set_continuous_states(&x).unwrap();
+            for der in declared.keys() {
+                for known in states.iter().chain(&inputs) {
+                    let mut dv = [0.0];
+                    inst.get_directional_derivative(&[model.vr(der)], &[model.vr(known)], &[1.0], &mut dv)
+                        .unwrap();
+                    if dv[0] != 0.0 {
+                        found.entry(der.clone()).or_default().insert(known.to_string());
+                    }
+                }
+            }
+        }
+        assert_eq!(found, declared, "{id}: the Jacobian's sparsity vs <Derivatives>");
+    }
+}
