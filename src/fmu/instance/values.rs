@@ -252,8 +252,8 @@ impl Instance {
     /// fmi2SetContinuousStates with the other entries unchanged would.
     pub(crate) fn set_real_body(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
         Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
-        let mut z = self.life.sim().map(|sim| adapter::entries_of(&sim.state));
-        let mut states_set = false;
+        // The plant's state with the states set here, once one is (after initialization).
+        let mut z: Option<adapter::StateVector> = None;
         // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
             if self.is_time(*vr) {
@@ -272,13 +272,12 @@ impl Instance {
                     range: v.range.describe(),
                 });
             }
-            if let (Source::State(entry), Some(z)) = (adapter::source(v.symbol), z.as_mut()) {
-                z[entry.index()] = *value;
-                states_set = true;
+            if let (Source::State(entry), Some(sim)) = (adapter::source(v.symbol), self.life.sim()) {
+                z.get_or_insert_with(|| adapter::entries_of(&sim.state))[entry.index()] = *value;
             }
         }
         let state = match (self.life.sim(), z) {
-            (Some(sim), Some(z)) if states_set => {
+            (Some(sim), Some(z)) => {
                 let state = adapter::state_of(sim.plant(), &z);
                 sim.check_state(&state, format_args!("the continuous states overflow"))?;
                 Some(state)
