@@ -56,15 +56,7 @@ impl Lifecycle {
     /// The simulation, for the calls that are legal only after initialization (the state table
     /// lets no other call through; the refusal is there instead of a panic).
     pub(super) fn running(&mut self) -> Result<&mut Simulation, FmuError> {
-        self.sim_mut().ok_or_else(not_running)
+        self.sim_mut()
+            .ok_or_else(|| FmuError::InvalidArgument("no simulation before initialization has ended".into()))
     }
-
-    /// [`Lifecycle::running`] to read.
-    pub(super) fn simulation(&self) -> Result<&Simulation, FmuError> {
-        self.sim().ok_or_else(not_running)
-    }
-}
-
-fn not_running() -> FmuError {
-    FmuError::InvalidArgument("no simulation before initialization has ended".into())
 }

@@ -53,12 +53,11 @@ impl Instance {
         match &mut self.life {
             Lifecycle::Running { sim, .. } => Ok(sim),
             Lifecycle::Setup { preview, .. } => {
-                if preview.is_none() {
-                    *preview = Some(Simulation::build(self.model, &self.values)?);
-                }
-                preview
-                    .as_ref()
-                    .ok_or_else(|| FmuError::InvalidArgument("the plant could not be built".into()))
+                let sim = match preview.take() {
+                    Some(sim) => sim,
+                    None => Simulation::build(self.model, &self.values)?,
+                };
+                Ok(preview.insert(sim))
             }
         }
     }
@@ -348,11 +347,6 @@ impl Instance {
     ) -> Result<Status, FmuError> {
         Self::same_length("fmi2GetRealOutputDerivatives orders", orders.len(), vrs.len())?;
         Self::same_length("fmi2GetRealOutputDerivatives values", out.len(), vrs.len())?;
-        if self.life.sim().is_none() {
-            return Err(FmuError::InvalidArgument(
-                "no output derivatives before initialization has ended".into(),
-            ));
-        }
         // The bounds' rates at the instance's time, when one is asked for.
         let bounds = vrs.iter().any(|vr| {
             self.model.by_vr(*vr).is_some_and(|v| {
@@ -365,7 +359,12 @@ impl Instance {
         if bounds {
             self.bound_to_time()?;
         }
-        let sim = self.life.simulation()?;
+        // Before initialization has ended (state Error entered then) there is nothing to derive;
+        // the bounds above are brought to time only when there is a simulation.
+        let sim = self
+            .life
+            .sim()
+            .ok_or_else(|| FmuError::InvalidArgument("no output derivatives before initialization has ended".into()))?;
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         let mut rates: Option<adapter::StateVector> = None;
         for ((vr, order), slot) in vrs.iter().zip(orders).zip(out.iter_mut()) {
