@@ -330,18 +330,21 @@ fn fmi3_set_time_goes_back_no_further_than_the_text_allows() {
             "time 0.005 is before 0.01, the time of the second-last completed integrator step: FMI 3.0.2 §3.2.1",
             || fmi3SetTime(f.c, 0.005),
         );
-        let f = me_continuous(model);
-        assert_eq!(fmi3SetTime(f.c, 0.04), OK);
-        assert_eq!(fmi3EnterEventMode(f.c), OK);
+        // An instance in Event Mode entered at t = 0.04.
+        let in_event_at_4 = || {
+            let f = me_continuous(model);
+            assert_eq!(fmi3SetTime(f.c, 0.04), OK);
+            assert_eq!(fmi3EnterEventMode(f.c), OK);
+            f
+        };
+        let f = in_event_at_4();
         // §3.2.1 lists fmi3SetTime among Continuous-Time Mode's calls only.
         refuses(
             &f,
             "fmi3SetTime is not allowed in state EventMode: FMI 3.0.2 §3.2.1",
             || fmi3SetTime(f.c, 0.04),
         );
-        let f = me_continuous(model);
-        assert_eq!(fmi3SetTime(f.c, 0.04), OK);
-        assert_eq!(fmi3EnterEventMode(f.c), OK);
+        let f = in_event_at_4();
         assert_eq!(fmi3EnterContinuousTimeMode(f.c), OK);
         assert_eq!(fmi3SetTime(f.c, 0.04), OK, "the event's time itself");
         refuses(&f, "time 0.03 is before 0.04, the time of the last event", || {
