@@ -391,15 +391,19 @@ impl Instance {
             stop_time: stop,
             tolerance,
         };
+        self.start_clock(start);
+        Ok(Status::Ok)
+    }
+
+    /// The instance's time at `start`, with nothing completed or entered yet to limit going back.
+    fn start_clock(&mut self, start: f64) {
         self.time = start;
         self.time_marks = TimeMarks::at_start(start);
-        Ok(Status::Ok)
     }
 
     pub(crate) fn enter_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
         self.life.enter(Phase::InitializationMode);
-        self.time = self.experiment.start_time;
-        self.time_marks = TimeMarks::at_start(self.time);
+        self.start_clock(self.experiment.start_time);
         Ok(Status::Ok)
     }
 
@@ -422,8 +426,7 @@ impl Instance {
             _ => None,
         };
         let slack = sim.bound.sup_slack();
-        self.time = self.experiment.start_time;
-        self.time_marks = TimeMarks::at_start(self.time);
+        self.start_clock(self.experiment.start_time);
         let phase = match self.flavour.interface {
             Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,
             Interface::CoSimulation | Interface::ModelExchange => Phase::EventMode,
@@ -462,8 +465,7 @@ impl Instance {
         self.values = adapter::start_values(self.model);
         self.input_slopes = [0.0; adapter::MAX_INPUTS];
         self.experiment = Experiment::default();
-        self.time = 0.0;
-        self.time_marks = TimeMarks::at_start(0.0);
+        self.start_clock(0.0);
         Ok(Status::Ok)
     }
 }
