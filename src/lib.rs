@@ -7,7 +7,9 @@
 
 #![deny(unsafe_code)]
 
-pub mod physics;
+/// The plant and its bounds (the `backlash-physics` crate in physics/, which the interface
+/// description computes nominals and dependencies with as well).
+pub use backlash_physics as physics;
 
 pub mod fmu;
 
