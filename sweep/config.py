@@ -39,19 +39,38 @@ PARAMETERS = ("Delta", "k", "J_L", "J_m", "b_m", "b_L", "Kp", "Ki")
 # Quantities that must be strictly positive for the FMU to accept them (docs/model.md §4).
 POSITIVE = {"J_m", "J_L", "k"}
 
-# The paper's shaft rig (PlantParams::paper_rig, the rectilinear ECP system in shaft form).
-# Delta: a wear range, from a new gear pair (0.5 mm) to a worn one (3 mm, past the paper's
-# largest measured gap read as 2 Delta); k and J_L: manufacturing tolerances.
+# The test rigs, kept in tests/fixtures/rigs.toml. Read here, when the command line builds its
+# config (the path is this package's, in the repository); the workers get the drawn values,
+# never this module.
+RIGS_FIXTURE = Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "rigs.toml"
+
+
+def _rig(model: str) -> dict[str, float]:
+    """A model's rig of the fixture: its parameter sets applied in order (tests/python/rigs.py)."""
+    with open(RIGS_FIXTURE, "rb") as f:
+        fixture = tomllib.load(f)
+    values: dict[str, float] = {}
+    for name in fixture["rigs"][model]["parameters"]:
+        values.update(fixture["sets"][name])
+    return values
+
+
+# The nominal drive: the fixture's BacklashShaft rig, the paper's experiment in shaft form
+# (PlantParams::paper_rig, the rectilinear ECP system). Delta is not the rig's (2.69 mm) but a
+# wear range, from a new gear pair (0.5 mm) to a worn one (3 mm, past the paper's largest
+# measured gap read as 2 Delta); k and J_L: manufacturing tolerances about the rig's values.
+_SHAFT = _rig("BacklashShaft")
 DEFAULT_PARAMETERS: dict[str, object] = {
     "Delta": {"low": 0.5e-3, "high": 3e-3},
-    "k": {"nominal": 200.0, "tol": 0.10},
-    "J_L": {"nominal": 2.55, "tol": 0.05},
-    "J_m": 2.28,
-    "b_m": 0.05,
-    "b_L": 0.05,
+    "k": {"nominal": _SHAFT["k"], "tol": 0.10},
+    "J_L": {"nominal": _SHAFT["J_L"], "tol": 0.05},
+    "J_m": _SHAFT["J_m"],
+    "b_m": _SHAFT["b_m"],
+    "b_L": _SHAFT["b_L"],
 }
 # The demo's PI gains: Kp, Ki of `cargo xtask design --accuracy 0.02 --json` (best-damped rule
-# on the nominal rig); one controller for every drive of the line.
+# on the nominal rig); one controller for every drive of the line. Not the fixture's
+# shaft_gains (Kp = 42, Ki = 180, the tests' grid-search round values): the demo's own.
 DEFAULT_LOOP = {"Kp": 42.70304505387717, "Ki": 179.2424837177854}
 # The demo's reversing reference: its SPEED sine at the closed-loop poles' natural frequency,
 # mean |pole| / 2 pi of the "poles" of the same command's output.
