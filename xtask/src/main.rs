@@ -9,6 +9,7 @@ mod documentation;
 mod fmu;
 mod platform;
 mod python;
+mod rigs;
 mod sweep;
 mod test;
 mod util;

@@ -26,50 +26,15 @@ use std::time::{Duration, Instant};
 use crate::fmu::{self, Standard};
 use crate::platform::{self, BinaryFormat, Built, Platform, Tool};
 use crate::util::{self, step};
-use crate::{abi, python};
+use crate::{abi, python, rigs};
 use compare::{Agreement, Sample};
 use host::Host;
 
-/// Each model's test rig, from tests/fixtures/rigs.toml (shared with the Python tests): the
-/// parameter sets it names, applied in order, then its PI gains (the host's loop uses Kp and Ki
-/// as its gains); a rig's `cross_platform` sets, where given, instead of its `parameters`.
+/// Each model's test rig (tests/fixtures/rigs.toml, shared with the Python tests): its
+/// `cross_platform` parameter sets where it has them, else its `parameters`, then its PI gains (the
+/// host's loop uses Kp and Ki as its gains).
 fn rig(id: &str) -> Result<Vec<(String, f64)>, String> {
-    let path = util::repo_root().join("tests/fixtures/rigs.toml");
-    let text = fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", util::shown(&path)))?;
-    let fixture: toml::Table = text.parse().map_err(|e| format!("{}: {e}", util::shown(&path)))?;
-    let bad = |what: &str| format!("{}: {what}", util::shown(&path));
-    let rig = fixture
-        .get("rigs")
-        .and_then(|r| r.get(id))
-        .ok_or_else(|| bad(&format!("no rig for {id}")))?;
-    let names = |key: &str| -> Option<Vec<String>> {
-        match rig.get(key)? {
-            toml::Value::String(name) => Some(vec![name.clone()]),
-            toml::Value::Array(names) => names.iter().map(|n| n.as_str().map(str::to_string)).collect(),
-            _ => None,
-        }
-    };
-    let sets = names("cross_platform")
-        .or_else(|| names("parameters"))
-        .ok_or_else(|| bad(&format!("rig {id} names no parameter sets")))?;
-    let gains = names("gains").ok_or_else(|| bad(&format!("rig {id} names no gains")))?;
-    let mut values = Vec::new();
-    for set in sets.iter().chain(&gains) {
-        let table = fixture
-            .get("sets")
-            .and_then(|s| s.get(set))
-            .and_then(|t| t.as_table())
-            .ok_or_else(|| bad(&format!("no parameter set {set}")))?;
-        for (name, value) in table {
-            let value = match value {
-                toml::Value::Float(x) => *x,
-                toml::Value::Integer(n) => *n as f64,
-                _ => return Err(bad(&format!("{set}.{name} is not a number"))),
-            };
-            values.push((name.clone(), value));
-        }
-    }
-    Ok(values)
+    rigs::rig(&util::repo_root(), id, "cross_platform")
 }
 
 /// A scenario of the host that samples its outputs along the way (h = 1 ms in the host).
