@@ -216,13 +216,10 @@ fn bound_rates_match_central_differences() {
 /// round-off; the shaft under a reversing torque, so that the plant switches too.
 #[test]
 fn bounds_read_after_any_steps_are_the_bound_advanced_over_them() {
-    use backlash_fmu::physics::{PiGains, Plant, PlantParams, SpeedErrorBound};
-    let gains = [("Kp", 42.0), ("Ki", 180.0)];
-    let mut direct = SpeedErrorBound::new(
-        &Plant::new(PlantParams::paper_rig(0.775e-3)).unwrap(),
-        PiGains { kp: 42.0, ki: 180.0 },
-    )
-    .unwrap();
+    use backlash_fmu::physics::{Plant, PlantParams, SpeedErrorBound};
+    let pi = crate::support::rigs::fmu_gains("BacklashShaft");
+    let gains = [("Kp", pi.kp), ("Ki", pi.ki)];
+    let mut direct = SpeedErrorBound::new(&Plant::new(PlantParams::paper_rig(0.775e-3)).unwrap(), pi).unwrap();
     let (mut every, mut tenth) = (shaft(&gains, None, false), shaft(&gains, None, false));
     every.exit_initialization_mode().unwrap();
     tenth.exit_initialization_mode().unwrap();

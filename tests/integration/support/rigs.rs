@@ -1,7 +1,29 @@
-//! Parameter sets shared by the physics tests.
+//! Parameter sets shared by the physics tests, and the FMUs' test rigs (tests/fixtures/rigs.toml).
+
+use std::path::Path;
 
 use backlash_fmu::fmu::adapter;
-use backlash_fmu::physics::{Geometry, PlantParams};
+use backlash_fmu::physics::{Geometry, PiGains, PlantParams};
+
+/// The reader of tests/fixtures/rigs.toml that the cross-platform test and the bench use.
+#[path = "../../../xtask/src/rigs.rs"]
+mod fixture;
+
+/// The PI gains (Kp, Ki) of the FMU rig of the model `id` in tests/fixtures/rigs.toml, which the
+/// cross-platform test, the bench and the Python tests read too.
+pub fn fmu_gains(id: &str) -> PiGains {
+    let rig = fixture::rig(Path::new(env!("CARGO_MANIFEST_DIR")), id, "parameters").unwrap_or_else(|e| panic!("{e}"));
+    let gain = |name: &str| {
+        rig.iter()
+            .find(|(n, _)| n == name)
+            .map(|&(_, value)| value)
+            .unwrap_or_else(|| panic!("the rig of {id} in tests/fixtures/rigs.toml has no {name}"))
+    };
+    PiGains {
+        kp: gain("Kp"),
+        ki: gain("Ki"),
+    }
+}
 
 /// The paper's rig (docs/model.md §4) with both viscous coefficients set to `b`.
 pub fn rig(delta: f64, b: f64) -> PlantParams {
