@@ -7,6 +7,10 @@
 //! `linux64/<id>.so`, with `--all-platforms` also `win64/<id>.dll`; FMI 3.0 `x86_64-linux/<id>.so`,
 //! with `--all-platforms` also `x86_64-windows/<id>.dll` and `aarch64-linux/<id>.so`),
 //! `documentation/index.html`. FMI 2.0 has no folder for aarch64-linux.
+//!
+//! Beside the archives of each standard, in every folder it fills, the manifest [`MANIFEST`]:
+//! the model identifiers, one a line, in the order of `model_identifiers()` (the Python tests
+//! take their list of models from it).
 
 use std::fs;
 use std::io::{Read, Write};
@@ -74,6 +78,10 @@ pub const FMI3: Standard = Standard {
 
 /// The archives `cargo xtask fmu` writes for every model, in this order.
 pub const STANDARDS: [&Standard; 2] = [&FMI2, &FMI3];
+
+/// The manifest written beside each standard's archives: every model identifier, one a line,
+/// in the order of `model_identifiers()`.
+pub const MANIFEST: &str = "models.txt";
 
 /// The release cdylib, as built by [`build_library`].
 pub fn library_path() -> PathBuf {
@@ -156,11 +164,14 @@ pub fn package(platforms: &[&'static Platform]) -> Result<Vec<Built>, String> {
         libraries.push((b.platform, bytes));
     }
 
-    let mut written = Vec::new();
+    let ids = model_description::model_identifiers();
+    if ids.is_empty() {
+        return Err("the model-description crate lists no model identifiers".into());
+    }
     for standard in STANDARDS {
         let out_dir = standard.out_dir();
         fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
-        for &id in model_description::model_identifiers() {
+        for &id in ids {
             let xml = (standard.description)(id);
             check_description(standard, id, &xml)?;
             let html = documentation::render(id, &xml)?;
@@ -173,13 +184,21 @@ pub fn package(platforms: &[&'static Platform]) -> Result<Vec<Built>, String> {
                 util::shown(&path),
                 fs::metadata(&path).map(|m| m.len()).unwrap_or(0)
             );
-            written.push(path);
         }
-    }
-    if written.is_empty() {
-        return Err("the model-description crate lists no model identifiers".into());
+        write_manifest(&out_dir.join(MANIFEST), ids)?;
     }
     Ok(built)
+}
+
+/// Writes the manifest `path`: the identifiers `ids`, one a line, in their order.
+fn write_manifest(path: &Path, ids: &[&str]) -> Result<(), String> {
+    let text: String = ids.iter().map(|id| format!("{id}\n")).collect();
+    // Beside the target and renamed, as the archives are.
+    let partial = path.with_extension("txt.partial");
+    fs::write(&partial, text).map_err(|e| format!("writing {}: {e}", partial.display()))?;
+    fs::rename(&partial, path).map_err(|e| format!("renaming to {}: {e}", path.display()))?;
+    println!("wrote {}", util::shown(path));
+    Ok(())
 }
 
 /// The entries `binaries/<folder>/<id>.<ext>` of `libraries`, in the folder `folder_of` gives
