@@ -15,7 +15,11 @@ import fmu_driver  # noqa: E402
 
 
 def pytest_sessionstart(session):
-    """Every archive must exist: skipping the tests that need them would let an unbuilt tree pass."""
+    """The manifest and every archive it names must exist: skipping the tests that need them would
+    let an unbuilt tree pass."""
+    if not fmu_driver.MODELS:
+        pytest.exit(f"model manifest not found or empty: {fmu_driver.manifest_path()} (build with `cargo xtask fmu`)",
+                    returncode=1)
     missing = [str(path) for path in map(fmu_driver.fmu_path, fmu_driver.MODELS) if not path.is_file()]
     if missing:
         pytest.exit(f"FMU archive not found: {', '.join(missing)} (build with `cargo xtask fmu`)", returncode=1)

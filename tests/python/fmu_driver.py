@@ -1,6 +1,8 @@
 """Loading and driving the packaged FMUs with fmpy's FMU2Slave, as an importer would.
 
-FMUs are looked up in $BACKLASH_FMU_DIR, else <repo>/target/fmu (written by `cargo xtask fmu`).
+FMUs are looked up in $BACKLASH_FMU_DIR, else <repo>/target/fmu (written by `cargo xtask fmu`),
+and so is the list of models: the manifest models.txt that `cargo xtask fmu` writes beside the
+archives.
 """
 
 from __future__ import annotations
@@ -15,13 +17,31 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-MODELS = ("BacklashShaft", "BacklashBelt", "BacklashWeb")
 REPO = Path(__file__).resolve().parents[2]
 STATE_OUTPUTS = ("theta_m", "omega_m", "theta_L", "omega_L")
 
 
 def fmu_dir() -> Path:
     return Path(os.environ.get("BACKLASH_FMU_DIR", REPO / "target" / "fmu"))
+
+
+def manifest_path() -> Path:
+    """The manifest of the models packaged in fmu_dir(): one model identifier a line."""
+    return fmu_dir() / "models.txt"
+
+
+def _packaged_models() -> tuple[str, ...]:
+    """The model identifiers of the manifest, in its order (the packaging's); () when there is
+    no manifest: conftest.py then stops the run before any test."""
+    try:
+        text = manifest_path().read_text()
+    except FileNotFoundError:
+        return ()
+    return tuple(line.strip() for line in text.splitlines() if line.strip())
+
+
+# Every packaged model, as `cargo xtask fmu` lists them.
+MODELS = _packaged_models()
 
 
 def fmu_path(model: str) -> Path:

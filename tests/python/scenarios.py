@@ -19,7 +19,8 @@ OPEN_LOOP_CASES = {
     "coarse": (0.25, 32, (0.0, 0.0, 0.0, 0.0)),
     "moving-start": (0.02, 250, (0.01, 1.0, 0.0, -0.5)),
 }
-TORQUE = {"BacklashShaft": (1.5, 0.6), "BacklashBelt": (1.5, 0.6), "BacklashWeb": (1.5, 0.6)}
+# The reversing torques' amplitudes (tau_m, tau_L) in N.m, the same for every model.
+TORQUE = (1.5, 0.6)
 
 
 @functools.cache
@@ -27,7 +28,7 @@ def open_loop(model: str, case: str):
     """(FMU outputs, reference z, reference u, reference solver) under reversing held torques."""
     h, n, z0 = OPEN_LOOP_CASES[case]
     params, gains = RIGS[model]
-    tau_m, tau_L = reversing_torques(n, h, *TORQUE[model])
+    tau_m, tau_L = reversing_torques(n, h, *TORQUE)
     initial = dict(zip(fmu_driver.STATE_OUTPUTS, z0))
     inst = fmu_driver.shared(model).instance(f"open-{case}", {**params, **gains, **initial})
     try:

@@ -32,6 +32,15 @@ def model(request) -> str:
     return request.param
 
 
+def test_the_manifests_list_the_archives_of_both_standards():
+    """The models the tests run (fmu_driver.MODELS, FMI 2.0's manifest) are those packaged: each
+    standard's manifest names them, in the same order, and its folder holds their archives and no
+    other."""
+    for folder in (fmu_driver.fmu_dir(), fmu_driver.fmu_dir() / "fmi3"):
+        assert tuple((folder / "models.txt").read_text().split()) == fmu_driver.MODELS, folder
+        assert sorted(path.stem for path in folder.glob("*.fmu")) == sorted(fmu_driver.MODELS), folder
+
+
 def test_fmpy_validation_finds_no_problem(model):
     # Schema (fmpy's copy of the FMI 3.0 XSD), names, start values, causality and variability,
     # units, and the model structure's lists of outputs, derivatives and initial unknowns.
