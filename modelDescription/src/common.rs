@@ -6,9 +6,7 @@
 
 use std::fmt::Write as _;
 
-use crate::{
-    Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability, LOG_CATEGORIES, UNITS,
-};
+use crate::{Causality, DefaultExperiment, Initial, Model, Range, Type, Var, Variability, LOG_CATEGORIES, UNITS};
 
 /// `text` as XML (or HTML) attribute value or text.
 pub fn escape(text: &str) -> String {
@@ -142,87 +140,6 @@ pub(crate) fn write_units_categories_and_experiment(x: &mut String, model: &Mode
         x,
         "  <DefaultExperiment startTime=\"{start:?}\" stopTime=\"{stop:?}\" stepSize=\"{step:?}\"/>"
     );
-}
-
-/// The web span's parameters (docs/model.md §8), in the order of the description.
-const WEB_SPAN: [&str; 4] = ["R_w", "L_w", "EA", "v_ref"];
-
-/// Variables (by value reference) whose start values and parameters the initial value of
-/// `v` depends on (FMI 2.0 §2.2.8 InitialUnknowns, FMI 3.0 §2.4.8 `<InitialUnknown>`); None
-/// means "all knowns".
-pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
-    let geometry: &[&str] = match model.drive_train {
-        DriveTrain::Shaft => &["Delta", "k"],
-        DriveTrain::Belt | DriveTrain::Web => &["Delta", "K_b", "R_1", "R_2", "R_g1", "R_g2"],
-    };
-    let web: &[&str] = if model.drive_train.has_web() { &WEB_SPAN } else { &[] };
-    // The web line's bounds have the tension PI in their loop as well (docs/model.md §8).
-    let loop_gains: &[&str] = if model.drive_train.has_web() {
-        &["Kp", "Ki", "Kp_T", "Ki_T"]
-    } else {
-        &["Kp", "Ki"]
-    };
-    let derivative = || derivative_dependencies(model.drive_train, v.name);
-    let names: Vec<&str> = match v.name {
-        // A state derivative: the state and inputs it depends on (`derivative_dependencies`),
-        // and the inertia, friction, geometry and span of its equation.
-        "der(theta_m)" | "der(theta_L)" => derivative(),
-        "der(omega_m)" => derivative()
-            .iter()
-            .chain(&["J_m", "b_m"])
-            .chain(geometry)
-            .copied()
-            .collect(),
-        "der(omega_L)" => derivative()
-            .iter()
-            .chain(&["J_L", "b_L"])
-            .chain(geometry)
-            .chain(web.iter().take(1))
-            .copied()
-            .collect(),
-        "der(T)" => derivative().iter().chain(web).copied().collect(),
-        // u -+ g: angles and geometry.
-        "u_minus_g" | "u_plus_g" => ["theta_m", "theta_L"].iter().chain(geometry).copied().collect(),
-        // psi = K dz(u, g): angles and geometry.
-        "psi" => ["theta_m", "theta_L"].iter().chain(geometry).copied().collect(),
-        // The mode exactly on +-g depends on the sign of u' as well (docs/model.md §4 `contact`).
-        "contact" => ["theta_m", "omega_m", "theta_L", "omega_L"]
-            .iter()
-            .chain(geometry)
-            .copied()
-            .collect(),
-        // The bounds are 0 at the start time (docs/model.md §4: time measured from the start).
-        "bound" | "bound_paper" | "bound_T" => vec![],
-        // The suprema depend on everything that defines the loop of docs/model.md §3 (§8).
-        "bound_sup" | "bound_T_sup" => ["J_m", "J_L", "b_m", "b_L"]
-            .iter()
-            .chain(loop_gains)
-            .chain(geometry)
-            .chain(web)
-            .copied()
-            .collect(),
-        _ => return None,
-    };
-    let mut vrs: Vec<u32> = names.iter().map(|n| vr_of(model, n)).collect();
-    vrs.sort_unstable();
-    Some(vrs)
-}
-
-/// The states and inputs a state derivative depends on in Continuous-Time Mode (docs/model.md
-/// §1, §8): an angle's rate is its speed; an acceleration depends on its own torque, its own
-/// speed and, through ψ = K dz(u, g), both angles; the load's also on the web's tension T,
-/// whose rate depends on the load speed, T itself and the upstream web (v_in, T_in).
-pub(crate) fn derivative_dependencies(drive_train: DriveTrain, name: &str) -> Vec<&'static str> {
-    let web = drive_train.has_web();
-    match name {
-        "der(theta_m)" => vec!["omega_m"],
-        "der(omega_m)" => vec!["tau_m", "theta_m", "omega_m", "theta_L"],
-        "der(theta_L)" => vec!["omega_L"],
-        "der(omega_L)" if web => vec!["tau_L", "theta_m", "theta_L", "omega_L", "T"],
-        "der(omega_L)" => vec!["tau_L", "theta_m", "theta_L", "omega_L"],
-        "der(T)" if web => vec!["omega_L", "T", "v_in", "T_in"],
-        other => panic!("{other} is not a state derivative"),
-    }
 }
 
 /// The states an output depends on in Continuous-Time Mode (no output depends on an input:

@@ -2,7 +2,8 @@
 //! categories, default experiment; docs/model.md §4), and the generators of everything derived
 //! from it.
 //!
-//! Std only. Used by `build.rs` (the Rust tables of the library: [`rust::variable_tables`],
+//! Std and the physics crate (each model's state nominals and model structure are computed from
+//! its plant). Used by `build.rs` (the Rust tables of the library: [`rust::variable_tables`],
 //! [`rust::log_categories`]), by the library itself (the kinds of variables), by `cargo xtask
 //! fmu` (the FMI 2.0 `modelDescription.xml` of [`xml::model_description`] and the FMI 3.0 one of
 //! [`xml3::model_description`]) and by the tests. The XML and the Rust code come from the same
@@ -14,15 +15,18 @@
 mod common;
 mod models;
 pub mod rust;
+mod structure;
 pub mod xml;
 pub mod xml3;
 
-pub use models::model;
+use backlash_physics::PlantParams;
 
-/// The models this crate describes, in a fixed order (that of the one list, `models::MODELS`).
+pub use models::{model, ModelDef, MODELS};
+
+/// The models this crate describes, in a fixed order (that of the one list, [`MODELS`]).
 pub fn model_identifiers() -> &'static [&'static str] {
     static IDENTIFIERS: std::sync::OnceLock<Vec<&'static str>> = std::sync::OnceLock::new();
-    IDENTIFIERS.get_or_init(|| models::MODELS.iter().map(|describe| describe().identifier).collect())
+    IDENTIFIERS.get_or_init(|| MODELS.iter().map(|m| (m.describe)().identifier).collect())
 }
 
 /// Scalar type of a variable.
@@ -88,29 +92,9 @@ impl Range {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DriveTrain {
-    Shaft,
-    Belt,
-    /// The belt drive whose load roller pulls a web span (docs/model.md §8).
-    Web,
-}
-
-impl DriveTrain {
-    /// The variant's name, as written into generated Rust.
-    pub fn rust(self) -> &'static str {
-        match self {
-            DriveTrain::Shaft => "Shaft",
-            DriveTrain::Belt => "Belt",
-            DriveTrain::Web => "Web",
-        }
-    }
-
-    /// Whether the load pulls a web span, whose tension T is a fifth state.
-    pub fn has_web(self) -> bool {
-        self == DriveTrain::Web
-    }
-}
+/// A model's physics mapping: its plant parameters (docs/model.md §1, §8) from the values of its
+/// parameters, looked up by name.
+pub type PlantMapping = fn(&dyn Fn(&str) -> f64) -> PlantParams;
 
 /// One scalar variable. `symbol` says what the variable is: here the name of a variant of the
 /// generated `Symbol` enum, in the library's generated tables that variant itself (which the
@@ -163,7 +147,9 @@ pub struct DefaultExperiment {
 
 pub struct Model {
     pub identifier: &'static str,
-    pub drive_train: DriveTrain,
+    /// How its parameters make its plant; its state nominals and model structure are computed
+    /// from that plant.
+    pub plant_params: PlantMapping,
     pub description: &'static str,
     pub default_experiment: DefaultExperiment,
     pub variables: Vec<Var>,

@@ -4,6 +4,7 @@
 
 use std::fmt::Write as _;
 
+use crate::models::default_plant;
 use crate::{model, model_identifiers, xml, xml3, Model, LOG_CATEGORIES};
 
 /// Every model's description, in [`model_identifiers`] order.
@@ -44,7 +45,7 @@ pub fn variable_tables() -> String {
 
     out.push_str("/// Every model this library serves, in `model_identifiers()` order.\n");
     let _ = writeln!(out, "pub static MODELS: [ModelInfo; {}] = [", models.len());
-    for m in &models {
+    for (i, m) in models.iter().enumerate() {
         let _ = writeln!(out, "    ModelInfo {{");
         let _ = writeln!(out, "        identifier: {:?},", m.identifier);
         let _ = writeln!(out, "        guid: {:?},", xml::guid(m.identifier));
@@ -53,7 +54,11 @@ pub fn variable_tables() -> String {
             "        instantiation_token: {:?},",
             xml3::instantiation_token(m.identifier)
         );
-        let _ = writeln!(out, "        drive_train: DriveTrain::{},", m.drive_train.rust());
+        let _ = writeln!(out, "        plant_params: model_description::MODELS[{i}].plant_params,");
+        let _ = writeln!(out, "        web: {:?},", default_plant(m).web().is_some());
+        let count = |keep: fn(&crate::Var) -> bool| m.variables.iter().filter(|v| keep(v)).count();
+        let _ = writeln!(out, "        states: {},", count(crate::Var::is_continuous_state));
+        let _ = writeln!(out, "        inputs: {},", count(|v| v.causality == crate::Causality::Input));
         let e = m.default_experiment;
         let _ = writeln!(
             out,

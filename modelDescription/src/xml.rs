@@ -3,9 +3,10 @@
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, derivative_dependencies, hash_name, initial_attribute, initial_dependencies, output_dependencies,
+    causality_name, hash_name, initial_attribute, output_dependencies,
     variability_name, vr_of, write_type_attributes, write_units_categories_and_experiment, EVENT_INDICATORS,
 };
+use crate::structure::{derivative_dependencies, initial_dependencies};
 use crate::{model, Causality, Model, Type};
 
 /// `text` as XML (or HTML) attribute value or text (shared with the FMI 3.0 description).
@@ -91,7 +92,7 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     x.push_str("    </Outputs>\n    <Derivatives>\n");
     for (i, v) in model.variables.iter().enumerate() {
         if v.derivative_of.is_some() {
-            let deps = index_list(&derivative_dependencies(model.drive_train, v.name));
+            let deps = index_list(&derivative_dependencies(model, v));
             let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"{deps}\"/>", i + 1);
         }
     }

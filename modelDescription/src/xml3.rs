@@ -12,10 +12,11 @@
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, depends_on_time, derivative_dependencies, escape, event_indicator_dependencies, hash_name,
-    initial_attribute, initial_dependencies, is_initial_unknown, output_dependencies, variability_name, vr_of,
-    write_type_attributes, write_units_categories_and_experiment, EVENT_INDICATORS,
+    causality_name, depends_on_time, escape, event_indicator_dependencies, hash_name, initial_attribute,
+    is_initial_unknown, output_dependencies, variability_name, vr_of, write_type_attributes,
+    write_units_categories_and_experiment, EVENT_INDICATORS,
 };
+use crate::structure::{derivative_dependencies, initial_dependencies};
 use crate::{model, Causality, Model, Type};
 
 /// The name and value reference of the independent variable (time), which only the FMI 3.0
@@ -115,7 +116,7 @@ fn xml_with_token(model: &Model, token: &str) -> String {
     }
     for v in &model.variables {
         if v.derivative_of.is_some() {
-            let mut deps = name_list(&derivative_dependencies(model.drive_train, v.name));
+            let mut deps = name_list(&derivative_dependencies(model, v));
             let _ = writeln!(
                 x,
                 "    <ContinuousStateDerivative valueReference=\"{}\" dependencies=\"{}\"/>",

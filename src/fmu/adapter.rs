@@ -1,13 +1,14 @@
 //! The model adapter: the one place that maps the description's variables to the physics
 //! (parameters, inputs, the initial state, outputs and their derivatives, start values).
 //!
-//! Every match over [`Symbol`] or [`DriveTrain`] here is exhaustive, without a catch-all arm:
-//! a variable added to the description (`modelDescription/`) without a mapping here is a
-//! compile error. The rest of `fmu` handles variables only through [`source`].
+//! Every match over [`Symbol`] here is exhaustive, without a catch-all arm: a variable added to
+//! the description (`modelDescription/`) without a mapping here is a compile error. The rest of
+//! `fmu` handles variables only through [`source`]. The plant parameters come from each model's
+//! own mapping ([`ModelInfo::plant_params`]).
 
 use super::simulation::Simulation;
-use super::variables::{model_by_identifier, DriveTrain, ModelInfo, Symbol, MODELS};
-use crate::physics::{Geometry, Inputs, PiGains, Plant, PlantParams, PlantState, WebSpan};
+use super::variables::{model_by_identifier, ModelInfo, Symbol, MODELS};
+use crate::physics::{Inputs, PiGains, Plant, PlantParams, PlantState};
 
 /// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`].
 pub type Values = [f64; Symbol::COUNT];
@@ -162,11 +163,7 @@ impl StateEntry {
 
 /// How many continuous states `model` has: 4, and 5 on a web line.
 pub fn state_count(model: &ModelInfo) -> usize {
-    if model.drive_train.has_web() {
-        MAX_STATES
-    } else {
-        MAX_STATES - 1
-    }
+    model.states
 }
 
 impl Calculated {
@@ -210,36 +207,11 @@ pub fn start_values(model: &ModelInfo) -> Values {
     values
 }
 
-/// The plant parameters of `model` from the stored values (validated by [`Plant::new`]).
+/// The plant parameters of `model` from the stored values (validated by [`Plant::new`]), by the
+/// model's own mapping. A name the model lacks reads NaN, which [`Plant::new`] refuses; the
+/// description's build computes every model's plant, so none does.
 pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
-    let at = |s: Symbol| v[s.index()];
-    let geometry = match model.drive_train {
-        DriveTrain::Shaft => Geometry::Shaft {
-            k: at(Symbol::K),
-            delta: at(Symbol::Delta),
-        },
-        DriveTrain::Belt | DriveTrain::Web => Geometry::Belt {
-            k_b: at(Symbol::KB),
-            r_1: at(Symbol::R1),
-            r_2: at(Symbol::R2),
-            r_g1: at(Symbol::Rg1),
-            r_g2: at(Symbol::Rg2),
-            delta: at(Symbol::Delta),
-        },
-    };
-    PlantParams {
-        j_m: at(Symbol::JM),
-        j_l: at(Symbol::JL),
-        b_m: at(Symbol::BM),
-        b_l: at(Symbol::BL),
-        geometry,
-        web: model.drive_train.has_web().then(|| WebSpan {
-            r_w: at(Symbol::Rw),
-            l_w: at(Symbol::Lw),
-            ea: at(Symbol::EA),
-            v_ref: at(Symbol::VRef),
-        }),
-    }
+    (model.plant_params)(&|name| model.by_name(name).map_or(f64::NAN, |var| v[var.symbol.index()]))
 }
 
 /// The plant of the start values of the model `identifier`: its default parameters

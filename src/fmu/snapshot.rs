@@ -69,7 +69,7 @@ const FLAG_FMI3: u8 = 16;
 /// Bytes after the guid of a state of `model`: phase, flags, count, 4 times, values, slopes,
 /// plant, bounds, their lag, the time marks, checksum.
 fn body_len(model: &ModelInfo) -> usize {
-    let bounds = Bounds::word_count(model.drive_train.has_web());
+    let bounds = Bounds::word_count(model.web);
     1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8 + 8 * 3 + 8
 }
 
@@ -125,7 +125,7 @@ impl Snapshot {
             .unwrap_or([0.0; 7]);
         z.iter().for_each(|x| put(*x));
         b.push(plant.map(|s| s.mode.as_i32() as i8).unwrap_or(0) as u8);
-        let no_bounds = vec![0.0; Bounds::word_count(self.model.drive_train.has_web())];
+        let no_bounds = vec![0.0; Bounds::word_count(self.model.web)];
         let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
         let behind = self.physics.as_ref().map_or(0.0, |p| p.bounds_behind);
@@ -149,7 +149,7 @@ impl Snapshot {
         let (time, experiment) = r.times(flags)?;
         let (values, input_slopes) = r.values(model)?;
         let plant = r.plant()?;
-        let mut bound = vec![0.0; Bounds::word_count(model.drive_train.has_web())];
+        let mut bound = vec![0.0; Bounds::word_count(model.web)];
         for x in bound.iter_mut() {
             *x = r.finite("a bound's state")?;
         }

@@ -4,7 +4,7 @@
 
 // The kinds of variables are those the description is written with: one definition.
 use super::state_machine::Standard;
-pub use model_description::{Causality, DefaultExperiment, DriveTrain, Initial, Range, Type as VarType, Variability};
+pub use model_description::{Causality, DefaultExperiment, Initial, PlantMapping, Range, Type as VarType, Variability};
 
 /// One scalar variable of a model, with the [`Symbol`] that says what it is.
 pub type Variable = model_description::Variable<Symbol>;
@@ -18,7 +18,16 @@ pub struct ModelInfo {
     /// The `instantiationToken` of the model's FMI 3.0 description (a hash of that description,
     /// as the guid is of the FMI 2.0 one).
     pub instantiation_token: &'static str,
-    pub drive_train: DriveTrain,
+    /// Its physics mapping (its module in the description): its plant parameters from its
+    /// parameters' values by name.
+    pub plant_params: PlantMapping,
+    /// Whether its load pulls a web span (its plant has one, docs/model.md §8): the span's
+    /// tension is a fifth state, and its bounds are those of the web line.
+    pub web: bool,
+    /// How many continuous states it has (Model Exchange).
+    pub states: usize,
+    /// How many inputs it has: the first of the input lines τ_m, τ_L, v_in, T_in.
+    pub inputs: usize,
     pub default_experiment: DefaultExperiment,
     pub variables: &'static [Variable],
 }

@@ -1,38 +1,64 @@
 //! BacklashBelt: a belt–pulley drive and gear backlash in series (the paper's Fig. 7, eqs.
 //! 20–21), a small servo drive; its drive train is also BacklashWeb's.
 
-use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives};
-use crate::{DefaultExperiment, DriveTrain, Model, Range, Var};
+use backlash_physics::{Geometry, PlantParams};
 
-pub(super) fn model() -> Model {
-    Model {
+use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef};
+use super::Transmission;
+use crate::{DefaultExperiment, Model, Range, Var};
+
+pub(super) const MODEL: ModelDef = ModelDef {
+    describe: model,
+    plant_params,
+};
+
+/// The belt drive's plant (paper eqs. 20–21): r_m = R_1, r_L = alpha_1, K = K_b,
+/// g = alpha_2 Delta (docs/model.md §1); also the drive of BacklashWeb.
+pub(super) fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
+    PlantParams {
+        j_m: at("J_m"),
+        j_l: at("J_L"),
+        b_m: at("b_m"),
+        b_l: at("b_L"),
+        geometry: Geometry::Belt {
+            k_b: at("K_b"),
+            r_1: at("R_1"),
+            r_2: at("R_2"),
+            r_g1: at("R_g1"),
+            r_g2: at("R_g2"),
+            delta: at("Delta"),
+        },
+        web: None,
+    }
+}
+
+/// u = R_1 theta_m - alpha_1 theta_L is a length on the belt; psi is the belt's force.
+const BELT: Transmission = Transmission {
+    coordinate_unit: "m",
+    psi_unit: "N",
+    psi_quantity: "Force",
+    psi_description: "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1",
+};
+
+fn model() -> Model {
+    with_state_nominals(Model {
         identifier: "BacklashBelt",
-        drive_train: DriveTrain::Belt,
+        plant_params,
         description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
         default_experiment: DefaultExperiment {
             start_time: 0.0,
             stop_time: 0.2,
             step_size: 1e-4,
         },
-        variables: belt_variables(DriveTrain::Belt),
-    }
+        variables: belt_variables(),
+    })
 }
 
 /// The belt drive's variables (value references 1–29), of BacklashBelt and of the web line's
 /// drive.
-pub(super) fn belt_variables(drive_train: DriveTrain) -> Vec<Var> {
+pub(super) fn belt_variables() -> Vec<Var> {
     use Range::*;
-    // θ_m nominal g/r_m, θ_L nominal g/r_L, ω nominal ω₀ times those, with g = R_2 Delta/R_g1,
-    // r_m = R_1, r_L = R_2 R_g2/R_g1, ω₀ = sqrt(K_b (r_m²/J_m + r_L²/J_L)).
-    let mut v = common_head(
-        drive_train,
-        [
-            0.006666666666666668,
-            7.8202017592614315,
-            0.0011111111111111113,
-            1.303366959876905,
-        ],
-    );
+    let mut v = common_head(&BELT);
     // A small servo belt drive: 2:1 belt (R_2/R_1), 3:1 gear (R_g2/R_g1), 6:1 overall;
     // belt-gear natural frequency about 190 Hz, half gap 50 um on the pitch circle.
     v.extend([
@@ -142,6 +168,6 @@ pub(super) fn belt_variables(drive_train: DriveTrain) -> Vec<Var> {
     ]);
     let derivatives = state_derivatives(&v);
     v.extend(derivatives);
-    v.extend(event_indicators(drive_train));
+    v.extend(event_indicators(&BELT));
     v
 }

@@ -1,13 +1,26 @@
 //! The models, one module each (its variables: value references, kinds, start values, units
-//! and texts; its description and default experiment; docs/model.md §4), and what they share:
-//! the constructors of the kinds of variables and the variables every model has. [`MODELS`] is
-//! the one list of the models.
+//! and texts; its description and default experiment; docs/model.md §4; and its physics
+//! mapping, from which its state nominals here and its model structure in `crate::structure`
+//! are computed), and what they share: the constructors of the kinds of variables and the
+//! variables every model has. [`MODELS`] is the one list of the models.
 
 mod belt;
 mod shaft;
 mod web;
 
-use crate::{Causality, DriveTrain, Initial, Model, Range, Type, Var, Variability};
+use backlash_physics::Plant;
+
+use crate::{Causality, Initial, Model, PlantMapping, Range, Type, Var, Variability};
+
+/// What a model's drive says of its transmission coordinate u and of the force ψ in its
+/// compliant member: their units, and ψ's quantity and text.
+pub(super) struct Transmission {
+    /// The unit of u and g (and of the event indicators u ∓ g).
+    coordinate_unit: &'static str,
+    psi_unit: &'static str,
+    psi_quantity: &'static str,
+    psi_description: &'static str,
+}
 
 #[allow(clippy::too_many_arguments)]
 const fn var(
@@ -71,17 +84,17 @@ fn quantity_input(
     )
 }
 
+/// A continuous state as an output; its nominal is computed by [`with_state_nominals`].
 fn state_output(
     name: &'static str,
     symbol: &'static str,
     vr: u32,
     unit: &'static str,
     quantity: &'static str,
-    nominal: f64,
     description: &'static str,
 ) -> Var {
     use Causality::*;
-    let state = var(
+    var(
         name,
         symbol,
         vr,
@@ -94,11 +107,7 @@ fn state_output(
         unit,
         quantity,
         description,
-    );
-    Var {
-        nominal: Some(nominal),
-        ..state
-    }
+    )
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -207,11 +216,8 @@ fn continuous_local(
 
 /// The event indicators u − g and u + g as variables, value references 28 and 29 in every model
 /// (FMI 3.0 lists event indicators by value reference; FMI 2.0 importers see two locals).
-fn event_indicators(drive_train: DriveTrain) -> [Var; 2] {
-    let unit = match drive_train {
-        DriveTrain::Shaft => "rad",
-        DriveTrain::Belt | DriveTrain::Web => "m",
-    };
+fn event_indicators(transmission: &Transmission) -> [Var; 2] {
+    let unit = transmission.coordinate_unit;
     let indicator = |name, symbol, vr, description| continuous_local(name, symbol, vr, unit, "", description);
     [
         indicator(
@@ -269,26 +275,22 @@ fn state_derivatives(v: &[Var]) -> [Var; 4] {
     ]
 }
 
-/// Inputs, the state outputs (with `nominals` of θ_m, ω_m, θ_L, ω_L at the default parameters:
-/// the library's `Plant::state_nominals` computes them for any parameters) and the calculated
-/// outputs.
-fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
+/// Inputs, the state outputs and the calculated outputs.
+fn common_head(transmission: &Transmission) -> Vec<Var> {
     use Causality::*;
-    let (psi_unit, psi_quantity, psi_text) = match drive_train {
-        DriveTrain::Shaft => ("N.m", "Torque", "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft"),
-        DriveTrain::Belt | DriveTrain::Web => (
-            "N",
-            "Force",
-            "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1",
-        ),
-    };
+    let Transmission {
+        psi_unit,
+        psi_quantity,
+        psi_description: psi_text,
+        ..
+    } = *transmission;
     vec![
         input("tau_m", "TauM", 1, "Motor torque, held over each communication step, or along a line where input derivatives are set"),
         input("tau_L", "TauL", 2, "Load torque, held over each communication step, or along a line where input derivatives are set"),
-        state_output("theta_m", "ThetaM", 3, "rad", "Angle", nominals[0], "Motor angle; its start value is the initial state"),
-        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", nominals[1], "Motor speed; its start value is the initial state"),
-        state_output("theta_L", "ThetaL", 5, "rad", "Angle", nominals[2], "Load angle; its start value is the initial state"),
-        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", nominals[3], "Load speed; its start value is the initial state"),
+        state_output("theta_m", "ThetaM", 3, "rad", "Angle", "Motor angle; its start value is the initial state"),
+        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
+        state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
+        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
         var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
         var(
             "contact",
@@ -349,15 +351,53 @@ fn common_head(drive_train: DriveTrain, nominals: [f64; 4]) -> Vec<Var> {
     ]
 }
 
-/// Every model, in a fixed order: the function that describes it. A new model is a module here
-/// and a line in this list; its identifier is in its description, nowhere else.
-pub const MODELS: [fn() -> Model; 3] = [shaft::model, belt::model, web::model];
+/// `model` with the nominal of each continuous state: the scale it moves on at the default
+/// parameters, computed by the physics (`Plant::state_nominals`, docs/model.md §6). The
+/// continuous states are, in value-reference order, the entries of the plant's state
+/// z = [θ_m, ω_m, θ_L, ω_L, T].
+fn with_state_nominals(mut model: Model) -> Model {
+    let nominals = default_plant(&model).state_nominals();
+    let mut states: Vec<&mut Var> = model.variables.iter_mut().filter(|v| v.is_continuous_state()).collect();
+    states.sort_by_key(|v| v.vr);
+    assert!(states.len() <= nominals.len(), "{}: more states than the plant has", model.identifier);
+    for (v, nominal) in states.into_iter().zip(nominals) {
+        v.nominal = Some(nominal);
+    }
+    model
+}
+
+/// The plant of `model`'s start values (its default parameters). Panics if they are not a valid
+/// plant or name a parameter the model lacks: the description is wrong, caught when it is built.
+pub(crate) fn default_plant(model: &Model) -> Plant {
+    let start = |name: &str| {
+        model
+            .variables
+            .iter()
+            .find(|v| v.name == name)
+            .and_then(|v| v.start)
+            .unwrap_or_else(|| panic!("{}: its physics reads {name}, which has no start value", model.identifier))
+    };
+    Plant::new((model.plant_params)(&start))
+        .unwrap_or_else(|e| panic!("{}: the default parameters are no plant: {e}", model.identifier))
+}
+
+/// One model: the function that describes it and its physics mapping (also in its description,
+/// [`Model::plant_params`]; here for the library's static tables).
+#[derive(Clone, Copy)]
+pub struct ModelDef {
+    pub describe: fn() -> Model,
+    pub plant_params: PlantMapping,
+}
+
+/// Every model, in a fixed order. A new model is a module here and a line in this list; its
+/// identifier is in its description, nowhere else.
+pub const MODELS: [ModelDef; 3] = [shaft::MODEL, belt::MODEL, web::MODEL];
 
 /// The description of `identifier`. Panics on an identifier of no model in [`MODELS`].
 pub fn model(identifier: &str) -> Model {
     MODELS
         .iter()
-        .map(|describe| describe())
+        .map(|m| (m.describe)())
         .find(|m| m.identifier == identifier)
         .unwrap_or_else(|| {
             panic!(

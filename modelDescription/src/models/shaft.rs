@@ -1,16 +1,43 @@
 //! BacklashShaft: a compliant shaft and gear backlash in series (the paper's Fig. 5/6, eqs.
 //! 11–12); its defaults are the paper's rig (docs/model.md §4).
 
-use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives};
-use crate::{DefaultExperiment, DriveTrain, Model, Range};
+use backlash_physics::{Geometry, PlantParams};
 
-pub(super) fn model() -> Model {
+use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef};
+use super::Transmission;
+use crate::{DefaultExperiment, Model, Range};
+
+pub(super) const MODEL: ModelDef = ModelDef {
+    describe: model,
+    plant_params,
+};
+
+/// The shaft's plant (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Delta (docs/model.md §1).
+fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
+    PlantParams {
+        j_m: at("J_m"),
+        j_l: at("J_L"),
+        b_m: at("b_m"),
+        b_l: at("b_L"),
+        geometry: Geometry::Shaft {
+            k: at("k"),
+            delta: at("Delta"),
+        },
+        web: None,
+    }
+}
+
+/// u = theta_m - theta_L is an angle; psi is the shaft's torque.
+const SHAFT: Transmission = Transmission {
+    coordinate_unit: "rad",
+    psi_unit: "N.m",
+    psi_quantity: "Torque",
+    psi_description: "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft",
+};
+
+fn model() -> Model {
     use Range::*;
-    // θ nominal g/r = Delta, ω nominal ω₀·Delta with ω₀ = sqrt(k (1/J_m + 1/J_L)).
-    let mut v = common_head(
-        DriveTrain::Shaft,
-        [0.000775, 0.009989707035044964, 0.000775, 0.009989707035044964],
-    );
+    let mut v = common_head(&SHAFT);
     v.extend([
         parameter(
             "J_m",
@@ -76,10 +103,10 @@ pub(super) fn model() -> Model {
     )]);
     let derivatives = state_derivatives(&v);
     v.extend(derivatives);
-    v.extend(event_indicators(DriveTrain::Shaft));
-    Model {
+    v.extend(event_indicators(&SHAFT));
+    with_state_nominals(Model {
         identifier: "BacklashShaft",
-        drive_train: DriveTrain::Shaft,
+        plant_params,
         description: "Compliant shaft and gear backlash in series (paper Fig. 5, eqs. 11-12), exact stepping with located contact switches; defaults are the paper's rig",
         default_experiment: DefaultExperiment {
             start_time: 0.0,
@@ -87,5 +114,5 @@ pub(super) fn model() -> Model {
             step_size: 1e-2,
         },
         variables: v,
-    }
+    })
 }

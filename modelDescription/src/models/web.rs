@@ -1,14 +1,34 @@
 //! BacklashWeb: BacklashBelt's drive whose load roller pulls one web span (the paper's future
 //! work; docs/model.md §8).
 
-use super::belt::belt_variables;
-use super::{parameter, quantity_input, state_derivative, state_output, var};
-use crate::{Causality, DefaultExperiment, DriveTrain, Initial, Model, Range, Type, Var, Variability};
+use backlash_physics::{PlantParams, WebSpan};
 
-pub(super) fn model() -> Model {
-    Model {
+use super::belt::{self, belt_variables};
+use super::{parameter, quantity_input, state_derivative, state_output, var, with_state_nominals, ModelDef};
+use crate::{Causality, DefaultExperiment, Initial, Model, Range, Type, Var, Variability};
+
+pub(super) const MODEL: ModelDef = ModelDef {
+    describe: model,
+    plant_params,
+};
+
+/// BacklashBelt's plant whose load pulls the web span (docs/model.md §8).
+fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
+    PlantParams {
+        web: Some(WebSpan {
+            r_w: at("R_w"),
+            l_w: at("L_w"),
+            ea: at("EA"),
+            v_ref: at("v_ref"),
+        }),
+        ..belt::plant_params(at)
+    }
+}
+
+fn model() -> Model {
+    with_state_nominals(Model {
         identifier: "BacklashWeb",
-        drive_train: DriveTrain::Web,
+        plant_params,
         description: "BacklashBelt's drive whose load roller pulls one web span (the paper's future work): span tension T as a fifth state, bounds on load speed and tension, exact stepping with located contact switches",
         default_experiment: DefaultExperiment {
             start_time: 0.0,
@@ -16,7 +36,7 @@ pub(super) fn model() -> Model {
             step_size: 1e-4,
         },
         variables: web_variables(),
-    }
+    })
 }
 
 /// BacklashWeb: the belt drive's variables, then the web span's (value references 30–41,
@@ -25,16 +45,13 @@ pub(super) fn model() -> Model {
 fn web_variables() -> Vec<Var> {
     use Causality::*;
     use Range::*;
-    let mut v = belt_variables(DriveTrain::Web);
-    // T nominal: the tension that balances on the roller the belt force of a gap's stretch,
-    // K_b g r_L/R_w (g = R_2 Delta/R_g1, r_L = R_2 R_g2/R_g1).
+    let mut v = belt_variables();
     let tension = state_output(
         "T",
         "Tension",
         32,
         "N",
         "Force",
-        64.0,
         "Web span tension; its start value is the initial state",
     );
     let der_tension = state_derivative("der(T)", "DerTension", 33, &tension, "N/s", "");

@@ -150,12 +150,7 @@ impl Instance {
         // Named in the refusal of a step whose state overflows.
         let lines = adapter::input_values(&self.values);
         let inputs_named = || {
-            let n = if self.model.drive_train.has_web() {
-                MAX_INPUTS
-            } else {
-                2
-            };
-            let named: Vec<String> = (0..n)
+            let named: Vec<String> = (0..self.model.inputs)
                 .map(|i| format!("{} = {:e}", adapter::input_name(i), lines[i]))
                 .collect();
             named.join(", ")

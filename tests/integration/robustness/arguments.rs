@@ -1108,7 +1108,7 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
         .into_iter()
         .map(|edge| states(model, edge, 0.0))
         .collect();
-        if m.drive_train.has_web() {
+        if m.web {
             for tension in [f64::MAX, -1e300, 5e-324, 1e150] {
                 edges.push(states(model, [3e-5, 0.2, 1e-5, 0.1], tension));
             }
@@ -1171,7 +1171,7 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
 #[test]
 fn model_exchange_directional_derivatives_refuse_bad_seeds_and_references() {
     for (model, m) in MODELS.iter().enumerate() {
-        let web = m.drive_train.has_web();
+        let web = m.web;
         let vr = |name: &str| m.vr(name);
         let identifier = m.identifier;
         // (reason, unknowns, knowns, seeds)

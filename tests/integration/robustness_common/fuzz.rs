@@ -109,7 +109,7 @@ const WEB_JACOBIAN_UNKNOWNS: [&str; 3] = ["der(T)", "T", "bound_T"];
 /// The knowns and unknowns of `model` the driver mostly picks from.
 fn jacobian_names(model: &backlash_fmu::fmu::ModelInfo) -> (Vec<&'static str>, Vec<&'static str>) {
     let (mut knowns, mut unknowns) = (JACOBIAN_KNOWNS.to_vec(), JACOBIAN_UNKNOWNS.to_vec());
-    if model.drive_train.has_web() {
+    if model.web {
         knowns.extend(WEB_JACOBIAN_KNOWNS);
         unknowns.extend(WEB_JACOBIAN_UNKNOWNS);
     }

@@ -4,7 +4,6 @@
 pub mod fuzz;
 
 use backlash_fmu::ffi::*;
-use backlash_fmu::fmu::variables::DriveTrain;
 use backlash_fmu::fmu::{ModelInfo, MODELS};
 use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
@@ -402,12 +401,11 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
 }
 
 /// The transmission ratios (r_m, r_L) of `model` (docs/model.md §1) from the values of its
-/// parameters, read by `at`: 1 and 1 on the shaft, R_1 and R_2 R_g2/R_g1 on the belt drives.
+/// parameters, read by `at`, through its plant: 1 and 1 on the shaft, R_1 and R_2 R_g2/R_g1 on
+/// the belt drives.
 pub fn transmission(model: &ModelInfo, at: impl Fn(&str) -> f64) -> (f64, f64) {
-    match model.drive_train {
-        DriveTrain::Shaft => (1.0, 1.0),
-        DriveTrain::Belt | DriveTrain::Web => (at("R_1"), at("R_2") * at("R_g2") / at("R_g1")),
-    }
+    let plant = backlash_fmu::physics::Plant::new((model.plant_params)(&at)).expect("a valid plant");
+    (plant.r_m(), plant.r_l())
 }
 
 /// The momentum balance of a run from rest at θ = 0 (and T = 0) with τ_m = 2, τ_L = 0.5 (and
@@ -424,7 +422,7 @@ pub fn assert_momentum_balance(f: &Fmu, values: &[(&'static str, f64)], t: f64) 
     let (r_m, r_l) = transmission(f.model, at);
     let motor = [at("J_m") * at("omega_m"), at("b_m") * at("theta_m"), -2.0 * t];
     let mut load = vec![at("J_L") * at("omega_L"), at("b_L") * at("theta_L"), -0.5 * t];
-    if f.model.drive_train.has_web() {
+    if f.model.web {
         assert_eq!((at("v_in"), at("T_in")), (0.0, 0.0), "the span's inputs at rest");
         let r_w_over_v_ref = at("R_w") / at("v_ref");
         load.push(r_w_over_v_ref * at("EA") * at("R_w") * at("theta_L"));
@@ -613,7 +611,7 @@ pub fn plant_offset(bytes: &[u8]) -> usize {
 /// Number of f64 of the bound part of an FMU state of `model` (format in src/fmu/snapshot.rs):
 /// 12 for a drive train's one bound, 32 for the web line's two.
 pub fn bound_words(model: &ModelInfo) -> usize {
-    if model.drive_train.has_web() {
+    if model.web {
         32
     } else {
         12
