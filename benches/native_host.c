@@ -6,7 +6,9 @@
  *
  * Built and run by `cargo xtask bench` (xtask/src/bench/), which also writes bench_vr.h (the
  * value references, read from each archive's modelDescription.xml: VR_<name> of BacklashShaft,
- * VR_<model>_<name> of the others) and passes the guids.
+ * VR_<model>_<name> of the others) and bench_rig.h (BacklashShaft's rig, read from
+ * tests/fixtures/rigs.toml: RIG_<name> of each of its values, RIG_VR and RIG_VALUE of all of
+ * them), and passes the guids.
  *
  * usage: native_host <lib.so> <guid> <resource-uri> <mode> [args]
  *   suite <batches> <steps-per-batch> <belt.so> <belt-guid> <belt-resource-uri>
@@ -31,6 +33,11 @@
 #include "fmi2Functions.h"
 #include "fmi3Functions.h"
 #include "bench_vr.h"
+#include "bench_rig.h"
+
+#if !defined(RIG_Kp) || !defined(RIG_Ki) || !defined(RIG_VR) || !defined(RIG_VALUE)
+#error "bench_rig.h lacks BacklashShaft's rig (Kp, Ki, RIG_VR, RIG_VALUE): run through `cargo xtask bench`, which writes it from tests/fixtures/rigs.toml"
+#endif
 
 #define H 1e-3 /* communication step [s] */
 
@@ -229,8 +236,7 @@ static void release_of(const Api *a, fmi2Component c) {
     a->free_instance(c);
 }
 
-/* BacklashShaft: the paper's rig (the FMU's start values) unless params are given; Kp, Ki from
- * rigs.py. */
+/* BacklashShaft: the paper's rig (the FMU's start values) unless params are given. */
 static fmi2Component make(const char *name, const fmi2ValueReference *vr, const fmi2Real *value, size_t n,
                           int log_contacts) {
     return make_of(&api, guid, resources, name, vr, value, n, log_contacts);
@@ -238,10 +244,10 @@ static fmi2Component make(const char *name, const fmi2ValueReference *vr, const 
 
 static void release(fmi2Component c) { release_of(&api, c); }
 
-/* Gains of the PI loop the bounds assume (tests/python/rigs.py SHAFT_GAINS): the bounds are
- * then the 5-state closed-loop ones that a user of the loop reads. */
-#define KP 42.0
-#define KI 180.0
+/* Gains of the PI loop the bounds assume, the rig's (bench_rig.h): the bounds are then the
+ * 5-state closed-loop ones that a user of the loop reads. */
+#define KP RIG_Kp
+#define KI RIG_Ki
 #define DELTA_DEFAULT 0.775e-3 /* the FMU's start value of Delta [rad] */
 
 /* Event-free schedule: pressed into the positive flank near the equilibrium of a constant
@@ -293,7 +299,7 @@ static fmi2Component make_pressed(const char *name, int log_contacts) {
  * step u reaches past +g or -g by ~V h/4 - g and comes back: a contact made and lost in every
  * step (2 switches), counted by the logger in an untimed run of the same schedule. */
 #define V_SWING 6.0
-#define J_M 2.28
+#define J_M 2.28 /* the FMU's start value of J_m [kg.m2], which the swinging instances keep */
 static fmi2Component make_swinging(const char *name, int log_contacts) {
     const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_omega_m};
     const fmi2Real value[] = {KP, KI, -V_SWING};
@@ -746,16 +752,18 @@ static void instances(int count, int batches, long per_batch) {
 
 /* The closed loop of benches/python_bench.py, here in C: the sampled PI of
  * tests/python/reference.py (SampledPI) on omega_m, reference 5 sin(2 pi 0.5 t) rad/s, load
- * torque -2 N.m from t = 4 s, on the shaft rig of tests/python/rigs.py (SHAFT, SHAFT_GAINS). */
+ * torque -2 N.m from t = 4 s, on BacklashShaft's rig (bench_rig.h; the Python bench's
+ * tests/python/rigs.py SHAFT, SHAFT_GAINS, from the same fixture). */
 static void piloop(double seconds, int repeats) {
-    const fmi2ValueReference pv[] = {VR_J_m, VR_J_L, VR_b_m, VR_b_L, VR_k, VR_Delta, VR_Kp, VR_Ki};
-    const fmi2Real pval[] = {2.28, 2.55, 0.05, 0.05, 200.0, 5.38e-3 / 2, KP, KI};
+    const fmi2ValueReference pv[] = RIG_VR;
+    const fmi2Real pval[] = RIG_VALUE;
+    _Static_assert(sizeof pv / sizeof pv[0] == sizeof pval / sizeof pval[0], "RIG_VR and RIG_VALUE differ in length");
     const fmi2ValueReference in[] = {VR_tau_m, VR_tau_L}, w_m[] = {VR_omega_m};
     const fmi2ValueReference state[] = {VR_theta_m, VR_omega_m, VR_theta_L, VR_omega_L};
     long n = (long)llround(seconds / H);
     double *t = malloc(sizeof(double) * repeats), *tw = malloc(sizeof(double) * repeats), z[4];
     for (int r = 0; r < repeats; r++) {
-        fmi2Component c = make("piloop", pv, pval, 8, 0);
+        fmi2Component c = make("piloop", pv, pval, sizeof pv / sizeof pv[0], 0);
         double x = 0.0, w = 0.0;
         Tic t0 = tic();
         for (long k = 0; k < n; k++) {

@@ -11,7 +11,7 @@ use std::time::{Instant, SystemTime};
 use serde::Deserialize;
 
 use super::{Plan, DRIVE_AND_WEB, MODEL};
-use crate::{fmu, python, util};
+use crate::{fmu, python, rigs, util};
 
 /// The `@ key values…` lines of every tool, by key, in order of arrival.
 #[derive(Default)]
@@ -204,8 +204,9 @@ pub(super) struct Runner {
 
 impl Runner {
     /// Unpacks BacklashShaft.fmu and the archives of [`DRIVE_AND_WEB`] into `work` and compiles
-    /// benches/native_host.c against fmpy's FMI headers and the value references of the archives'
-    /// own modelDescription.xml: `VR_<name>` of BacklashShaft, `VR_<model>_<name>` of the others.
+    /// benches/native_host.c against fmpy's FMI headers, the value references of the archives'
+    /// own modelDescription.xml (bench_vr.h: `VR_<name>` of BacklashShaft, `VR_<model>_<name>` of
+    /// the others) and BacklashShaft's rig from tests/fixtures/rigs.toml (bench_rig.h).
     pub(super) fn prepare(work: &Path) -> Result<Runner, String> {
         let (shaft, defines) = Archive::unpack(work, MODEL, "VR_")?;
         let mut vr_header =
@@ -225,6 +226,13 @@ impl Runner {
         let token = fmu::FMI3.token(&doc3)?;
         vr_header.push_str(&format!("#define INSTANTIATION_TOKEN \"{token}\"\n"));
         fs::write(work.join("bench_vr.h"), vr_header).map_err(|e| format!("writing bench_vr.h: {e}"))?;
+        // The rig the host sets, by the same names: the parameters and gains the Python bench's
+        // loop sets too (tests/python/rigs.py reads the same fixture).
+        let xml = fs::read_to_string(work.join(MODEL).join("modelDescription.xml"))
+            .map_err(|e| format!("reading the unpacked {MODEL} modelDescription.xml: {e}"))?;
+        let rig = rigs::rig(&util::repo_root(), MODEL, "parameters")?;
+        fs::write(work.join("bench_rig.h"), rig_header(MODEL, &xml, &rig)?)
+            .map_err(|e| format!("writing bench_rig.h: {e}"))?;
         let headers = python::fmpy_header_dir().ok_or("no fmi2Functions.h in .venv (fmpy's c-code)")?;
         let host = work.join("native_host");
         let mut compile = Command::new("cc");
@@ -517,6 +525,48 @@ fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), Stri
     Ok((guid.to_string(), text))
 }
 
+/// bench_rig.h: the rig of the model `id` as the native host sets it, `#define RIG_<name> <value>`
+/// for each of its values (Rust's shortest decimal that reads back as the same f64, which C reads
+/// back exactly too), and `RIG_VR`, `RIG_VALUE`: initializers of every value reference and value
+/// of it, in the same order, for one fmi2SetReal. Every name must be a variable of the
+/// description `xml`, whose `VR_<name>` bench_vr.h defines.
+fn rig_header(id: &str, xml: &str, rig: &[(String, f64)]) -> Result<String, String> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
+    let described = |name: &str| {
+        doc.descendants()
+            .any(|n| n.has_tag_name("ScalarVariable") && n.attribute("name") == Some(name))
+    };
+    let identifier = |name: &str| {
+        name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+    };
+    if rig.is_empty() {
+        return Err(format!("{id}'s rig in tests/fixtures/rigs.toml sets nothing"));
+    }
+    let mut text = format!("/* Written by cargo xtask bench: {id}'s rig from tests/fixtures/rigs.toml. */\n");
+    for (name, value) in rig {
+        if !identifier(name) || !described(name) {
+            return Err(format!(
+                "{id}'s rig in tests/fixtures/rigs.toml sets `{name}`, not a variable of its modelDescription.xml"
+            ));
+        }
+        if !value.is_finite() {
+            return Err(format!("{id}'s rig in tests/fixtures/rigs.toml sets {name} = {value}"));
+        }
+        text.push_str(&format!("#define RIG_{name} {value:?}\n"));
+    }
+    let list = |prefix: &str| {
+        let items: Vec<String> = rig.iter().map(|(name, _)| format!("{prefix}{name}")).collect();
+        format!("{{{}}}", items.join(", "))
+    };
+    text.push_str(&format!(
+        "#define RIG_VR {}\n#define RIG_VALUE {}\n",
+        list("VR_"),
+        list("RIG_")
+    ));
+    Ok(text)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -589,5 +639,29 @@ mod tests {
             ]
         );
         fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn the_rig_header_defines_each_value_exactly_and_the_lists_for_one_set_real() {
+        let xml = r#"<fmiModelDescription guid="g"><ModelVariables>
+            <ScalarVariable name="Kp" valueReference="7"/>
+            <ScalarVariable name="Delta" valueReference="3"/>
+            <ScalarVariable name="der(theta_m)" valueReference="9"/>
+        </ModelVariables></fmiModelDescription>"#;
+        let rig = [("Delta".to_string(), 5.38e-3 / 2.0), ("Kp".to_string(), 42.0)];
+        assert_eq!(
+            rig_header("M", xml, &rig).unwrap(),
+            "/* Written by cargo xtask bench: M's rig from tests/fixtures/rigs.toml. */\n\
+             #define RIG_Delta 0.00269\n\
+             #define RIG_Kp 42.0\n\
+             #define RIG_VR {VR_Delta, VR_Kp}\n\
+             #define RIG_VALUE {RIG_Delta, RIG_Kp}\n"
+        );
+        for name in ["Ki", "der(theta_m)"] {
+            let error = rig_header("M", xml, &[(name.to_string(), 1.0)]).unwrap_err();
+            assert!(error.contains(&format!("`{name}`, not a variable")), "{error}");
+        }
+        assert!(rig_header("M", xml, &[("Kp".to_string(), f64::NAN)]).is_err());
+        assert!(rig_header("M", xml, &[]).is_err());
     }
 }
