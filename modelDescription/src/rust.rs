@@ -1,11 +1,12 @@
 //! Rust source of the library's tables, written by `build.rs` into `OUT_DIR` and included by
 //! `src/fmu/variables.rs` and `src/fmu/logging.rs`: the `Symbol` enum (one variant per distinct
-//! variable of all models), the `MODELS` table, and the `LogCategory` enum.
+//! variable of all models) with where each variable's value comes from, the input lines, the
+//! `MODELS` table, and the `LogCategory` enum.
 
 use std::fmt::Write as _;
 
 use crate::models::default_plant;
-use crate::{model, model_identifiers, xml, xml3, Model, LOG_CATEGORIES};
+use crate::{model, model_identifiers, xml, xml3, Causality, Model, Type, Var, LOG_CATEGORIES};
 
 /// Every model's description, in [`model_identifiers`] order.
 fn models() -> Vec<Model> {
@@ -25,6 +26,57 @@ fn symbols(models: &[Model]) -> Vec<(&'static str, &'static str)> {
     found
 }
 
+/// The symbols of the inputs, by slot: each model's inputs in value-reference order fill the
+/// slots from 0, and a symbol takes the same slot in every model.
+fn input_lines(models: &[Model]) -> Vec<&'static str> {
+    let mut lines: Vec<&'static str> = Vec::new();
+    for m in models {
+        let mut inputs: Vec<&Var> = m.variables.iter().filter(|v| v.causality == Causality::Input).collect();
+        inputs.sort_by_key(|v| v.vr);
+        for (slot, v) in inputs.iter().enumerate() {
+            match lines.get(slot) {
+                Some(s) => assert_eq!(*s, v.symbol, "{}: input {} takes another model's slot {slot}", m.identifier, v.name),
+                None => lines.push(v.symbol),
+            }
+        }
+    }
+    lines
+}
+
+/// Each symbol's source, as the library's `Source` in Rust: a parameter is stored; an input
+/// stored in its slot; a continuous state is the plant state's entry of its symbol (and its
+/// derivative that entry's rate); the one Integer variable, the contact mode (docs/model.md §4),
+/// is the mode; every other variable is calculated from the physics, by the `Calculated` of its
+/// symbol (a new one without such a variant does not compile).
+fn sources(models: &[Model]) -> Vec<(&'static str, String)> {
+    let lines = input_lines(models);
+    let mut out: Vec<(&'static str, String)> = Vec::new();
+    for m in models {
+        for v in &m.variables {
+            let source = if v.causality == Causality::Parameter {
+                "Source::Parameter".to_string()
+            } else if v.causality == Causality::Input {
+                let slot = lines.iter().position(|s| *s == v.symbol).expect("every input has a slot");
+                format!("Source::Input({slot})")
+            } else if v.is_continuous_state() {
+                format!("Source::State(StateEntry::{})", v.symbol)
+            } else if let Some(of) = v.derivative_of {
+                let state = m.variables.iter().find(|w| w.vr == of).expect("a derivative's state");
+                format!("Source::Derivative(StateEntry::{})", state.symbol)
+            } else if v.ty == Type::Integer {
+                "Source::Contact".to_string()
+            } else {
+                format!("Source::Calculated(Calculated::{})", v.symbol)
+            };
+            match out.iter().find(|(s, _)| *s == v.symbol) {
+                Some((_, known)) => assert_eq!(*known, source, "symbol {} has two sources", v.symbol),
+                None => out.push((v.symbol, source)),
+            }
+        }
+    }
+    out
+}
+
 /// `Symbol`, its count, and `MODELS` (types `ModelInfo`, `Variable`, ... are the includer's).
 pub fn variable_tables() -> String {
     let models = models();
@@ -41,7 +93,20 @@ pub fn variable_tables() -> String {
     out.push_str("    /// Number of symbols: the size of an instance's value store.\n");
     let _ = writeln!(out, "    pub const COUNT: usize = {};\n", symbols.len());
     out.push_str("    /// The symbol's slot in an instance's value store.\n");
-    out.push_str("    pub fn index(self) -> usize {\n        self as usize\n    }\n}\n\n");
+    out.push_str("    pub fn index(self) -> usize {\n        self as usize\n    }\n\n");
+    out.push_str("    /// Where the variable's value comes from (`crate::fmu::adapter::Source`).\n");
+    out.push_str("    #[inline]\n    pub const fn source(self) -> Source {\n        match self {\n");
+    for (symbol, source) in sources(&models) {
+        let _ = writeln!(out, "            Symbol::{symbol} => {source},");
+    }
+    out.push_str("        }\n    }\n}\n\n");
+    let lines = input_lines(&models);
+    out.push_str("/// The input lines of every model, by slot (`Source::Input`).\n");
+    let _ = writeln!(out, "pub const INPUT_SYMBOLS: [Symbol; {}] = [", lines.len());
+    for symbol in lines {
+        let _ = writeln!(out, "    Symbol::{symbol},");
+    }
+    out.push_str("];\n\n");
 
     out.push_str("/// Every model this library serves, in `model_identifiers()` order.\n");
     let _ = writeln!(out, "pub static MODELS: [ModelInfo; {}] = [", models.len());

@@ -1,10 +1,11 @@
 //! The model adapter: the one place that maps the description's variables to the physics
 //! (parameters, inputs, the initial state, outputs and their derivatives, start values).
 //!
-//! Every match over [`Symbol`] here is exhaustive, without a catch-all arm: a variable added to
-//! the description (`modelDescription/`) without a mapping here is a compile error. The rest of
-//! `fmu` handles variables only through [`source`]. The plant parameters come from each model's
-//! own mapping ([`ModelInfo::plant_params`]).
+//! Each variable's [`Source`] is generated from the description (`Symbol::source`: a parameter
+//! is stored, a state is its plant-state entry, a calculated variable the [`Calculated`] of its
+//! symbol, so that a new calculated variable without a variant here is a compile error); the rest
+//! of `fmu` handles variables only through it. The plant parameters come from each model's own
+//! mapping ([`ModelInfo::plant_params`]).
 
 use super::simulation::Simulation;
 use super::variables::{model_by_identifier, ModelInfo, Symbol, MODELS};
@@ -65,55 +66,6 @@ pub enum Calculated {
     /// `bound_T`, `bound_T_sup` of a web line (docs/model.md §8).
     BoundT,
     BoundTSup,
-}
-
-/// Where `symbol`'s value comes from.
-#[inline]
-pub fn source(symbol: Symbol) -> Source {
-    match symbol {
-        Symbol::TauM => Source::Input(0),
-        Symbol::TauL => Source::Input(1),
-        Symbol::VIn => Source::Input(2),
-        Symbol::TIn => Source::Input(3),
-        Symbol::Tension => Source::State(StateEntry::Tension),
-        Symbol::BoundT => Source::Calculated(Calculated::BoundT),
-        Symbol::BoundTSup => Source::Calculated(Calculated::BoundTSup),
-        Symbol::DerTension => Source::Derivative(StateEntry::Tension),
-        Symbol::ThetaM => Source::State(StateEntry::ThetaM),
-        Symbol::OmegaM => Source::State(StateEntry::OmegaM),
-        Symbol::ThetaL => Source::State(StateEntry::ThetaL),
-        Symbol::OmegaL => Source::State(StateEntry::OmegaL),
-        Symbol::Psi => Source::Calculated(Calculated::Psi),
-        Symbol::Contact => Source::Contact,
-        Symbol::Bound => Source::Calculated(Calculated::Bound),
-        Symbol::BoundPaper => Source::Calculated(Calculated::BoundPaper),
-        Symbol::BoundSup => Source::Calculated(Calculated::BoundSup),
-        Symbol::UMinusG => Source::Calculated(Calculated::UMinusG),
-        Symbol::UPlusG => Source::Calculated(Calculated::UPlusG),
-        Symbol::DerThetaM => Source::Derivative(StateEntry::ThetaM),
-        Symbol::DerOmegaM => Source::Derivative(StateEntry::OmegaM),
-        Symbol::DerThetaL => Source::Derivative(StateEntry::ThetaL),
-        Symbol::DerOmegaL => Source::Derivative(StateEntry::OmegaL),
-        Symbol::JM
-        | Symbol::JL
-        | Symbol::BM
-        | Symbol::BL
-        | Symbol::Delta
-        | Symbol::Kp
-        | Symbol::Ki
-        | Symbol::K
-        | Symbol::KB
-        | Symbol::R1
-        | Symbol::R2
-        | Symbol::Rg1
-        | Symbol::Rg2
-        | Symbol::Rw
-        | Symbol::Lw
-        | Symbol::EA
-        | Symbol::VRef
-        | Symbol::KpT
-        | Symbol::KiT => Source::Parameter,
-    }
 }
 
 impl StateEntry {
@@ -260,8 +212,9 @@ pub fn inputs(plant: &Plant, v: &Values, slopes: &InputSlopes) -> Inputs {
     }
 }
 
-/// The input lines, by their [`Source::Input`] slot.
-pub const INPUT_SYMBOLS: [Symbol; MAX_INPUTS] = [Symbol::TauM, Symbol::TauL, Symbol::VIn, Symbol::TIn];
+/// The input lines, by their [`Source::Input`] slot (from the descriptions: each model's inputs in
+/// value-reference order), as many as the physics has.
+pub const INPUT_SYMBOLS: [Symbol; MAX_INPUTS] = super::variables::INPUT_SYMBOLS;
 
 /// The values of the input lines, by slot.
 #[inline]

@@ -386,9 +386,9 @@ fn model_exchange_bound_far_out_on_an_undamped_loop_is_refused_promptly() {
 /// docs/model.md §4 and §8 name the inputs.
 #[test]
 fn input_slots_are_the_symbols_order() {
-    use crate::fmu::adapter::{input_name, source, Source, INPUT_SYMBOLS};
+    use crate::fmu::adapter::{input_name, Source, INPUT_SYMBOLS};
     for (slot, symbol) in INPUT_SYMBOLS.iter().enumerate() {
-        assert_eq!(source(*symbol), Source::Input(slot));
+        assert_eq!(symbol.source(), Source::Input(slot));
     }
     let names: Vec<&str> = (0..INPUT_SYMBOLS.len()).map(input_name).collect();
     assert_eq!(names, ["tau_m", "tau_L", "v_in", "T_in"]);

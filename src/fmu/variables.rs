@@ -3,6 +3,7 @@
 //! `modelDescription.xml` comes from), and the lookups the instance serves get/set with.
 
 // The kinds of variables are those the description is written with: one definition.
+use super::adapter::{Calculated, Source, StateEntry};
 use super::state_machine::Standard;
 pub use model_description::{Causality, DefaultExperiment, Initial, PlantMapping, Range, Type as VarType, Variability};
 
@@ -59,7 +60,7 @@ impl ModelInfo {
     }
 }
 
-// `Symbol` (with `COUNT` and `index`) and `MODELS`.
+// `Symbol` (with `COUNT`, `index` and `source`), `INPUT_SYMBOLS` and `MODELS`.
 include!(concat!(env!("OUT_DIR"), "/model_variables.rs"));
 
 impl PartialEq for ModelInfo {
@@ -136,14 +137,14 @@ mod tests {
     /// Each description declares as many event indicators as the physics computes.
     #[test]
     fn every_model_declares_the_physics_event_indicators() {
-        use crate::fmu::adapter::{source, Calculated, Source};
+        use crate::fmu::adapter::{Calculated, Source};
         for m in &MODELS {
             let declared = m
                 .variables
                 .iter()
                 .filter(|v| {
                     matches!(
-                        source(v.symbol),
+                        v.symbol.source(),
                         Source::Calculated(Calculated::UMinusG | Calculated::UPlusG)
                     )
                 })

@@ -254,7 +254,7 @@ impl Instance {
                     range: "a finite seed",
                 });
             }
-            match adapter::source(v.symbol) {
+            match v.symbol.source() {
                 Source::State(entry) => dz[entry.index()] += dv,
                 Source::Input(slot) => dinput[slot] += dv,
                 Source::Parameter | Source::Calculated(_) | Source::Derivative(_) | Source::Contact => {
@@ -268,7 +268,7 @@ impl Instance {
         let mut rows = Vec::with_capacity(unknowns.len());
         for vr in unknowns {
             let v = self.typed_variable(*vr, VarType::Real)?;
-            rows.push(Unknown::of(adapter::source(v.symbol)).ok_or_else(|| {
+            rows.push(Unknown::of(v.symbol.source()).ok_or_else(|| {
                 FmuError::InvalidArgument(format!(
                     "{} is not an unknown of the Jacobian: the unknowns are the state derivatives and the outputs",
                     v.name

@@ -85,7 +85,7 @@ impl Instance {
     }
 
     fn real_value(&mut self, v: &Variable) -> Result<f64, FmuError> {
-        Ok(match adapter::source(v.symbol) {
+        Ok(match v.symbol.source() {
             Source::Input(_) | Source::Parameter => self.values[v.symbol.index()],
             Source::State(entry) => match self.life.sim() {
                 Some(sim) => entry.of(&sim.state),
@@ -132,7 +132,7 @@ impl Instance {
             // The suprema are +∞ by definition when the loop is unstable (docs/model.md §4); nothing
             // else may leave the FMU as ∞ or NaN.
             let supremum = matches!(
-                adapter::source(v.symbol),
+                v.symbol.source(),
                 Source::Calculated(Calculated::BoundSup | Calculated::BoundTSup)
             );
             if x.is_nan() || (x.is_infinite() && !supremum) {
@@ -147,7 +147,7 @@ impl Instance {
         Self::same_length("fmi2GetInteger values", out.len(), vrs.len())?;
         for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
             let v = self.typed_variable(*vr, VarType::Integer)?;
-            if adapter::source(v.symbol) != Source::Contact {
+            if v.symbol.source() != Source::Contact {
                 return Err(Self::wrong_type(v, "Integer"));
             }
             let sim = self.physics()?;
@@ -271,7 +271,7 @@ impl Instance {
                     range: v.range.describe(),
                 });
             }
-            if let (Source::State(entry), Some(sim)) = (adapter::source(v.symbol), self.life.sim()) {
+            if let (Source::State(entry), Some(sim)) = (v.symbol.source(), self.life.sim()) {
                 z.get_or_insert_with(|| adapter::entries_of(&sim.state))[entry.index()] = *value;
             }
         }
@@ -286,7 +286,7 @@ impl Instance {
         for (vr, value) in vrs.iter().zip(values) {
             let v = self.typed_variable(*vr, VarType::Real)?;
             // After initialization a state's slot keeps its start value; the plant holds the state.
-            if !(self.life.sim().is_some() && matches!(adapter::source(v.symbol), Source::State(_))) {
+            if !(self.life.sim().is_some() && matches!(v.symbol.source(), Source::State(_))) {
                 self.values[v.symbol.index()] = *value;
             }
         }
@@ -312,7 +312,7 @@ impl Instance {
         let mut targets = Vec::with_capacity(vrs.len());
         for ((vr, order), value) in vrs.iter().zip(orders).zip(values) {
             let v = self.typed_variable(*vr, VarType::Real)?;
-            let Source::Input(slot) = adapter::source(v.symbol) else {
+            let Source::Input(slot) = v.symbol.source() else {
                 return Err(FmuError::InvalidArgument(format!(
                     "{} is not an input; only inputs have input derivatives",
                     v.name
@@ -351,7 +351,7 @@ impl Instance {
         let bounds = vrs.iter().any(|vr| {
             self.model.by_vr(*vr).is_some_and(|v| {
                 matches!(
-                    adapter::source(v.symbol),
+                    v.symbol.source(),
                     Source::Calculated(Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT)
                 )
             })
@@ -380,7 +380,7 @@ impl Instance {
             }
             // d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (at a switch: the mode entered).
             let z_dot = *rates.get_or_insert_with(|| sim.stepper.time_derivative(&sim.state, &inputs, 1));
-            let rate = match adapter::source(v.symbol) {
+            let rate = match v.symbol.source() {
                 Source::State(entry) => Some(z_dot[entry.index()]),
                 Source::Calculated(quantity) => quantity.rate(sim, &z_dot),
                 Source::Input(_) | Source::Parameter | Source::Contact | Source::Derivative(_) => None,
