@@ -12,6 +12,7 @@
 use backlash_physics::{Plant, PlantState};
 
 use crate::common::{depends_on_time, output_dependencies, vr_of};
+use crate::models::{parameters, plant_of};
 use crate::{Causality, Model, Var};
 
 /// The plant's input lines, in the order of the model's inputs by value reference: τ_m, τ_L,
@@ -20,28 +21,7 @@ const INPUT_LINES: usize = 4;
 
 /// The parameters of `model` at the generic point, by name.
 fn generic_values(model: &Model) -> Vec<(&'static str, f64)> {
-    model
-        .variables
-        .iter()
-        .filter(|v| v.causality == Causality::Parameter)
-        .map(|v| {
-            let start = v.start.unwrap_or_else(|| panic!("{}: parameter {} has no start", model.identifier, v.name));
-            (v.name, if start == 0.0 { 1.0 } else { start })
-        })
-        .collect()
-}
-
-/// The plant of `values`; panics if they are not a valid plant (the description is wrong, caught
-/// when it is built).
-fn plant_of(model: &Model, values: &[(&'static str, f64)]) -> Plant {
-    let at = |name: &str| {
-        values
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|(_, x)| *x)
-            .unwrap_or_else(|| panic!("{}: its physics reads {name}, which is no parameter", model.identifier))
-    };
-    Plant::new((model.plant_params)(&at)).unwrap_or_else(|e| panic!("{}: {e}", model.identifier))
+    parameters(model).into_iter().map(|(name, x)| (name, if x == 0.0 { 1.0 } else { x })).collect()
 }
 
 /// The generic state z = [θ_m, ω_m, θ_L, ω_L, T] of `plant`: on the positive flank (u = 2.4 g),

@@ -366,19 +366,36 @@ fn with_state_nominals(mut model: Model) -> Model {
     model
 }
 
-/// The plant of `model`'s start values (its default parameters). Panics if they are not a valid
-/// plant or name a parameter the model lacks: the description is wrong, caught when it is built.
+/// The plant of `model`'s start values (its default parameters).
 pub(crate) fn default_plant(model: &Model) -> Plant {
-    let start = |name: &str| {
-        model
-            .variables
+    plant_of(model, &parameters(model))
+}
+
+/// The parameters of `model` by name, at their start values.
+pub(crate) fn parameters(model: &Model) -> Vec<(&'static str, f64)> {
+    model
+        .variables
+        .iter()
+        .filter(|v| v.causality == Causality::Parameter)
+        .map(|v| {
+            let start = v.start.unwrap_or_else(|| panic!("{}: parameter {} has no start", model.identifier, v.name));
+            (v.name, start)
+        })
+        .collect()
+}
+
+/// The plant of `model` whose parameters have `values`. Panics if they are not a valid plant or
+/// the physics mapping reads a name that is no parameter: the description is wrong, caught when
+/// it is built.
+pub(crate) fn plant_of(model: &Model, values: &[(&'static str, f64)]) -> Plant {
+    let at = |name: &str| {
+        values
             .iter()
-            .find(|v| v.name == name)
-            .and_then(|v| v.start)
-            .unwrap_or_else(|| panic!("{}: its physics reads {name}, which has no start value", model.identifier))
+            .find(|(n, _)| *n == name)
+            .map(|(_, x)| *x)
+            .unwrap_or_else(|| panic!("{}: its physics reads {name}, which is no parameter", model.identifier))
     };
-    Plant::new((model.plant_params)(&start))
-        .unwrap_or_else(|e| panic!("{}: the default parameters are no plant: {e}", model.identifier))
+    Plant::new((model.plant_params)(&at)).unwrap_or_else(|e| panic!("{}: {e}", model.identifier))
 }
 
 /// One model: the function that describes it and its physics mapping (also in its description,
