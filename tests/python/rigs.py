@@ -39,14 +39,15 @@ WEB_ONLY = ("R_w", "L_w", "EA", "v_ref", "Kp_T", "Ki_T")
 
 
 def plant_of(model: str, params: dict) -> Plant:
-    """The generic plant (docs/model.md §1 table) for an FMU's parameter values: a web line's
-    drive train alone (its web decoupled, WEB_DECOUPLED)."""
+    """The generic plant (docs/model.md §1 table) for an FMU's parameter values, in the form its
+    parameters name (docs/model.md §4): a shaft's stiffness k or a belt's K_b; a web line's drive
+    train alone (its web decoupled, WEB_DECOUPLED)."""
     p = {k: v for k, v in params.items() if k not in ("Kp", "Ki", *WEB_ONLY)}
-    if model == "BacklashShaft":
+    if "k" in p:
         return Plant.shaft(**p)
-    if model in ("BacklashBelt", "BacklashWeb"):
+    if "K_b" in p:
         return Plant.belt(**p)
-    raise ValueError(f"unknown model {model!r}")
+    raise ValueError(f"{model}: its parameters {sorted(p)} name no drive train of docs/model.md §1")
 
 
 def with_delta(params: dict, delta: float) -> dict:

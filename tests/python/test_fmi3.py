@@ -187,7 +187,7 @@ def test_cosimulation_without_early_return_is_the_fmi2_step(model, loop):
 # --- 3. early return at the contact switches ---------------------------------------------------------
 
 EARLY_STEPS = 40
-EARLY_TORQUE = {"BacklashShaft": 2.0, "BacklashBelt": 20.0, "BacklashWeb": 20.0}  # N.m; the belts' lever r_m = 0.1 m
+EARLY_TORQUE = 2.0  # N.m at the motor's lever r_m = 1 m: divided by r_m (the belts': 0.1 m)
 SWITCH_TIME_TOL = 1e-12  # s
 ROUND_OFF_TOL = 1e-11  # relative, see test
 
@@ -201,7 +201,7 @@ def _early_scenario(model: str):
     w0 = math.sqrt(p.K * (p.r_m**2 / p.J_m + p.r_L**2 / p.J_L))
     h = round(0.25 * 2 * math.pi / w0, 3)
     k = np.arange(EARLY_STEPS)
-    tau_m = EARLY_TORQUE[model] * np.where(k % 2 == 0, 1.0, -1.0) * (1.0 + 0.3 * np.sin(0.7 * k))
+    tau_m = EARLY_TORQUE / p.r_m * np.where(k % 2 == 0, 1.0, -1.0) * (1.0 + 0.3 * np.sin(0.7 * k))
     tau_L = 0.4 * np.sin(0.3 * k)
     return p, h, tau_m, tau_L
 

@@ -26,13 +26,15 @@ COMMON = {
     "Kp": ("parameter", "Real", "N.m.s/rad"),
     "Ki": ("parameter", "Real", "N.m/rad"),
 }
-SPECIFIC = {
-    "BacklashShaft": {
+# The interface of each drive train's form and of a web span (docs/model.md §4, §8), named by a
+# parameter only that form has.
+FORMS = {
+    "k": {
         "psi": ("output", "Real", "N.m"),
         "k": ("parameter", "Real", "N.m/rad"),
         "Delta": ("parameter", "Real", "rad"),
     },
-    "BacklashBelt": {
+    "K_b": {
         "psi": ("output", "Real", "N"),
         "K_b": ("parameter", "Real", "N/m"),
         "R_1": ("parameter", "Real", "m"),
@@ -42,9 +44,8 @@ SPECIFIC = {
         "Delta": ("parameter", "Real", "m"),
     },
 }
-# The web line (docs/model.md §8): the belt drive's interface and its span's.
-SPECIFIC["BacklashWeb"] = {
-    **SPECIFIC["BacklashBelt"],
+# A web line (docs/model.md §8): a belt drive's interface and its span's.
+FORMS["R_w"] = {
     "v_in": ("input", "Real", "m/s"),
     "T_in": ("input", "Real", "N"),
     "T": ("output", "Real", "N"),
@@ -57,6 +58,9 @@ SPECIFIC["BacklashWeb"] = {
     "Kp_T": ("parameter", "Real", "rad/(s.N)"),
     "Ki_T": ("parameter", "Real", "rad/(s2.N)"),
 }
+# The forms docs/model.md §4 and §8 give the models it names (a model it does not name is checked
+# against the forms its parameters name).
+NAMED_FORMS = {"BacklashShaft": ["k"], "BacklashBelt": ["K_b"], "BacklashWeb": ["K_b", "R_w"]}
 # SI base-unit exponents (kg, m, s, rad) of every unit the interface uses.
 BASE = {
     "N.m": (1, 2, -2, 0),
@@ -94,7 +98,11 @@ def test_fmu_is_fmi2_cosimulation(fmu):
 
 
 def test_interface_names_causalities_and_units(fmu):
-    expected = {**COMMON, **SPECIFIC[fmu.model]}
+    forms = [form for form in FORMS if form in fmu.variables]
+    assert ("k" in forms) != ("K_b" in forms), f"{fmu.model}: one drive train, shaft or belt: {forms}"
+    assert "R_w" not in forms or "K_b" in forms, f"{fmu.model}: a web span is pulled by a belt drive"
+    assert forms == NAMED_FORMS.get(fmu.model, forms), f"{fmu.model}: {forms}"
+    expected = {**COMMON, **{name: kind for form in forms for name, kind in FORMS[form].items()}}
     for name, (causality, vtype, unit) in expected.items():
         assert name in fmu.variables, f"{fmu.model}: variable {name} missing"
         v = fmu.variables[name]

@@ -120,7 +120,7 @@ fn unknowns(doc: &Fmi3, tag: &str) -> Vec<(u32, Option<Vec<u32>>)> {
 }
 
 fn each_model(check: impl Fn(&'static ModelInfo, &Document, &Document)) {
-    assert_eq!(model_identifiers(), ["BacklashShaft", "BacklashBelt", "BacklashWeb"]);
+    assert!(!model_identifiers().is_empty(), "no model to check");
     for id in model_identifiers() {
         let model = model_by_identifier(id).unwrap();
         let text3 = xml3::model_description(id);
