@@ -50,13 +50,20 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
     );
 
     write_units_categories_and_experiment(&mut x, model);
+    write_variables(&mut x, model);
+    write_model_structure(&mut x, model);
+    x.push_str("</fmiModelDescription>\n");
+    x
+}
 
-    let index_of = |vr: u32| model.variables.iter().position(|w| w.vr == vr).expect("known vr") + 1;
-    let index_list = |names: &[&str]| -> String {
-        let mut indices: Vec<usize> = names.iter().map(|n| index_of(vr_of(model, n))).collect();
-        indices.sort_unstable();
-        indices.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(" ")
-    };
+/// The index (from 1, FMI 2.0 §2.2.8) of the variable with value reference `vr`.
+fn index_of(model: &Model, vr: u32) -> usize {
+    model.variables.iter().position(|w| w.vr == vr).expect("known vr") + 1
+}
+
+/// `<ModelVariables>`, two spaces in.
+fn write_variables(x: &mut String, model: &Model) {
+    let index_of = |vr: u32| index_of(model, vr);
     x.push_str("  <ModelVariables>\n");
     for (i, v) in model.variables.iter().enumerate() {
         let causality = causality_name(v.causality);
@@ -76,11 +83,21 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
             Type::Integer => "Integer",
         };
         let _ = write!(x, "      <{element}");
-        write_type_attributes(&mut x, v, |state| index_of(state).to_string());
+        write_type_attributes(x, v, |state| index_of(state).to_string());
         x.push_str("/>\n    </ScalarVariable>\n");
     }
     x.push_str("  </ModelVariables>\n");
+}
 
+/// `<ModelStructure>`: outputs, derivatives and initial unknowns with their dependencies, by
+/// index; two spaces in.
+fn write_model_structure(x: &mut String, model: &Model) {
+    let index_of = |vr: u32| index_of(model, vr);
+    let index_list = |names: &[&str]| -> String {
+        let mut indices: Vec<usize> = names.iter().map(|n| index_of(vr_of(model, n))).collect();
+        indices.sort_unstable();
+        indices.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(" ")
+    };
     x.push_str("  <ModelStructure>\n    <Outputs>\n");
     for (i, v) in model.variables.iter().enumerate() {
         if v.causality == Causality::Output {
@@ -117,6 +134,4 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
         }
     }
     x.push_str("    </InitialUnknowns>\n  </ModelStructure>\n");
-    x.push_str("</fmiModelDescription>\n");
-    x
 }

@@ -63,13 +63,14 @@ fn xml_with_token(model: &Model, token: &str) -> String {
     );
 
     write_units_categories_and_experiment(&mut x, model);
+    write_variables(&mut x, model);
+    write_model_structure(&mut x, model);
+    x.push_str("</fmiModelDescription>\n");
+    x
+}
 
-    let vr_list = |vrs: &mut Vec<u32>| -> String {
-        vrs.sort_unstable();
-        vrs.iter().map(|vr| vr.to_string()).collect::<Vec<_>>().join(" ")
-    };
-    let name_list = |names: &[&str]| -> Vec<u32> { names.iter().map(|n| vr_of(model, n)).collect() };
-
+/// `<ModelVariables>`: time, then the tables' variables; two spaces in.
+fn write_variables(x: &mut String, model: &Model) {
     x.push_str("  <ModelVariables>\n");
     let _ = writeln!(
         x,
@@ -91,11 +92,20 @@ fn xml_with_token(model: &Model, token: &str) -> String {
             variability_name(v.variability),
             initial_attribute(v.initial)
         );
-        write_type_attributes(&mut x, v, |state| state.to_string());
+        write_type_attributes(x, v, |state| state.to_string());
         x.push_str("/>\n");
     }
     x.push_str("  </ModelVariables>\n");
+}
 
+/// `<ModelStructure>`: outputs, state derivatives, initial unknowns and event indicators with
+/// their dependencies, by value reference; two spaces in.
+fn write_model_structure(x: &mut String, model: &Model) {
+    let vr_list = |vrs: &mut Vec<u32>| -> String {
+        vrs.sort_unstable();
+        vrs.iter().map(|vr| vr.to_string()).collect::<Vec<_>>().join(" ")
+    };
+    let name_list = |names: &[&str]| -> Vec<u32> { names.iter().map(|n| vr_of(model, n)).collect() };
     // FMI 3.0 §2.4.8: the elements in this order, each in the order of the variables.
     x.push_str("  <ModelStructure>\n");
     for v in &model.variables {
@@ -150,8 +160,6 @@ fn xml_with_token(model: &Model, token: &str) -> String {
         );
     }
     x.push_str("  </ModelStructure>\n");
-    x.push_str("</fmiModelDescription>\n");
-    x
 }
 
 #[cfg(test)]
