@@ -288,7 +288,7 @@ impl Reduced {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Geometry, PlantParams, WebSpan};
+    use crate::{PlantParams, WebSpan};
     use nalgebra::SMatrix;
 
     #[test]
@@ -312,27 +312,13 @@ mod tests {
     #[test]
     fn the_web_loop_and_its_reduced_form_commute() {
         // A small servo belt drive pulling a film line's span: 50 mm roller, 1 m span, EA = 1e5 N.
-        let plant = Plant::new(PlantParams {
-            j_m: 1e-4,
-            j_l: 5e-3,
-            b_m: 1e-4,
-            b_l: 1e-3,
-            geometry: Geometry::Belt {
-                k_b: 2e5,
-                r_1: 0.02,
-                r_2: 0.04,
-                r_g1: 0.015,
-                r_g2: 0.045,
-                delta: 5e-5,
-            },
-            web: Some(WebSpan {
-                r_w: 0.05,
-                l_w: 1.0,
-                ea: 1e5,
-                v_ref: 2.0,
-            }),
-        })
-        .unwrap();
+        let span = WebSpan {
+            r_w: 0.05,
+            l_w: 1.0,
+            ea: 1e5,
+            v_ref: 2.0,
+        };
+        let plant = Plant::new(crate::params::test_plants::servo_belt(Some(span))).unwrap();
         let speed = PiGains { kp: 0.18, ki: 57.6 };
         for tension in [
             PiGains::default(),

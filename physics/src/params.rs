@@ -298,3 +298,30 @@ pub fn dead_zone(u: f64, g: f64) -> f64 {
         0.0
     }
 }
+
+/// Plants for the crate's own tests.
+#[cfg(test)]
+pub(crate) mod test_plants {
+    use super::{Geometry, PlantParams, WebSpan};
+
+    /// A small servo belt drive with a gap (r_m = 0.02 m, r_L = 0.12 m, g = 0.133 mm), pulling
+    /// `web` if given.
+    pub(crate) fn servo_belt(web: Option<WebSpan>) -> PlantParams {
+        let geometry = Geometry::Belt {
+            k_b: 2e5,
+            r_1: 0.02,
+            r_2: 0.04,
+            r_g1: 0.015,
+            r_g2: 0.045,
+            delta: 5e-5,
+        };
+        PlantParams {
+            j_m: 1e-4,
+            j_l: 5e-3,
+            b_m: 1e-4,
+            b_l: 1e-3,
+            geometry,
+            web,
+        }
+    }
+}

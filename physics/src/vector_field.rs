@@ -115,27 +115,10 @@ impl Plant {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Geometry, PlantParams};
+    use crate::PlantParams;
 
-    /// A small servo belt drive with a gap: r_m = 0.02 m, r_L = 0.12 m, g = 0.133 mm.
     fn belt() -> Plant {
-        let geometry = Geometry::Belt {
-            k_b: 2e5,
-            r_1: 0.02,
-            r_2: 0.04,
-            r_g1: 0.015,
-            r_g2: 0.045,
-            delta: 5e-5,
-        };
-        Plant::new(PlantParams {
-            j_m: 1e-4,
-            j_l: 5e-3,
-            b_m: 1e-4,
-            b_l: 1e-3,
-            geometry,
-            web: None,
-        })
-        .unwrap()
+        Plant::new(crate::params::test_plants::servo_belt(None)).unwrap()
     }
 
     /// Central differences of `rates` against `jacobian`, away from the kinks.

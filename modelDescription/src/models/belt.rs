@@ -3,7 +3,9 @@
 
 use backlash_physics::{Geometry, PlantParams};
 
-use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef};
+use super::{
+    common_head, drive_train, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef,
+};
 use super::Transmission;
 use crate::{DefaultExperiment, Model, Range, Var};
 
@@ -15,21 +17,15 @@ pub(super) const MODEL: ModelDef = ModelDef {
 /// The belt drive's plant (paper eqs. 20–21): r_m = R_1, r_L = alpha_1, K = K_b,
 /// g = alpha_2 Delta (docs/model.md §1); also the drive of BacklashWeb.
 pub(super) fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
-    PlantParams {
-        j_m: at("J_m"),
-        j_l: at("J_L"),
-        b_m: at("b_m"),
-        b_l: at("b_L"),
-        geometry: Geometry::Belt {
-            k_b: at("K_b"),
-            r_1: at("R_1"),
-            r_2: at("R_2"),
-            r_g1: at("R_g1"),
-            r_g2: at("R_g2"),
-            delta: at("Delta"),
-        },
-        web: None,
-    }
+    let geometry = Geometry::Belt {
+        k_b: at("K_b"),
+        r_1: at("R_1"),
+        r_2: at("R_2"),
+        r_g1: at("R_g1"),
+        r_g2: at("R_g2"),
+        delta: at("Delta"),
+    };
+    drive_train(at, geometry)
 }
 
 /// u = R_1 theta_m - alpha_1 theta_L is a length on the belt; psi is the belt's force.

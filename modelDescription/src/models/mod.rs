@@ -8,7 +8,7 @@ mod belt;
 mod shaft;
 mod web;
 
-use backlash_physics::Plant;
+use backlash_physics::{Geometry, Plant, PlantParams};
 
 use crate::{Causality, Initial, Model, PlantMapping, Range, Type, Var, Variability};
 
@@ -396,6 +396,19 @@ pub(crate) fn plant_of(model: &Model, values: &[(&'static str, f64)]) -> Plant {
             .unwrap_or_else(|| panic!("{}: its physics reads {name}, which is no parameter", model.identifier))
     };
     Plant::new((model.plant_params)(&at)).unwrap_or_else(|e| panic!("{}: {e}", model.identifier))
+}
+
+/// The plant of a drive train of `geometry` whose inertias and viscous frictions are the
+/// parameters J_m, J_L, b_m, b_L (docs/model.md §4), read by `at`; its load an inertia.
+fn drive_train(at: &dyn Fn(&str) -> f64, geometry: Geometry) -> PlantParams {
+    PlantParams {
+        j_m: at("J_m"),
+        j_l: at("J_L"),
+        b_m: at("b_m"),
+        b_l: at("b_L"),
+        geometry,
+        web: None,
+    }
 }
 
 /// One model: the function that describes it and its physics mapping (also in its description,

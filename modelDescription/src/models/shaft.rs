@@ -3,7 +3,9 @@
 
 use backlash_physics::{Geometry, PlantParams};
 
-use super::{common_head, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef};
+use super::{
+    common_head, drive_train, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef,
+};
 use super::Transmission;
 use crate::{DefaultExperiment, Model, Range};
 
@@ -14,17 +16,11 @@ pub(super) const MODEL: ModelDef = ModelDef {
 
 /// The shaft's plant (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Delta (docs/model.md §1).
 fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
-    PlantParams {
-        j_m: at("J_m"),
-        j_l: at("J_L"),
-        b_m: at("b_m"),
-        b_l: at("b_L"),
-        geometry: Geometry::Shaft {
-            k: at("k"),
-            delta: at("Delta"),
-        },
-        web: None,
-    }
+    let geometry = Geometry::Shaft {
+        k: at("k"),
+        delta: at("Delta"),
+    };
+    drive_train(at, geometry)
 }
 
 /// u = theta_m - theta_L is an angle; psi is the shaft's torque.
