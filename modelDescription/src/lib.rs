@@ -21,7 +21,7 @@ pub mod xml3;
 
 use backlash_physics::PlantParams;
 
-pub use models::{model, ModelDef, MODELS};
+pub use models::{default_plant_params, model, ModelDef, MODELS};
 
 /// The models this crate describes, in a fixed order (that of the one list, [`MODELS`]).
 pub fn model_identifiers() -> &'static [&'static str] {

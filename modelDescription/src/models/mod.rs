@@ -371,6 +371,16 @@ pub(crate) fn default_plant(model: &Model) -> Plant {
     plant_of(model, &parameters(model))
 }
 
+/// The plant parameters of the model `identifier` at its parameters' start values (its default
+/// parameters, docs/model.md §4), or `None` if no model in [`MODELS`] has that identifier.
+pub fn default_plant_params(identifier: &str) -> Option<PlantParams> {
+    MODELS
+        .iter()
+        .map(|m| (m.describe)())
+        .find(|m| m.identifier == identifier)
+        .map(|m| *default_plant(&m).params())
+}
+
 /// The parameters of `model` by name, at their start values.
 pub(crate) fn parameters(model: &Model) -> Vec<(&'static str, f64)> {
     model
