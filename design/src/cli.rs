@@ -1,0 +1,507 @@
+//! The command line of the design study: `backlash design ...` (and its alias `cargo xtask
+//! design ...`) read into a request, solved, and the answer written as text or JSON. Everything
+//! here returns strings; the caller prints them.
+
+use backlash_physics::{Geometry, PiGains};
+
+use crate::{default_params, speed, study, web, Form};
+
+/// The `backlash` command's usage.
+pub const USAGE: &str = "\
+usage: backlash <command> [args]
+
+commands:
+  design    the design study: the backlash and stiffness that meet a load-speed accuracy, or a
+            web line's tension accuracy (see `backlash design --help`)
+  help      this text
+
+A command line without an answer (an unknown command or argument, a bad or missing value, a
+plant and gains with no finite bound) gives one `error:` line on stderr and exit status 2.";
+
+/// The design command's usage after its first two lines, which name the command.
+const DESIGN_DETAILS: &str = "
+For a required load-speed accuracy EPS (the bound on |omega_L with backlash - omega_L without|,
+docs/model.md §3 bound_sup) and a PI loop on the motor speed, prints
+  delta_max  the largest half gap Delta with bound_sup <= EPS at the nominal stiffness
+             (bound_sup is linear in Delta: delta_max = EPS / bound_sup(Delta = 1));
+  k_min      the smallest stiffness reachable from the nominal one by softening while
+             bound_sup <= EPS at the given Delta (log scan, then a bracketing root
+             finder), and k_max, the largest by stiffening: with fixed gains bound_sup
+             is not monotone in k.
+
+--model shaft (default): the shaft form of docs/model.md §1 with the paper's rectilinear rig
+as defaults (SI units, metres as the angle unit); the stiffness is k [N.m/rad], Delta in rad.
+--model belt: the belt-pulley + gear form with BacklashBelt.fmu's parameter values as
+defaults; the stiffness is the belt's K_b [N/m], Delta in m on the gears' pitch circle.
+--model web: that belt drive pulling one web span (docs/model.md §8); requires
+--tension-accuracy EPS_T [N], the bound on |T with backlash - T without|, and takes --accuracy
+as an optional second requirement. delta_max and the K_b window then meet every accuracy given.
+
+options:
+  --accuracy EPS  required speed accuracy [rad/s], finite and > 0 (required, except for web)
+  --model M       shaft, belt or web (default shaft)
+  --delta D       half gap Delta for the stiffness search (default: shaft 0.775e-3 rad, the
+                  paper's 1.55 mm gap read as 2 Delta; belt 5e-5 m)
+  --k K           nominal stiffness: shaft k [N.m/rad] (default 200), belt K_b [N/m]
+                  (default 2e5)
+  --r1 --r2 --rg1 --rg2
+                  belt and web: pulley radii R_1, R_2 and gear pitch radii R_g1, R_g2 [m]
+                  (defaults 0.02, 0.04, 0.015, 0.045)
+  --tension-accuracy EPS_T
+                  web: required tension accuracy [N], finite and > 0
+  --rw --lw --ea --vref
+                  web: roller radius R_w [m], span length L_w [m], web stiffness EA [N] and
+                  transport speed v_ref [m/s] (defaults 0.05, 1, 1e5, 2)
+  --kp-t --ki-t   web: outer tension PI trimming the speed reference [rad/s per N,
+                  rad/s^2 per N] (default 0 0: no tension loop)
+  --kp KP --ki KI PI gains [N.m.s/rad, N.m/rad] (default: the best-damped rule: the gains that
+                  maximise the smallest damping ratio of the backlash-free closed-loop poles)
+  --jm --jl       inertias [kg.m2] (defaults: shaft 2.28, 2.55; belt 1e-4, 5e-3)
+  --bm --bl       viscous friction [N.m.s/rad] (defaults: shaft 0.05, 0.05; belt 1e-4, 1e-3)
+  --json          print one JSON object instead of text
+  --help          this text";
+
+/// The design command's usage, naming it `command` (`backlash design`, `cargo xtask design`).
+pub fn design_usage(command: &str) -> String {
+    format!(
+        "usage: {command} --accuracy EPS [--model shaft|belt] [options] [--json]\n       \
+         {command} --model web --tension-accuracy EPS_T [--accuracy EPS] [options] [--json]\n{DESIGN_DETAILS}"
+    )
+}
+
+/// Why a command line gives no answer.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CliError {
+    /// The reason, on one line.
+    pub message: String,
+    /// The command whose `--help` explains the command line (`backlash`, `backlash design`).
+    pub command: String,
+    /// The command's usage, when the reason is something it explains (an unknown argument, a
+    /// missing requirement).
+    pub usage: Option<String>,
+}
+
+impl CliError {
+    /// The exit status of a command line without an answer.
+    pub const EXIT_STATUS: i32 = 2;
+
+    fn new(command: &str, message: impl Into<String>) -> CliError {
+        CliError {
+            message: message.into(),
+            command: command.to_string(),
+            usage: None,
+        }
+    }
+
+    fn with_usage(command: &str, message: impl Into<String>, usage: String) -> CliError {
+        CliError {
+            usage: Some(usage),
+            ..CliError::new(command, message)
+        }
+    }
+
+    /// One line: the reason, and where the usage is when it explains it.
+    pub fn line(&self) -> String {
+        match self.usage {
+            Some(_) => format!("{}; see `{} --help`", self.message, self.command),
+            None => self.message.clone(),
+        }
+    }
+
+    /// The reason followed by the usage when it explains it, after an empty line.
+    pub fn with_usage_text(&self) -> String {
+        match &self.usage {
+            Some(usage) => format!("{}\n\n{usage}", self.message),
+            None => self.message.clone(),
+        }
+    }
+}
+
+/// The `backlash` command: `args` without the program name. `Ok` holds the text to print (an
+/// answer or a usage), without its final newline.
+pub fn run(args: &[String]) -> Result<String, CliError> {
+    match args.split_first() {
+        None => Err(CliError::with_usage("backlash", "no command given", USAGE.to_string())),
+        Some((command, _)) if matches!(command.as_str(), "help" | "--help" | "-h") => Ok(USAGE.to_string()),
+        Some((command, rest)) if command == "design" => design("backlash design", rest),
+        Some((other, _)) => Err(CliError::with_usage(
+            "backlash",
+            format!("unknown command `{other}`"),
+            USAGE.to_string(),
+        )),
+    }
+}
+
+/// The design command, named `command` in its usage: `args` are its flags. `Ok` holds the text
+/// to print (the answer as text or JSON, or the usage), without its final newline.
+pub fn design(command: &str, args: &[String]) -> Result<String, CliError> {
+    let Some((request, json)) = parse(command, args)? else {
+        return Ok(design_usage(command));
+    };
+    let fail = |message: String| CliError::new(command, message);
+    Ok(match request {
+        Request::Speed(request) => {
+            let answer = speed::solve(request).map_err(fail)?;
+            if json {
+                speed::to_json(&answer)
+            } else {
+                speed::to_text(&answer)
+            }
+        }
+        Request::Web(request) => {
+            let answer = web::solve(request).map_err(fail)?;
+            if json {
+                web::to_json(&answer)
+            } else {
+                web::to_text(&answer)
+            }
+        }
+    })
+}
+
+/// What the command line asks for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Request {
+    /// The speed design of the shaft or belt form.
+    Speed(speed::Request),
+    /// The tension design of the web line.
+    Web(web::Request),
+}
+
+/// Flags that take a number, and the forms each belongs to (all forms when empty).
+const NUMBER_FLAGS: [(&str, &[Form]); 20] = [
+    ("--accuracy", &[]),
+    ("--delta", &[]),
+    ("--k", &[]),
+    ("--kp", &[]),
+    ("--ki", &[]),
+    ("--jm", &[]),
+    ("--jl", &[]),
+    ("--bm", &[]),
+    ("--bl", &[]),
+    ("--r1", &[Form::Belt, Form::Web]),
+    ("--r2", &[Form::Belt, Form::Web]),
+    ("--rg1", &[Form::Belt, Form::Web]),
+    ("--rg2", &[Form::Belt, Form::Web]),
+    ("--tension-accuracy", &[Form::Web]),
+    ("--kp-t", &[Form::Web]),
+    ("--ki-t", &[Form::Web]),
+    ("--rw", &[Form::Web]),
+    ("--lw", &[Form::Web]),
+    ("--ea", &[Form::Web]),
+    ("--vref", &[Form::Web]),
+];
+
+/// Parses the design command's flags (`command` names it in errors); `Ok(None)` for `--help`,
+/// else the request and whether the answer is wanted as JSON.
+pub fn parse(command: &str, args: &[String]) -> Result<Option<(Request, bool)>, CliError> {
+    let refuse = |message: String| CliError::new(command, message);
+    let refuse_with_usage = |message: String| CliError::with_usage(command, message, design_usage(command));
+    let form = model_choice(args).map_err(refuse)?;
+    let mut accuracy = None;
+    let mut tension_accuracy = None;
+    let mut params = default_params(form).map_err(|e| refuse(e.to_string()))?;
+    let mut line = web::film_line().map_err(|e| refuse(e.to_string()))?;
+    let (mut kp, mut ki) = (None, None);
+    let mut tension_gains = PiGains::default();
+    let mut json = false;
+    let mut seen: Vec<String> = Vec::new();
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        // Accept both `--flag value` and `--flag=value`.
+        let (flag, inline) = match arg.split_once('=') {
+            Some((f, v)) if f.starts_with("--") => (f, Some(v.to_string())),
+            _ => (arg.as_str(), None),
+        };
+        match flag {
+            "--help" | "-h" => return Ok(None),
+            "--json" => {
+                json = true;
+                continue;
+            }
+            "--model" => {
+                // Read by `model_choice`; skip its value.
+                if inline.is_none() {
+                    it.next();
+                }
+                continue;
+            }
+            _ => {}
+        }
+        let Some((_, forms)) = NUMBER_FLAGS.iter().find(|(f, _)| *f == flag) else {
+            return Err(refuse_with_usage(format!("unknown argument `{arg}`")));
+        };
+        if !forms.is_empty() && !forms.contains(&form) {
+            let names: Vec<&str> = forms.iter().map(|f| f.name()).collect();
+            return Err(refuse(format!("{flag} applies to --model {} only", names.join(" or "))));
+        }
+        if seen.iter().any(|s| s == flag) {
+            return Err(refuse(format!("{flag} given twice")));
+        }
+        seen.push(flag.to_string());
+        let text = match inline {
+            Some(v) => v,
+            None => it
+                .next()
+                .cloned()
+                .ok_or_else(|| refuse(format!("{flag} needs a value")))?,
+        };
+        let value: f64 = text
+            .trim()
+            .parse()
+            .map_err(|_| refuse(format!("{flag}: `{text}` is not a number")))?;
+        if !value.is_finite() {
+            return Err(refuse(format!("{flag} = {text} must be finite")));
+        }
+        let positive = |v: f64| {
+            if v > 0.0 {
+                Ok(v)
+            } else {
+                Err(refuse(format!("{flag} = {text} must be > 0")))
+            }
+        };
+        let non_negative = |v: f64| {
+            if v >= 0.0 {
+                Ok(v)
+            } else {
+                Err(refuse(format!("{flag} = {text} must be >= 0")))
+            }
+        };
+        match flag {
+            "--accuracy" => accuracy = Some(positive(value)?),
+            "--tension-accuracy" => tension_accuracy = Some(positive(value)?),
+            "--delta" => params = params.with_half_gap(positive(value)?),
+            "--k" => params = study::with_stiffness(&params, positive(value)?),
+            "--kp" => kp = Some(value),
+            "--ki" => ki = Some(value),
+            "--kp-t" => tension_gains.kp = value,
+            "--ki-t" => tension_gains.ki = value,
+            "--jm" => params.j_m = positive(value)?,
+            "--jl" => params.j_l = positive(value)?,
+            "--bm" => params.b_m = non_negative(value)?,
+            "--bl" => params.b_l = non_negative(value)?,
+            "--rw" => line.r_w = positive(value)?,
+            "--lw" => line.l_w = positive(value)?,
+            "--ea" => line.ea = positive(value)?,
+            "--vref" => line.v_ref = positive(value)?,
+            "--r1" | "--r2" | "--rg1" | "--rg2" => {
+                let Geometry::Belt {
+                    r_1, r_2, r_g1, r_g2, ..
+                } = &mut params.geometry
+                else {
+                    unreachable!("belt flags are refused for the shaft form above");
+                };
+                let slot = match flag {
+                    "--r1" => r_1,
+                    "--r2" => r_2,
+                    "--rg1" => r_g1,
+                    _ => r_g2,
+                };
+                *slot = positive(value)?;
+            }
+            _ => unreachable!("flag list checked above"),
+        }
+    }
+    let gains = match (kp, ki) {
+        (Some(kp), Some(ki)) => Some(PiGains { kp, ki }),
+        (None, None) => None,
+        _ => {
+            return Err(refuse(
+                "--kp and --ki go together (or neither, for the best-damped rule)".into(),
+            ))
+        }
+    };
+    let request = match form {
+        Form::Web => Request::Web(web::Request {
+            tension_accuracy: tension_accuracy
+                .ok_or_else(|| refuse_with_usage("--tension-accuracy EPS_T is required with --model web".into()))?,
+            accuracy,
+            drive: params,
+            web: line,
+            gains,
+            tension_gains,
+        }),
+        Form::Shaft | Form::Belt => Request::Speed(speed::Request {
+            accuracy: accuracy.ok_or_else(|| refuse_with_usage("--accuracy EPS is required".into()))?,
+            params,
+            gains,
+        }),
+    };
+    Ok(Some((request, json)))
+}
+
+/// `--model`'s value (shaft when absent), read before the other flags, whose defaults it sets.
+fn model_choice(args: &[String]) -> Result<Form, String> {
+    let mut found = None;
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        let value = match arg.split_once('=') {
+            Some(("--model", v)) => v.to_string(),
+            _ if arg == "--model" => it.next().cloned().ok_or("--model needs a value")?,
+            _ => continue,
+        };
+        if found.is_some() {
+            return Err("--model given twice".into());
+        }
+        found = Some(match value.as_str() {
+            "shaft" => Form::Shaft,
+            "belt" => Form::Belt,
+            "web" => Form::Web,
+            other => return Err(format!("--model = {other}: choose shaft, belt or web")),
+        });
+    }
+    Ok(found.unwrap_or(Form::Shaft))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::named_parameters;
+
+    const COMMAND: &str = "backlash design";
+
+    fn args(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn rejects_bad_arguments() {
+        for bad in [
+            &[][..],
+            &["--accuracy"],
+            &["--accuracy", "-0.1"],
+            &["--accuracy", "0"],
+            &["--accuracy", "NaN"],
+            &["--accuracy", "inf"],
+            &["--accuracy", "abc"],
+            &["--accuracy", "0.1", "--frobnicate"],
+            &["--accuracy", "0.1", "--kp", "3"],
+            &["--accuracy", "0.1", "--k", "-200"],
+            &["--accuracy", "0.1", "--accuracy", "0.2"],
+            &["--accuracy", "0.1", "--model"],
+            &["--accuracy", "0.1", "--model", "web"],
+            &["--accuracy", "0.1", "--model", "wire"],
+            &["--tension-accuracy", "1", "--model", "belt", "--accuracy", "0.1"],
+            &["--model", "web", "--tension-accuracy", "0"],
+            &["--model", "web", "--tension-accuracy", "1", "--rw", "0"],
+            &["--accuracy", "0.1", "--model", "belt", "--model=belt"],
+            &["--accuracy", "0.1", "--r1", "0.02"],
+            &["--accuracy", "0.1", "--model", "belt", "--rg2", "0"],
+        ] {
+            let Err(e) = parse(COMMAND, &args(bad)) else {
+                panic!("{bad:?} accepted")
+            };
+            // The binary prints `error: ` and this line: one line, whatever the reason.
+            assert!(!e.line().contains('\n') && !e.line().is_empty(), "{bad:?}: {e:?}");
+        }
+    }
+
+    #[test]
+    fn the_usage_comes_with_an_unknown_argument_and_a_missing_requirement() {
+        let unknown = parse(COMMAND, &args(&["--accuracy", "0.1", "--frobnicate"])).unwrap_err();
+        assert_eq!(unknown.message, "unknown argument `--frobnicate`");
+        assert_eq!(
+            unknown.line(),
+            "unknown argument `--frobnicate`; see `backlash design --help`"
+        );
+        assert_eq!(unknown.usage, Some(design_usage(COMMAND)));
+        let missing = parse("cargo xtask design", &args(&["--model", "web"])).unwrap_err();
+        assert_eq!(
+            missing.with_usage_text(),
+            format!(
+                "--tension-accuracy EPS_T is required with --model web\n\n{}",
+                design_usage("cargo xtask design")
+            )
+        );
+        let negative = parse(COMMAND, &args(&["--accuracy", "-1"])).unwrap_err();
+        assert_eq!(
+            (negative.line(), negative.usage),
+            ("--accuracy = -1 must be > 0".into(), None)
+        );
+    }
+
+    #[test]
+    fn the_usage_names_the_command() {
+        let usage = design_usage("cargo xtask design");
+        let mut lines = usage.lines();
+        assert_eq!(
+            lines.next(),
+            Some("usage: cargo xtask design --accuracy EPS [--model shaft|belt] [options] [--json]")
+        );
+        assert_eq!(
+            lines.next(),
+            Some("       cargo xtask design --model web --tension-accuracy EPS_T [--accuracy EPS] [options] [--json]")
+        );
+        assert_eq!(lines.next(), Some(""));
+        assert_eq!(
+            design("backlash design", &args(&["--help"])),
+            Ok(design_usage("backlash design"))
+        );
+        assert_eq!(run(&args(&["design", "-h"])), Ok(design_usage("backlash design")));
+    }
+
+    #[test]
+    fn the_command_takes_design_and_help_only() {
+        assert_eq!(run(&args(&["--help"])), Ok(USAGE.to_string()));
+        assert_eq!(run(&args(&["help"])), Ok(USAGE.to_string()));
+        let unknown = run(&args(&["desing", "--accuracy", "0.02"])).unwrap_err();
+        assert_eq!(unknown.line(), "unknown command `desing`; see `backlash --help`");
+        assert!(run(&[]).is_err());
+    }
+
+    #[test]
+    fn the_belt_form_starts_from_the_belt_fmu_and_takes_its_flags() {
+        let list = ["--model", "belt", "--accuracy", "0.5", "--rg1=0.02", "--k", "3e5"];
+        let Some((Request::Speed(r), _)) = parse(COMMAND, &args(&list)).unwrap() else {
+            panic!("not the speed design")
+        };
+        let Geometry::Belt {
+            k_b, r_1, r_g1, delta, ..
+        } = r.params.geometry
+        else {
+            panic!("not the belt form: {:?}", r.params.geometry)
+        };
+        // BacklashBelt.fmu's start values (docs/model.md §4), two of them overridden.
+        assert_eq!((k_b, r_1, r_g1, delta), (3e5, 0.02, 0.02, 5e-5));
+        assert_eq!((r.params.j_m, r.params.j_l), (1e-4, 5e-3));
+        let names: Vec<_> = named_parameters(&r.params).into_iter().map(|(n, _)| n).collect();
+        assert_eq!(
+            names,
+            ["J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta"]
+        );
+    }
+
+    #[test]
+    fn parses_both_flag_forms() {
+        let (Request::Speed(r), json) = parse(COMMAND, &args(&["--accuracy=0.02", "--delta", "1e-3", "--json"]))
+            .unwrap()
+            .unwrap()
+        else {
+            panic!("not the speed design")
+        };
+        assert_eq!(r.accuracy, 0.02);
+        assert_eq!(study::half_gap(&r.params), 1e-3);
+        assert!(json && r.gains.is_none());
+    }
+
+    #[test]
+    fn the_web_form_takes_the_film_line_and_its_flags() {
+        let list = [
+            "--model=web",
+            "--tension-accuracy",
+            "20",
+            "--ea",
+            "2e5",
+            "--kp-t",
+            "0.01",
+        ];
+        let Some((Request::Web(r), false)) = parse(COMMAND, &args(&list)).unwrap() else {
+            panic!("not the web design")
+        };
+        // BacklashWeb.fmu's span (docs/model.md §8), EA overridden.
+        assert_eq!((r.web.r_w, r.web.l_w, r.web.ea, r.web.v_ref), (0.05, 1.0, 2e5, 2.0));
+        assert_eq!((r.tension_accuracy, r.accuracy), (20.0, None));
+        assert_eq!(r.tension_gains, PiGains { kp: 0.01, ki: 0.0 });
+        assert_eq!(r.drive.web, None);
+    }
+}

@@ -1,0 +1,143 @@
+//! The design study: the paper's open question ("permissible values of compliance and backlash
+//! to yield a given accuracy") answered for each model's drive train.
+//!
+//! - [`speed`]: the shaft and belt forms (docs/model.md §1) under a PI loop on the motor speed:
+//!   the largest half gap Δ and the stiffness window that keep `bound_sup` (docs/model.md §3)
+//!   within a load-speed accuracy;
+//! - [`web`]: the belt drive pulling one web span (docs/model.md §8): the same for `bound_T_sup`
+//!   and a tension accuracy (and the load speed's, if given);
+//! - [`study`]: the computations both rest on (the best-damped gain rule, Δ_max, the stiffness
+//!   scan with its refined edges);
+//! - [`cli`]: the `backlash design` command line (also `cargo xtask design`) read into a request
+//!   and its answer written as text or JSON, as strings.
+//!
+//! Pure computation: no printing, no files, no process exit; every failure is an `Err` with its
+//! reason. The plant and its bounds come from the physics crate, the models' default parameters
+//! from the interface description (their start values).
+
+pub mod cli;
+mod layout;
+pub mod speed;
+pub mod study;
+pub mod web;
+
+pub use backlash_physics::{Geometry, PiGains, PlantParams};
+pub use study::DesignError;
+
+/// The drive train a design is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    Shaft,
+    Belt,
+    /// The belt drive pulling a web span (docs/model.md §8).
+    Web,
+}
+
+impl Form {
+    /// The form's name on the command line and in the answers.
+    pub fn name(self) -> &'static str {
+        match self {
+            Form::Shaft => "shaft",
+            Form::Belt => "belt",
+            Form::Web => "web",
+        }
+    }
+}
+
+/// The plant parameters at the start values of the model `identifier` (its FMU's defaults).
+pub fn described_params(identifier: &'static str) -> Result<PlantParams, DesignError> {
+    model_description::default_plant_params(identifier).ok_or(DesignError::NoModel { identifier })
+}
+
+/// The default drive of each form: the paper's rig (shaft, Δ = 0.775 mm read as rad),
+/// BacklashBelt.fmu's parameter start values (belt), and BacklashWeb.fmu's drive (the same belt
+/// drive; its span is [`web::film_line`]).
+pub fn default_params(form: Form) -> Result<PlantParams, DesignError> {
+    Ok(match form {
+        Form::Shaft => PlantParams::paper_rig(0.775e-3),
+        Form::Belt => described_params("BacklashBelt")?,
+        Form::Web => PlantParams {
+            web: None,
+            ..described_params("BacklashWeb")?
+        },
+    })
+}
+
+/// The drive's parameters by their FMU names, in the order of the text and JSON answers.
+pub fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
+    let mut named = vec![
+        ("J_m", params.j_m),
+        ("J_L", params.j_l),
+        ("b_m", params.b_m),
+        ("b_L", params.b_l),
+    ];
+    match params.geometry {
+        Geometry::Shaft { k, delta } => named.extend([("k", k), ("Delta", delta)]),
+        Geometry::Belt {
+            k_b,
+            r_1,
+            r_2,
+            r_g1,
+            r_g2,
+            delta,
+        } => named.extend([
+            ("K_b", k_b),
+            ("R_1", r_1),
+            ("R_2", r_2),
+            ("R_g1", r_g1),
+            ("R_g2", r_g2),
+            ("Delta", delta),
+        ]),
+    }
+    named
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_are_the_fmus_start_values() {
+        // BacklashBelt.fmu's start values (docs/model.md §4), read here as numbers.
+        let belt = default_params(Form::Belt).unwrap();
+        assert_eq!(
+            named_parameters(&belt),
+            [
+                ("J_m", 1e-4),
+                ("J_L", 5e-3),
+                ("b_m", 1e-4),
+                ("b_L", 1e-3),
+                ("K_b", 2e5),
+                ("R_1", 0.02),
+                ("R_2", 0.04),
+                ("R_g1", 0.015),
+                ("R_g2", 0.045),
+                ("Delta", 5e-5),
+            ]
+        );
+        assert_eq!(belt.web, None);
+        // BacklashWeb.fmu drives its span with BacklashBelt's drive.
+        assert_eq!(default_params(Form::Web).unwrap(), belt);
+        assert_eq!(
+            named_parameters(&default_params(Form::Shaft).unwrap()),
+            [
+                ("J_m", 2.28),
+                ("J_L", 2.55),
+                ("b_m", 0.05),
+                ("b_L", 0.05),
+                ("k", 200.0),
+                ("Delta", 0.775e-3)
+            ]
+        );
+    }
+
+    #[test]
+    fn a_model_the_description_lacks_is_an_error() {
+        assert_eq!(
+            described_params("BacklashGear"),
+            Err(DesignError::NoModel {
+                identifier: "BacklashGear"
+            })
+        );
+    }
+}
