@@ -17,9 +17,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use backlash_fmu::physics::{PiGains, PlantParams};
+use backlash_design::{speed, web, Form, PiGains, PlantParams};
 
-use crate::design::{self as design_cmd, web, Form, Request};
 use crate::util::{self, step};
 use crate::{fmu, python};
 
@@ -66,19 +65,18 @@ pub fn run(args: &[String]) -> Result<(), String> {
     step("design: gains by the best-damped rule, delta_max and k_min");
     let results = util::repo_root().join("results");
     fs::create_dir_all(&results).map_err(|e| format!("creating {}: {e}", results.display()))?;
-    let request = Request {
+    let request = speed::Request {
         accuracy: DEMO_ACCURACY,
         params: PlantParams::paper_rig(DEMO_DELTA),
         gains: None,
     };
-    let answer = design_cmd::solve(request)?;
+    let answer = speed::solve(request)?;
     println!(
         "PI gains (best-damped rule): Kp = {:.6} N.s/m, Ki = {:.6} N/m; smallest damping ratio {:.4}",
         answer.gains.kp, answer.gains.ki, answer.min_damping
     );
     let design_json = results.join("design.json");
-    fs::write(&design_json, design_cmd::to_json(&answer))
-        .map_err(|e| format!("writing {}: {e}", design_json.display()))?;
+    fs::write(&design_json, speed::to_json(&answer)).map_err(|e| format!("writing {}: {e}", design_json.display()))?;
     println!(
         "wrote {} ({:.2} s)",
         util::shown(&design_json),
@@ -89,18 +87,15 @@ pub fn run(args: &[String]) -> Result<(), String> {
     let web_answer = web::solve(web::Request {
         tension_accuracy: DEMO_TENSION_ACCURACY,
         accuracy: None,
-        drive: design_cmd::default_params(Form::Web),
-        web: web::film_line(),
+        drive: backlash_design::default_params(Form::Web).map_err(|e| e.to_string())?,
+        web: web::film_line().map_err(|e| e.to_string())?,
         gains: None,
         tension_gains: PiGains::default(),
     })?;
     println!("{}", web::to_text(&web_answer));
     let design_web_json = results.join("design_web.json");
-    fs::write(
-        &design_web_json,
-        design_cmd::laid_out(&web::to_json(&web_answer)) + "\n",
-    )
-    .map_err(|e| format!("writing {}: {e}", design_web_json.display()))?;
+    fs::write(&design_web_json, web::to_json(&web_answer) + "\n")
+        .map_err(|e| format!("writing {}: {e}", design_web_json.display()))?;
     println!(
         "wrote {} ({:.2} s)",
         util::shown(&design_web_json),

@@ -4,7 +4,6 @@ mod abi;
 mod bench;
 mod cross;
 mod demo;
-mod design;
 mod documentation;
 mod fmu;
 mod platform;
@@ -31,7 +30,7 @@ commands:
             library under qemu against linux64
   pytest    the Python part alone: .venv, pytest on target/fmu/*.fmu, the README's fmpy example
   demo      the main demonstration (see `cargo xtask demo --help`)
-  design    the design study (see `cargo xtask design --help`)
+  design    the design study: `backlash design` of the design crate (see `cargo xtask design --help`)
   sweep     tolerance sweep on Dask: many drives drawn from tolerances (see `cargo xtask sweep --help`)
   bench     every benchmark, and BENCHMARKS.md generated from the run
   help      this text";
@@ -59,7 +58,7 @@ fn main() {
         "cross-test" => cross::run(rest),
         "pytest" => python::run(rest),
         "demo" => demo::run(rest),
-        "design" => design::run(rest),
+        "design" => design(rest),
         "sweep" => sweep::run(rest),
         "bench" => bench::run(rest),
         "help" | "-h" | "--help" => {
@@ -72,4 +71,13 @@ fn main() {
         eprintln!("\nerror: {message}");
         std::process::exit(1);
     }
+}
+
+/// `cargo xtask design`: the design crate's `backlash design` under this name, the same answers
+/// and usage; a command line it refuses is reported as every command's error is here (its
+/// reason, with the usage when that explains it; exit status 1).
+fn design(args: &[String]) -> Result<(), String> {
+    let text = backlash_design::cli::design("cargo xtask design", args).map_err(|e| e.with_usage_text())?;
+    println!("{text}");
+    Ok(())
 }
