@@ -65,31 +65,7 @@ pub fn default_params(form: Form) -> Result<PlantParams, DesignError> {
 
 /// The drive's parameters by their FMU names, in the order of the text and JSON answers.
 pub fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
-    let mut named = vec![
-        ("J_m", params.j_m),
-        ("J_L", params.j_l),
-        ("b_m", params.b_m),
-        ("b_L", params.b_l),
-    ];
-    match params.geometry {
-        Geometry::Shaft { k, delta } => named.extend([("k", k), ("Delta", delta)]),
-        Geometry::Belt {
-            k_b,
-            r_1,
-            r_2,
-            r_g1,
-            r_g2,
-            delta,
-        } => named.extend([
-            ("K_b", k_b),
-            ("R_1", r_1),
-            ("R_2", r_2),
-            ("R_g1", r_g1),
-            ("R_g2", r_g2),
-            ("Delta", delta),
-        ]),
-    }
-    named
+    params.named_drive_train()
 }
 
 #[cfg(test)]

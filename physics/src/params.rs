@@ -88,6 +88,32 @@ impl PlantParams {
         self
     }
 
+    /// The drive train's parameters by their names (docs/model.md §4): J_m, J_L, b_m, b_L, then
+    /// the geometry's (k, Delta or K_b, R_1, R_2, R_g1, R_g2, Delta); the web span's are
+    /// [`WebSpan::named`].
+    pub fn named_drive_train(&self) -> Vec<(&'static str, f64)> {
+        let mut named = vec![("J_m", self.j_m), ("J_L", self.j_l), ("b_m", self.b_m), ("b_L", self.b_l)];
+        match self.geometry {
+            Geometry::Shaft { k, delta } => named.extend([("k", k), ("Delta", delta)]),
+            Geometry::Belt {
+                k_b,
+                r_1,
+                r_2,
+                r_g1,
+                r_g2,
+                delta,
+            } => named.extend([
+                ("K_b", k_b),
+                ("R_1", r_1),
+                ("R_2", r_2),
+                ("R_g1", r_g1),
+                ("R_g2", r_g2),
+                ("Delta", delta),
+            ]),
+        }
+        named
+    }
+
     /// The paper's rectilinear rig (docs/model.md §4) in shaft form, with half gap `delta`.
     pub fn paper_rig(delta: f64) -> Self {
         PlantParams {
