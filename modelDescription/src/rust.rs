@@ -35,7 +35,11 @@ fn input_lines(models: &[Model]) -> Vec<&'static str> {
         inputs.sort_by_key(|v| v.vr);
         for (slot, v) in inputs.iter().enumerate() {
             match lines.get(slot) {
-                Some(s) => assert_eq!(*s, v.symbol, "{}: input {} takes another model's slot {slot}", m.identifier, v.name),
+                Some(s) => assert_eq!(
+                    *s, v.symbol,
+                    "{}: input {} takes another model's slot {slot}",
+                    m.identifier, v.name
+                ),
                 None => lines.push(v.symbol),
             }
         }
@@ -56,7 +60,10 @@ fn sources(models: &[Model]) -> Vec<(&'static str, String)> {
             let source = if v.causality == Causality::Parameter {
                 "Source::Parameter".to_string()
             } else if v.causality == Causality::Input {
-                let slot = lines.iter().position(|s| *s == v.symbol).expect("every input has a slot");
+                let slot = lines
+                    .iter()
+                    .position(|s| *s == v.symbol)
+                    .expect("every input has a slot");
                 format!("Source::Input({slot})")
             } else if v.is_continuous_state() {
                 format!("Source::State(StateEntry::{})", v.symbol)
@@ -119,11 +126,18 @@ pub fn variable_tables() -> String {
             "        instantiation_token: {:?},",
             xml3::instantiation_token(m.identifier)
         );
-        let _ = writeln!(out, "        plant_params: model_description::MODELS[{i}].plant_params,");
+        let _ = writeln!(
+            out,
+            "        plant_params: model_description::MODELS[{i}].plant_params,"
+        );
         let _ = writeln!(out, "        web: {:?},", default_plant(m).web().is_some());
         let count = |keep: fn(&crate::Var) -> bool| m.variables.iter().filter(|v| keep(v)).count();
         let _ = writeln!(out, "        states: {},", count(crate::Var::is_continuous_state));
-        let _ = writeln!(out, "        inputs: {},", count(|v| v.causality == crate::Causality::Input));
+        let _ = writeln!(
+            out,
+            "        inputs: {},",
+            count(|v| v.causality == crate::Causality::Input)
+        );
         let e = m.default_experiment;
         let _ = writeln!(
             out,

@@ -21,7 +21,10 @@ const INPUT_LINES: usize = 4;
 
 /// The parameters of `model` at the generic point, by name.
 fn generic_values(model: &Model) -> Vec<(&'static str, f64)> {
-    parameters(model).into_iter().map(|(name, x)| (name, if x == 0.0 { 1.0 } else { x })).collect()
+    parameters(model)
+        .into_iter()
+        .map(|(name, x)| (name, if x == 0.0 { 1.0 } else { x }))
+        .collect()
 }
 
 /// The generic state z = [θ_m, ω_m, θ_L, ω_L, T] of `plant`: on the positive flank (u = 2.4 g),
@@ -57,7 +60,10 @@ impl Quantity {
             Quantity::Rate(i) => {
                 let span = plant.web().map_or(0.0, |w| w.forcing(v_in, t_in));
                 let rates = plant.rates(&state, tau_m, tau_l);
-                vec![rates.get(i).copied().unwrap_or_else(|| plant.tension_rate(&state, span))]
+                vec![rates
+                    .get(i)
+                    .copied()
+                    .unwrap_or_else(|| plant.tension_rate(&state, span))]
             }
             Quantity::Force => vec![plant.force(state.u)],
             Quantity::Indicators => plant.event_indicators(&state).to_vec(),
@@ -94,7 +100,9 @@ fn parameter_dependencies(model: &Model, quantity: Quantity) -> Vec<&'static str
 /// The index in z of the state `der` is the derivative of: the continuous states in
 /// value-reference order are z's entries in order.
 fn state_index(model: &Model, der: &Var) -> usize {
-    let of = der.derivative_of.unwrap_or_else(|| panic!("{} is not a state derivative", der.name));
+    let of = der
+        .derivative_of
+        .unwrap_or_else(|| panic!("{} is not a state derivative", der.name));
     in_vr_order(model, Var::is_continuous_state)
         .iter()
         .position(|v| v.vr == of)
@@ -109,11 +117,22 @@ pub(crate) fn derivative_dependencies(model: &Model, der: &Var) -> Vec<&'static 
     let plant = plant_of(model, &generic_values(model));
     let (dz, dinputs) = plant.jacobian(&state_of(&plant, &generic_state(&plant)));
     let i = state_index(model, der);
-    let (dv_in, dt_in) = plant.web().map_or((0.0, 0.0), |w| (w.forcing(1.0, 0.0), w.forcing(0.0, 1.0)));
-    let by_line = [dinputs[i][0], dinputs[i][1], dinputs[i][2] * dv_in, dinputs[i][2] * dt_in];
+    let (dv_in, dt_in) = plant
+        .web()
+        .map_or((0.0, 0.0), |w| (w.forcing(1.0, 0.0), w.forcing(0.0, 1.0)));
+    let by_line = [
+        dinputs[i][0],
+        dinputs[i][1],
+        dinputs[i][2] * dv_in,
+        dinputs[i][2] * dt_in,
+    ];
     let states = in_vr_order(model, Var::is_continuous_state);
     let inputs = in_vr_order(model, |v| v.causality == Causality::Input);
-    assert!(inputs.len() <= INPUT_LINES, "{}: more inputs than the plant has", model.identifier);
+    assert!(
+        inputs.len() <= INPUT_LINES,
+        "{}: more inputs than the plant has",
+        model.identifier
+    );
     let states = states.iter().zip(dz[i]).filter(|(_, d)| *d != 0.0);
     let inputs = inputs.iter().zip(by_line).filter(|(_, d)| *d != 0.0);
     states.chain(inputs).map(|(v, _)| v.name).collect()
@@ -183,10 +202,20 @@ mod tests {
         for id in ["BacklashShaft", "BacklashBelt", "BacklashWeb"] {
             assert_eq!(deps(id, "der(theta_m)"), ["omega_m"], "{id}");
             assert_eq!(deps(id, "der(theta_L)"), ["omega_L"], "{id}");
-            assert_eq!(deps(id, "der(omega_m)"), ["omega_m", "tau_m", "theta_L", "theta_m"], "{id}");
+            assert_eq!(
+                deps(id, "der(omega_m)"),
+                ["omega_m", "tau_m", "theta_L", "theta_m"],
+                "{id}"
+            );
         }
-        assert_eq!(deps("BacklashBelt", "der(omega_L)"), ["omega_L", "tau_L", "theta_L", "theta_m"]);
-        assert_eq!(deps("BacklashWeb", "der(omega_L)"), ["T", "omega_L", "tau_L", "theta_L", "theta_m"]);
+        assert_eq!(
+            deps("BacklashBelt", "der(omega_L)"),
+            ["omega_L", "tau_L", "theta_L", "theta_m"]
+        );
+        assert_eq!(
+            deps("BacklashWeb", "der(omega_L)"),
+            ["T", "omega_L", "tau_L", "theta_L", "theta_m"]
+        );
         assert_eq!(deps("BacklashWeb", "der(T)"), ["T", "T_in", "omega_L", "v_in"]);
 
         let params = |id: &str, q: Quantity| {

@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, hash_name, initial_attribute, output_dependencies,
-    variability_name, vr_of, write_type_attributes, write_units_categories_and_experiment, EVENT_INDICATORS,
+    causality_name, hash_name, initial_attribute, output_dependencies, variability_name, vr_of, write_type_attributes,
+    write_units_categories_and_experiment, EVENT_INDICATORS,
 };
 use crate::structure::{derivative_dependencies, initial_dependencies};
 use crate::{model, Causality, Model, Type};

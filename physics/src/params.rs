@@ -92,7 +92,12 @@ impl PlantParams {
     /// the geometry's (k, Delta or K_b, R_1, R_2, R_g1, R_g2, Delta); the web span's are
     /// [`WebSpan::named`].
     pub fn named_drive_train(&self) -> Vec<(&'static str, f64)> {
-        let mut named = vec![("J_m", self.j_m), ("J_L", self.j_l), ("b_m", self.b_m), ("b_L", self.b_l)];
+        let mut named = vec![
+            ("J_m", self.j_m),
+            ("J_L", self.j_l),
+            ("b_m", self.b_m),
+            ("b_L", self.b_l),
+        ];
         match self.geometry {
             Geometry::Shaft { k, delta } => named.extend([("k", k), ("Delta", delta)]),
             Geometry::Belt {

@@ -359,7 +359,11 @@ fn with_state_nominals(mut model: Model) -> Model {
     let nominals = default_plant(&model).state_nominals();
     let mut states: Vec<&mut Var> = model.variables.iter_mut().filter(|v| v.is_continuous_state()).collect();
     states.sort_by_key(|v| v.vr);
-    assert!(states.len() <= nominals.len(), "{}: more states than the plant has", model.identifier);
+    assert!(
+        states.len() <= nominals.len(),
+        "{}: more states than the plant has",
+        model.identifier
+    );
     for (v, nominal) in states.into_iter().zip(nominals) {
         v.nominal = Some(nominal);
     }
@@ -388,7 +392,9 @@ pub(crate) fn parameters(model: &Model) -> Vec<(&'static str, f64)> {
         .iter()
         .filter(|v| v.causality == Causality::Parameter)
         .map(|v| {
-            let start = v.start.unwrap_or_else(|| panic!("{}: parameter {} has no start", model.identifier, v.name));
+            let start = v
+                .start
+                .unwrap_or_else(|| panic!("{}: parameter {} has no start", model.identifier, v.name));
             (v.name, start)
         })
         .collect()

@@ -3,10 +3,10 @@
 
 use backlash_physics::{Geometry, PlantParams};
 
+use super::Transmission;
 use super::{
     common_head, drive_train, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef,
 };
-use super::Transmission;
 use crate::{DefaultExperiment, Model, Range};
 
 pub(super) const MODEL: ModelDef = ModelDef {
