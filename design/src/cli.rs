@@ -356,7 +356,6 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::named_parameters;
 
     const COMMAND: &str = "backlash design";
 
@@ -464,7 +463,7 @@ mod tests {
         // BacklashBelt.fmu's start values (docs/model.md §4), two of them overridden.
         assert_eq!((k_b, r_1, r_g1, delta), (3e5, 0.02, 0.02, 5e-5));
         assert_eq!((r.params.j_m, r.params.j_l), (1e-4, 5e-3));
-        let names: Vec<_> = named_parameters(&r.params).into_iter().map(|(n, _)| n).collect();
+        let names: Vec<_> = r.params.named_drive_train().into_iter().map(|(n, _)| n).collect();
         assert_eq!(
             names,
             ["J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta"]

@@ -63,11 +63,6 @@ pub fn default_params(form: Form) -> Result<PlantParams, DesignError> {
     })
 }
 
-/// The drive's parameters by their FMU names, in the order of the text and JSON answers.
-pub fn named_parameters(params: &PlantParams) -> Vec<(&'static str, f64)> {
-    params.named_drive_train()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -77,7 +72,7 @@ mod tests {
         // BacklashBelt.fmu's start values (docs/model.md §4), read here as numbers.
         let belt = default_params(Form::Belt).unwrap();
         assert_eq!(
-            named_parameters(&belt),
+            belt.named_drive_train(),
             [
                 ("J_m", 1e-4),
                 ("J_L", 5e-3),
@@ -95,7 +90,7 @@ mod tests {
         // BacklashWeb.fmu drives its span with BacklashBelt's drive.
         assert_eq!(default_params(Form::Web).unwrap(), belt);
         assert_eq!(
-            named_parameters(&default_params(Form::Shaft).unwrap()),
+            default_params(Form::Shaft).unwrap().named_drive_train(),
             [
                 ("J_m", 2.28),
                 ("J_L", 2.55),

@@ -9,7 +9,7 @@ use serde_json::{json, Value};
 use backlash_physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
 
 use crate::study::{self, Crossing, GainDesign, StiffnessStudy};
-use crate::{named_parameters, Form};
+use crate::Form;
 
 /// The inputs of one design run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -104,7 +104,11 @@ pub fn to_text(a: &Answer) -> String {
     let p = &a.request.params;
     let form = form_of(p);
     let (k_unit, delta_unit) = units(form);
-    let listed: Vec<String> = named_parameters(p).iter().map(|(n, v)| format!("{n} = {v}")).collect();
+    let listed: Vec<String> = p
+        .named_drive_train()
+        .iter()
+        .map(|(n, v)| format!("{n} = {v}"))
+        .collect();
     let mut out = vec![format!("plant ({} form): {}", form.name(), listed.join(", "))];
     out.push(match &a.rule {
         Some(_) => format!(
@@ -208,7 +212,7 @@ pub fn to_value(a: &Answer) -> Value {
     };
     let mut plant = serde_json::Map::new();
     plant.insert("form".into(), json!(form_of(p).name()));
-    for (name, value) in named_parameters(p) {
+    for (name, value) in p.named_drive_train() {
         plant.insert(name.into(), json!(value));
     }
     json!({

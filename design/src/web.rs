@@ -177,7 +177,7 @@ pub fn solve(request: Request) -> Result<Answer, String> {
 }
 
 fn parameters(a: &Answer) -> Vec<(&'static str, f64)> {
-    let mut named = crate::named_parameters(&a.request.drive);
+    let mut named = a.request.drive.named_drive_train();
     named.extend(a.request.web.named());
     named
 }

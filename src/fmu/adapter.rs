@@ -8,7 +8,7 @@
 //! mapping ([`ModelInfo::plant_params`]).
 
 use super::simulation::Simulation;
-use super::variables::{model_by_identifier, ModelInfo, Symbol, MODELS};
+use super::variables::{ModelInfo, Symbol, MODELS};
 use crate::physics::{Inputs, PiGains, Plant, PlantParams, PlantState};
 
 /// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`].
@@ -97,7 +97,7 @@ impl StateEntry {
 
     /// The entries of `model`'s state: T only on a web line.
     pub fn of_model(model: &ModelInfo) -> &'static [StateEntry] {
-        &StateEntry::ALL[..state_count(model)]
+        &StateEntry::ALL[..model.states]
     }
 
     /// Its value in `state`.
@@ -111,11 +111,6 @@ impl StateEntry {
             StateEntry::Tension => state.tension,
         }
     }
-}
-
-/// How many continuous states `model` has: 4, and 5 on a web line.
-pub fn state_count(model: &ModelInfo) -> usize {
-    model.states
 }
 
 impl Calculated {
@@ -170,8 +165,8 @@ pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
 /// (docs/model.md §4). Panics if the library serves no such model (for the tests, benches and
 /// tools that name one).
 pub fn default_plant_params(identifier: &str) -> PlantParams {
-    let model = model_by_identifier(identifier).unwrap_or_else(|| panic!("the library serves no model {identifier}"));
-    plant_params(model, &start_values(model))
+    model_description::default_plant_params(identifier)
+        .unwrap_or_else(|| panic!("the library serves no model {identifier}"))
 }
 
 /// The PI gains the bounds assume (docs/model.md §3): the speed loop's, and the tension

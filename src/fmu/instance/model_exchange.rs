@@ -86,7 +86,7 @@ impl Instance {
 
     /// The number of continuous states (FMI 3.0 asks; FMI 2.0 descriptions say).
     pub(crate) fn continuous_state_count(&self) -> usize {
-        adapter::state_count(self.model)
+        self.model.states
     }
 
     /// The number of event indicators: u − g and u + g.
