@@ -2,9 +2,9 @@
 //! design ...`) read into a request, solved, and the answer written as text or JSON. Everything
 //! here returns strings; the caller prints them.
 
-use backlash_physics::{Geometry, PiGains};
-
-use crate::{default_params, speed, study, web, Form};
+pub use crate::request::Request;
+use crate::request::{self, form_named, Setting, Vocabulary};
+use crate::Form;
 
 /// The `backlash` command's usage.
 pub const USAGE: &str = "\
@@ -117,6 +117,16 @@ impl CliError {
     }
 }
 
+/// The `backlash` command as a process runs it: (exit status, text for stdout, text for
+/// stderr), each text with its final newline; a command line without an answer gives one
+/// `error:` line and [`CliError::EXIT_STATUS`].
+pub fn command(args: &[String]) -> (i32, String, String) {
+    match run(args) {
+        Ok(text) => (0, format!("{text}\n"), String::new()),
+        Err(e) => (CliError::EXIT_STATUS, String::new(), format!("error: {}\n", e.line())),
+    }
+}
+
 /// The `backlash` command: `args` without the program name. `Ok` holds the text to print (an
 /// answer or a usage), without its final newline.
 pub fn run(args: &[String]) -> Result<String, CliError> {
@@ -138,74 +148,51 @@ pub fn design(command: &str, args: &[String]) -> Result<String, CliError> {
     let Some((request, json)) = parse(command, args)? else {
         return Ok(design_usage(command));
     };
-    let fail = |message: String| CliError::new(command, message);
-    Ok(match request {
-        Request::Speed(request) => {
-            let answer = speed::solve(request).map_err(fail)?;
-            if json {
-                speed::to_json(&answer)
-            } else {
-                speed::to_text(&answer)
-            }
-        }
-        Request::Web(request) => {
-            let answer = web::solve(request).map_err(fail)?;
-            if json {
-                web::to_json(&answer)
-            } else {
-                web::to_text(&answer)
-            }
-        }
-    })
+    let answer = if json {
+        request.answer_json()
+    } else {
+        request.answer_text()
+    };
+    answer.map_err(|message| CliError::new(command, message))
 }
 
-/// What the command line asks for.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Request {
-    /// The speed design of the shaft or belt form.
-    Speed(speed::Request),
-    /// The tension design of the web line.
-    Web(web::Request),
-}
-
-/// Flags that take a number, and the forms each belongs to (all forms when empty).
-const NUMBER_FLAGS: [(&str, &[Form]); 20] = [
-    ("--accuracy", &[]),
-    ("--delta", &[]),
-    ("--k", &[]),
-    ("--kp", &[]),
-    ("--ki", &[]),
-    ("--jm", &[]),
-    ("--jl", &[]),
-    ("--bm", &[]),
-    ("--bl", &[]),
-    ("--r1", &[Form::Belt, Form::Web]),
-    ("--r2", &[Form::Belt, Form::Web]),
-    ("--rg1", &[Form::Belt, Form::Web]),
-    ("--rg2", &[Form::Belt, Form::Web]),
-    ("--tension-accuracy", &[Form::Web]),
-    ("--kp-t", &[Form::Web]),
-    ("--ki-t", &[Form::Web]),
-    ("--rw", &[Form::Web]),
-    ("--lw", &[Form::Web]),
-    ("--ea", &[Form::Web]),
-    ("--vref", &[Form::Web]),
+/// The flags that take a number, and the setting each one gives ([`request::SETTINGS`]; `--k` is
+/// the stiffness of the form: `k` or `K_b`).
+const NUMBER_FLAGS: [(&str, &str); 20] = [
+    ("--accuracy", "accuracy"),
+    ("--delta", "Delta"),
+    ("--k", STIFFNESS),
+    ("--kp", "Kp"),
+    ("--ki", "Ki"),
+    ("--jm", "J_m"),
+    ("--jl", "J_L"),
+    ("--bm", "b_m"),
+    ("--bl", "b_L"),
+    ("--r1", "R_1"),
+    ("--r2", "R_2"),
+    ("--rg1", "R_g1"),
+    ("--rg2", "R_g2"),
+    ("--tension-accuracy", "tension_accuracy"),
+    ("--kp-t", "Kp_T"),
+    ("--ki-t", "Ki_T"),
+    ("--rw", "R_w"),
+    ("--lw", "L_w"),
+    ("--ea", "EA"),
+    ("--vref", "v_ref"),
 ];
 
+/// Stands for the form's stiffness in [`NUMBER_FLAGS`].
+const STIFFNESS: &str = "";
+
 /// Parses the design command's flags (`command` names it in errors); `Ok(None)` for `--help`,
-/// else the request and whether the answer is wanted as JSON.
+/// else the request and whether the answer is wanted as JSON. The values are checked and
+/// applied by [`request::build`].
 pub fn parse(command: &str, args: &[String]) -> Result<Option<(Request, bool)>, CliError> {
     let refuse = |message: String| CliError::new(command, message);
     let refuse_with_usage = |message: String| CliError::with_usage(command, message, design_usage(command));
     let form = model_choice(args).map_err(refuse)?;
-    let mut accuracy = None;
-    let mut tension_accuracy = None;
-    let mut params = default_params(form).map_err(|e| refuse(e.to_string()))?;
-    let mut line = web::film_line().map_err(|e| refuse(e.to_string()))?;
-    let (mut kp, mut ki) = (None, None);
-    let mut tension_gains = PiGains::default();
     let mut json = false;
-    let mut seen: Vec<String> = Vec::new();
+    let mut settings: Vec<Setting> = Vec::new();
     let mut it = args.iter();
     while let Some(arg) = it.next() {
         // Accept both `--flag value` and `--flag=value`.
@@ -228,17 +215,14 @@ pub fn parse(command: &str, args: &[String]) -> Result<Option<(Request, bool)>, 
             }
             _ => {}
         }
-        let Some((_, forms)) = NUMBER_FLAGS.iter().find(|(f, _)| *f == flag) else {
+        let Some(&(flag, name)) = NUMBER_FLAGS.iter().find(|(f, _)| *f == flag) else {
             return Err(refuse_with_usage(format!("unknown argument `{arg}`")));
         };
-        if !forms.is_empty() && !forms.contains(&form) {
-            let names: Vec<&str> = forms.iter().map(|f| f.name()).collect();
-            return Err(refuse(format!("{flag} applies to --model {} only", names.join(" or "))));
-        }
-        if seen.iter().any(|s| s == flag) {
-            return Err(refuse(format!("{flag} given twice")));
-        }
-        seen.push(flag.to_string());
+        let name = match (name, form) {
+            (STIFFNESS, Form::Shaft) => "k",
+            (STIFFNESS, _) => "K_b",
+            (name, _) => name,
+        };
         let text = match inline {
             Some(v) => v,
             None => it
@@ -250,83 +234,17 @@ pub fn parse(command: &str, args: &[String]) -> Result<Option<(Request, bool)>, 
             .trim()
             .parse()
             .map_err(|_| refuse(format!("{flag}: `{text}` is not a number")))?;
-        if !value.is_finite() {
-            return Err(refuse(format!("{flag} = {text} must be finite")));
-        }
-        let positive = |v: f64| {
-            if v > 0.0 {
-                Ok(v)
-            } else {
-                Err(refuse(format!("{flag} = {text} must be > 0")))
-            }
-        };
-        let non_negative = |v: f64| {
-            if v >= 0.0 {
-                Ok(v)
-            } else {
-                Err(refuse(format!("{flag} = {text} must be >= 0")))
-            }
-        };
-        match flag {
-            "--accuracy" => accuracy = Some(positive(value)?),
-            "--tension-accuracy" => tension_accuracy = Some(positive(value)?),
-            "--delta" => params = params.with_half_gap(positive(value)?),
-            "--k" => params = study::with_stiffness(&params, positive(value)?),
-            "--kp" => kp = Some(value),
-            "--ki" => ki = Some(value),
-            "--kp-t" => tension_gains.kp = value,
-            "--ki-t" => tension_gains.ki = value,
-            "--jm" => params.j_m = positive(value)?,
-            "--jl" => params.j_l = positive(value)?,
-            "--bm" => params.b_m = non_negative(value)?,
-            "--bl" => params.b_l = non_negative(value)?,
-            "--rw" => line.r_w = positive(value)?,
-            "--lw" => line.l_w = positive(value)?,
-            "--ea" => line.ea = positive(value)?,
-            "--vref" => line.v_ref = positive(value)?,
-            "--r1" | "--r2" | "--rg1" | "--rg2" => {
-                let Geometry::Belt {
-                    r_1, r_2, r_g1, r_g2, ..
-                } = &mut params.geometry
-                else {
-                    unreachable!("belt flags are refused for the shaft form above");
-                };
-                let slot = match flag {
-                    "--r1" => r_1,
-                    "--r2" => r_2,
-                    "--rg1" => r_g1,
-                    _ => r_g2,
-                };
-                *slot = positive(value)?;
-            }
-            _ => unreachable!("flag list checked above"),
-        }
+        settings.push(Setting {
+            name,
+            label: flag,
+            text,
+            value,
+        });
     }
-    let gains = match (kp, ki) {
-        (Some(kp), Some(ki)) => Some(PiGains { kp, ki }),
-        (None, None) => None,
-        _ => {
-            return Err(refuse(
-                "--kp and --ki go together (or neither, for the best-damped rule)".into(),
-            ))
-        }
-    };
-    let request = match form {
-        Form::Web => Request::Web(web::Request {
-            tension_accuracy: tension_accuracy
-                .ok_or_else(|| refuse_with_usage("--tension-accuracy EPS_T is required with --model web".into()))?,
-            accuracy,
-            drive: params,
-            web: line,
-            gains,
-            tension_gains,
-        }),
-        Form::Shaft | Form::Belt => Request::Speed(speed::Request {
-            accuracy: accuracy.ok_or_else(|| refuse_with_usage("--accuracy EPS is required".into()))?,
-            params,
-            gains,
-        }),
-    };
+    let request = request::build(form, &settings, Vocabulary::Flags).map_err(|r| match r.missing {
+        true => refuse_with_usage(r.message),
+        false => refuse(r.message),
+    })?;
     Ok(Some((request, json)))
 }
 
@@ -343,12 +261,7 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
         if found.is_some() {
             return Err("--model given twice".into());
         }
-        found = Some(match value.as_str() {
-            "shaft" => Form::Shaft,
-            "belt" => Form::Belt,
-            "web" => Form::Web,
-            other => return Err(format!("--model = {other}: choose shaft, belt or web")),
-        });
+        found = Some(form_named(&value).ok_or_else(|| format!("--model = {value}: choose shaft, belt or web"))?);
     }
     Ok(found.unwrap_or(Form::Shaft))
 }
@@ -356,6 +269,8 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::study;
+    use backlash_physics::{Geometry, PiGains};
 
     const COMMAND: &str = "backlash design";
 

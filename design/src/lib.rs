@@ -8,6 +8,8 @@
 //!   and a tension accuracy (and the load speed's, if given);
 //! - [`study`]: the computations both rest on (the best-damped gain rule, Δ_max, the stiffness
 //!   scan with its refined edges);
+//! - [`request`]: a request from named settings (the accuracies, parameters by their FMU
+//!   names), each checked: what the command line and the Python binding both build on;
 //! - [`cli`]: the `backlash design` command line (also `cargo xtask design`) read into a request
 //!   and its answer written as text or JSON, as strings.
 //!
@@ -17,6 +19,7 @@
 
 pub mod cli;
 mod layout;
+pub mod request;
 pub mod speed;
 pub mod study;
 pub mod web;

@@ -54,7 +54,12 @@ impl Standard {
 
     /// The folder its archives are written to.
     pub fn out_dir(&self) -> PathBuf {
-        util::fmu_dir().join(self.subdir)
+        self.out_dir_in(&util::fmu_dir())
+    }
+
+    /// Its folder under `base`, a folder laid out as `target/fmu`.
+    pub fn out_dir_in(&self, base: &Path) -> PathBuf {
+        base.join(self.subdir)
     }
 }
 
@@ -88,11 +93,21 @@ pub fn library_path() -> PathBuf {
     util::target_dir().join("release").join(LIBRARY_FILE)
 }
 
-const USAGE: &str = "usage: cargo xtask fmu [--all-platforms]";
+const USAGE: &str = "usage: cargo xtask fmu [--all-platforms] [--out DIR]
+
+  --out DIR   write the archives to DIR (FMI 3.0 in DIR/fmi3) instead of target/fmu; the
+              Python package's build packs its own copies this way";
 
 pub fn run(args: &[String]) -> Result<(), String> {
-    let platforms = platforms_from_arguments(args, USAGE)?;
-    package(&platforms).map(|_| ())
+    let (out, rest) = match args {
+        [flag, dir, rest @ ..] if flag == "--out" => (Some(PathBuf::from(dir)), rest),
+        [rest @ .., flag, dir] if flag == "--out" => (Some(PathBuf::from(dir)), rest),
+        [.., flag] if flag == "--out" => return Err(format!("--out needs a folder\n{USAGE}")),
+        _ => (None, args),
+    };
+    let platforms = platforms_from_arguments(rest, USAGE)?;
+    let out = out.unwrap_or_else(util::fmu_dir);
+    package_into(&platforms, &out).map(|_| ())
 }
 
 /// `[]` → linux64 only; `[--all-platforms]` → every platform of [`platform::ALL`].
@@ -124,8 +139,13 @@ fn archive_paths() -> Vec<PathBuf> {
 
 /// Builds the library for each of `platforms` (linux64 first; it must be among them) and
 /// writes every model's archive of every standard with the binaries the standard has a folder
-/// for; returns every built library.
+/// for into target/fmu; returns every built library.
 pub fn package(platforms: &[&'static Platform]) -> Result<Vec<Built>, String> {
+    package_into(platforms, &util::fmu_dir())
+}
+
+/// [`package`] into the folder `base` (FMI 2.0 there, FMI 3.0 in its `fmi3/`).
+pub fn package_into(platforms: &[&'static Platform], base: &Path) -> Result<Vec<Built>, String> {
     if !(cfg!(target_os = "linux") && cfg!(target_arch = "x86_64")) {
         return Err("packaging builds on x86_64 Linux only (linux64 natively, the others cross)".into());
     }
@@ -169,7 +189,7 @@ pub fn package(platforms: &[&'static Platform]) -> Result<Vec<Built>, String> {
         return Err("the model-description crate lists no model identifiers".into());
     }
     for standard in STANDARDS {
-        let out_dir = standard.out_dir();
+        let out_dir = standard.out_dir_in(base);
         fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
         for &id in ids {
             let xml = (standard.description)(id);

@@ -1,22 +1,53 @@
 //! The Python side of the commands: a virtual environment at `.venv` with the pinned
-//! requirements of tests/python (fmpy, the test, demo and sweep packages) and tests/importer
-//! (the libclang wheel), and the pytest run over the packaged FMUs.
+//! requirements of tests/python (fmpy, maturin, the test, demo and sweep packages) and
+//! tests/importer (the libclang wheel), the package `backlash_fmu` installed into it from this
+//! repository, and the pytest run over the package's FMUs.
 
 use std::fs;
 use std::path::PathBuf;
 use std::process::Command;
 
+use crate::platform::{self, Platform};
 use crate::util::{self, step};
 
-/// `cargo xtask pytest`: the venv, the suite and the README example, on the archives already in
-/// target/fmu (or $BACKLASH_FMU_DIR).
+/// `cargo xtask pytest`: the venv, the package, the suite and the README examples.
 pub fn run(args: &[String]) -> Result<(), String> {
     if let Some(arg) = args.first() {
         return Err(format!("`cargo xtask pytest` takes no arguments, got `{arg}`"));
     }
     ensure_venv()?;
+    install_package()?;
     run_pytest()?;
     run_readme_example()
+}
+
+/// [`install_package_for`] linux64.
+pub fn install_package() -> Result<(), String> {
+    install_package_for(&[&platform::LINUX64])
+}
+
+/// Installs the package `backlash_fmu` into `.venv` from this repository as a user does
+/// (`pip install .`, pyproject.toml), its archives holding the libraries of `platforms`
+/// (linux64, or every platform). Build isolation is off: the venv's pinned maturin builds it,
+/// and the venv's pinned packages are its dependencies (`--no-deps`).
+pub fn install_package_for(platforms: &[&'static Platform]) -> Result<(), String> {
+    step("the Python package backlash_fmu (pip install . into .venv)");
+    let mut install = Command::new(venv_python());
+    install.current_dir(util::repo_root()).args([
+        "-m",
+        "pip",
+        "install",
+        "--disable-pip-version-check",
+        "--quiet",
+        "--no-deps",
+        "--no-build-isolation",
+        "--force-reinstall",
+        ".",
+    ]);
+    if platforms.len() > 1 {
+        install.args(["--config-settings", "platforms=all"]);
+    }
+    util::run(&mut install)
 }
 
 fn venv_dir() -> PathBuf {
@@ -80,17 +111,17 @@ pub fn ensure_venv() -> Result<(), String> {
     fs::write(stamp_path(), wanted).map_err(|e| format!("writing {}: {e}", stamp_path().display()))
 }
 
-/// Runs pytest on tests/python against the packaged FMUs. "No tests collected" (exit 5) is a
-/// failure: a suite that runs nothing proves nothing.
+/// Runs pytest on tests/python against the installed package and its archives (or those of
+/// `$BACKLASH_FMU_DIR`, when set). "No tests collected" (exit 5) is a failure: a suite that
+/// runs nothing proves nothing.
 pub fn run_pytest() -> Result<(), String> {
-    step("pytest tests/python (through fmpy, on the packaged FMUs)");
-    let fmu_dir = std::env::var_os("BACKLASH_FMU_DIR").map_or_else(util::fmu_dir, PathBuf::from);
-    let status = util::status(
-        Command::new(venv_python())
-            .current_dir(util::repo_root())
-            .env("BACKLASH_FMU_DIR", &fmu_dir)
-            .args(["-m", "pytest", "tests/python", "-ra"]),
-    )?;
+    step("pytest tests/python (through fmpy, on the installed package's FMUs)");
+    let status = util::status(Command::new(venv_python()).current_dir(util::repo_root()).args([
+        "-m",
+        "pytest",
+        "tests/python",
+        "-ra",
+    ]))?;
     match status.code() {
         Some(0) => Ok(()),
         Some(5) => Err("pytest collected no tests in tests/python".into()),
@@ -126,23 +157,37 @@ pub fn libclang_dir() -> Option<PathBuf> {
     site_package_dir(&["clang", "native"], "libclang.so")
 }
 
-/// Runs the first ```python block of README.md in the venv from the repository root, so the
-/// usage example shown to users is known to work with the packaged FMU.
+/// Runs every ```python block of README.md in the venv from the repository root, each in a
+/// fresh interpreter, so the examples shown to users are known to work: the fmpy one on
+/// target/fmu, and the package's.
 pub fn run_readme_example() -> Result<(), String> {
-    step("README.md fmpy example");
+    step("README.md Python examples");
     let readme_path = util::repo_root().join("README.md");
     let readme = fs::read_to_string(&readme_path).map_err(|e| format!("reading README.md: {e}"))?;
-    let code = python_block(&readme).ok_or("README.md has no ```python block")?;
-    util::run(
-        Command::new(venv_python())
-            .current_dir(util::repo_root())
-            .arg("-c")
-            .arg(code),
-    )
+    let blocks = python_blocks(&readme);
+    if blocks.is_empty() {
+        return Err("README.md has no ```python block".into());
+    }
+    for code in blocks {
+        util::run(
+            Command::new(venv_python())
+                .current_dir(util::repo_root())
+                .arg("-c")
+                .arg(code),
+        )?;
+    }
+    Ok(())
 }
 
-fn python_block(markdown: &str) -> Option<&str> {
-    let start = markdown.find("```python\n")? + "```python\n".len();
-    let end = markdown[start..].find("```")? + start;
-    Some(&markdown[start..end])
+fn python_blocks(markdown: &str) -> Vec<&str> {
+    const OPEN: &str = "```python\n";
+    let mut blocks = Vec::new();
+    let mut rest = markdown;
+    while let Some(start) = rest.find(OPEN) {
+        let body = &rest[start + OPEN.len()..];
+        let Some(end) = body.find("```") else { break };
+        blocks.push(&body[..end]);
+        rest = &body[end..];
+    }
+    blocks
 }

@@ -11,11 +11,13 @@ use crate::{abi, cross, fmu, python};
 /// The package of tests/importer, and its integration test that loads the archives with the
 /// `fmi` crate.
 const IMPORTER_PACKAGE: &str = "importer-test";
+/// The Python binding of the design crate: an extension module, built by maturin in step 6.
+const PYTHON_BINDING: &str = "backlash-python";
 const IMPORTER_TEST: &str = "fmi_crate";
 
 const USAGE: &str = "usage: cargo xtask test [--cross | --no-cross]";
 
-/// Whether step 8 (the win64 and aarch64-linux builds and their test) runs.
+/// Whether step 9 (the win64 and aarch64-linux builds and their test) runs.
 #[derive(Clone, Copy, PartialEq)]
 enum Cross {
     /// When this machine has the tools (the default).
@@ -32,13 +34,13 @@ pub fn run(args: &[String]) -> Result<(), String> {
         [flag] if flag == "--no-cross" => Cross::Skipped,
         [other, ..] => return Err(format!("unexpected argument `{other}`\n{USAGE}")),
     };
-    // Decided up front, so that step 3 builds every platform when step 8 will test them.
+    // Decided up front, so that steps 3 and 6 build every platform when step 9 will test them.
     let cross_enabled = match (cross_mode, cross::unavailable()) {
         (Cross::Skipped, _) => false,
         (_, None) => true,
         (Cross::Required, Some(line)) => return Err(format!("--cross: {line}")),
         (Cross::IfAvailable, Some(line)) => {
-            println!("step 8 (win64, aarch64-linux) will be skipped: {line}");
+            println!("step 9 (win64, aarch64-linux) will be skipped: {line}");
             false
         }
     };
@@ -60,14 +62,21 @@ pub fn run(args: &[String]) -> Result<(), String> {
     // 1. The venv first: it carries the libclang that step 5 builds with, and fmpy's copy of
     //    the official FMI headers for step 4.
     timed("python venv", &|| {
-        step("1/8 Python venv");
+        step("1/9 Python venv");
         python::ensure_venv()
     })?;
     // 2. Unit and integration tests of every crate but the importer test, which needs the
     //    archives that step 3 writes and runs in step 5.
     timed("cargo test --workspace", &|| {
-        step("2/8 cargo test --workspace");
-        util::run(util::cargo().args(["test", "--workspace", "--exclude", IMPORTER_PACKAGE]))
+        step("2/9 cargo test --workspace");
+        util::run(util::cargo().args([
+            "test",
+            "--workspace",
+            "--exclude",
+            IMPORTER_PACKAGE,
+            "--exclude",
+            PYTHON_BINDING,
+        ]))
     })?;
     // 3. The archives in target/fmu/ (with the win64 DLL when step 8 runs).
     let fmu_command = if cross_enabled {
@@ -76,19 +85,19 @@ pub fn run(args: &[String]) -> Result<(), String> {
         "cargo xtask fmu"
     };
     timed(fmu_command, &|| {
-        step(&format!("3/8 {fmu_command}"));
+        step(&format!("3/9 {fmu_command}"));
         *built.borrow_mut() = fmu::package(&platforms)?;
         Ok(())
     })?;
     // 4. The libraries' C ABI against the official headers, and their exported symbols.
     timed("ABI check", &|| {
-        step("4/8 ABI check");
+        step("4/9 ABI check");
         abi::check(&built.borrow())
     })?;
     // 5. A Rust importer (the `fmi` crate) loads the packaged archive. --include-ignored runs
     //    the tests that a plain `cargo test` skips; they fail if an archive is missing.
     timed("importer test", &|| {
-        step("5/8 importer test (fmi crate on target/fmu/*.fmu)");
+        step("5/9 importer test (fmi crate on target/fmu/*.fmu)");
         let mut test = util::cargo();
         bindgen_environment(&mut test)?;
         util::run(test.env("BACKLASH_FMU_DIR", util::fmu_dir()).args([
@@ -101,24 +110,30 @@ pub fn run(args: &[String]) -> Result<(), String> {
             "--include-ignored",
         ]))
     })?;
-    // 6. The pytest suite drives the packaged FMUs through fmpy.
+    // 6. The Python package, installed into the venv as a user installs it (`pip install .`),
+    //    with the archives of the same platforms: the suite runs against it.
+    timed("Python package", &|| {
+        step("6/9 Python package (pip install . into .venv)");
+        python::install_package_for(&platforms)
+    })?;
+    // 7. The pytest suite drives the package's FMUs through fmpy.
     timed("pytest", &|| {
-        step("6/8 pytest");
+        step("7/9 pytest");
         python::run_pytest()
     })?;
-    // 7. The usage example of README.md, so that what a new user copies works.
-    timed("README example", &|| {
-        step("7/8 README.md fmpy example");
+    // 8. The Python examples of README.md, so that what a new user copies works.
+    timed("README examples", &|| {
+        step("8/9 README.md Python examples");
         python::run_readme_example()
     })?;
     // 8. The win64 DLL under Wine and the aarch64 library under qemu against linux64.
     if cross_enabled {
         timed("cross-platform test", &|| {
-            step("8/8 win64 and aarch64-linux against linux64 (cargo xtask cross-test)");
+            step("9/9 win64 and aarch64-linux against linux64 (cargo xtask cross-test)");
             cross::test(&built.borrow())
         })?;
     } else {
-        step("8/8 cross-platform test skipped");
+        step("9/9 cross-platform test skipped");
     }
 
     step("cargo xtask test: every step succeeded");

@@ -1,0 +1,240 @@
+//! A design request from named settings: the one place where a value given for the design
+//! (the accuracies, a parameter by its FMU name) is checked and applied to the defaults of its
+//! form. The command line ([`crate::cli`]) reads its flags into settings; the Python binding
+//! passes keyword arguments as settings. Both speak of a setting by their own label (`--jm`,
+//! `J_m`), which the reasons quote.
+
+use backlash_physics::{Geometry, PiGains};
+
+use crate::{default_params, speed, study, web, Form};
+
+/// What can be set, by name: the accuracies and the parameters by their FMU names
+/// (docs/model.md §4, §8), each with the forms it belongs to (every form when empty) and the
+/// range it must lie in.
+pub const SETTINGS: [(&str, &[Form], Range); 21] = [
+    ("accuracy", &[], Range::Positive),
+    ("tension_accuracy", &[Form::Web], Range::Positive),
+    ("Delta", &[], Range::Positive),
+    ("k", &[Form::Shaft], Range::Positive),
+    ("K_b", &[Form::Belt, Form::Web], Range::Positive),
+    ("Kp", &[], Range::Any),
+    ("Ki", &[], Range::Any),
+    ("J_m", &[], Range::Positive),
+    ("J_L", &[], Range::Positive),
+    ("b_m", &[], Range::NonNegative),
+    ("b_L", &[], Range::NonNegative),
+    ("R_1", &[Form::Belt, Form::Web], Range::Positive),
+    ("R_2", &[Form::Belt, Form::Web], Range::Positive),
+    ("R_g1", &[Form::Belt, Form::Web], Range::Positive),
+    ("R_g2", &[Form::Belt, Form::Web], Range::Positive),
+    ("Kp_T", &[Form::Web], Range::Any),
+    ("Ki_T", &[Form::Web], Range::Any),
+    ("R_w", &[Form::Web], Range::Positive),
+    ("L_w", &[Form::Web], Range::Positive),
+    ("EA", &[Form::Web], Range::Positive),
+    ("v_ref", &[Form::Web], Range::Positive),
+];
+
+/// The values a setting may take (all of them finite).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Range {
+    Positive,
+    NonNegative,
+    Any,
+}
+
+/// One value given for a design.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setting<'a> {
+    /// Its name in [`SETTINGS`].
+    pub name: &'a str,
+    /// How the user wrote its name (`--jm`, `J_m`), quoted in a reason.
+    pub label: &'a str,
+    /// How the user wrote its value, quoted in a reason.
+    pub text: String,
+    pub value: f64,
+}
+
+/// How the reasons speak: of flags (`--model belt`) or of arguments (`model = "belt"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Vocabulary {
+    Flags,
+    Arguments,
+}
+
+/// Why the settings make no request.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Refusal {
+    pub message: String,
+    /// A requirement is missing: the usage explains it.
+    pub missing: bool,
+}
+
+impl Refusal {
+    fn new(message: String) -> Refusal {
+        Refusal {
+            message,
+            missing: false,
+        }
+    }
+}
+
+impl Vocabulary {
+    fn forms(self, forms: &[Form]) -> String {
+        let names: Vec<&str> = forms.iter().map(|f| f.name()).collect();
+        match self {
+            Vocabulary::Flags => format!("--model {}", names.join(" or ")),
+            Vocabulary::Arguments => format!("model {}", names.join(" or ")),
+        }
+    }
+
+    fn required(self, name: &str, form: Form) -> String {
+        match (self, name, form) {
+            (Vocabulary::Flags, "accuracy", _) => "--accuracy EPS is required".into(),
+            (Vocabulary::Flags, _, _) => "--tension-accuracy EPS_T is required with --model web".into(),
+            (Vocabulary::Arguments, _, form) => format!("{name} is required for model {}", form.name()),
+        }
+    }
+
+    fn gains_together(self) -> String {
+        match self {
+            Vocabulary::Flags => "--kp and --ki go together (or neither, for the best-damped rule)".into(),
+            Vocabulary::Arguments => "Kp and Ki go together (or neither, for the best-damped rule)".into(),
+        }
+    }
+}
+
+/// The form a model name stands for (`shaft`, `belt`, `web`).
+pub fn form_named(name: &str) -> Option<Form> {
+    [Form::Shaft, Form::Belt, Form::Web]
+        .into_iter()
+        .find(|f| f.name() == name)
+}
+
+/// The design request of `form` with `settings` applied to its defaults, each checked: a name of
+/// [`SETTINGS`] that belongs to the form, given once, finite and in its range.
+pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result<Request, Refusal> {
+    let refuse = |message: String| Refusal::new(message);
+    let mut params = default_params(form).map_err(|e| refuse(e.to_string()))?;
+    let mut line = web::film_line().map_err(|e| refuse(e.to_string()))?;
+    let (mut accuracy, mut tension_accuracy) = (None, None);
+    let (mut kp, mut ki) = (None, None);
+    let mut tension_gains = PiGains::default();
+    for (i, s) in settings.iter().enumerate() {
+        let Some((_, forms, range)) = SETTINGS.iter().find(|(name, _, _)| *name == s.name) else {
+            return Err(refuse(format!("unknown parameter `{}`", s.label)));
+        };
+        if !forms.is_empty() && !forms.contains(&form) {
+            return Err(refuse(format!(
+                "{} applies to {} only",
+                s.label,
+                vocabulary.forms(forms)
+            )));
+        }
+        if settings[..i].iter().any(|earlier| earlier.name == s.name) {
+            return Err(refuse(format!("{} given twice", s.label)));
+        }
+        let (label, text, value) = (s.label, &s.text, s.value);
+        if !value.is_finite() {
+            return Err(refuse(format!("{label} = {text} must be finite")));
+        }
+        match range {
+            Range::Positive if value <= 0.0 => return Err(refuse(format!("{label} = {text} must be > 0"))),
+            Range::NonNegative if value < 0.0 => return Err(refuse(format!("{label} = {text} must be >= 0"))),
+            _ => {}
+        }
+        match s.name {
+            "accuracy" => accuracy = Some(value),
+            "tension_accuracy" => tension_accuracy = Some(value),
+            "Delta" => params = params.with_half_gap(value),
+            "k" | "K_b" => params = study::with_stiffness(&params, value),
+            "Kp" => kp = Some(value),
+            "Ki" => ki = Some(value),
+            "Kp_T" => tension_gains.kp = value,
+            "Ki_T" => tension_gains.ki = value,
+            "J_m" => params.j_m = value,
+            "J_L" => params.j_l = value,
+            "b_m" => params.b_m = value,
+            "b_L" => params.b_l = value,
+            "R_w" => line.r_w = value,
+            "L_w" => line.l_w = value,
+            "EA" => line.ea = value,
+            "v_ref" => line.v_ref = value,
+            "R_1" | "R_2" | "R_g1" | "R_g2" => {
+                let Geometry::Belt {
+                    r_1, r_2, r_g1, r_g2, ..
+                } = &mut params.geometry
+                else {
+                    unreachable!("belt settings are refused for the shaft form above");
+                };
+                let slot = match s.name {
+                    "R_1" => r_1,
+                    "R_2" => r_2,
+                    "R_g1" => r_g1,
+                    _ => r_g2,
+                };
+                *slot = value;
+            }
+            other => unreachable!("setting `{other}` listed without its effect"),
+        }
+    }
+    let gains = match (kp, ki) {
+        (Some(kp), Some(ki)) => Some(PiGains { kp, ki }),
+        (None, None) => None,
+        _ => return Err(refuse(vocabulary.gains_together())),
+    };
+    let missing = |name: &str| Refusal {
+        message: vocabulary.required(name, form),
+        missing: true,
+    };
+    Ok(match form {
+        Form::Web => Request::Web(web::Request {
+            tension_accuracy: tension_accuracy.ok_or_else(|| missing("tension_accuracy"))?,
+            accuracy,
+            drive: params,
+            web: line,
+            gains,
+            tension_gains,
+        }),
+        Form::Shaft | Form::Belt => Request::Speed(speed::Request {
+            accuracy: accuracy.ok_or_else(|| missing("accuracy"))?,
+            params,
+            gains,
+        }),
+    })
+}
+
+/// What a design is asked for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Request {
+    /// The speed design of the shaft or belt form.
+    Speed(speed::Request),
+    /// The tension design of the web line.
+    Web(web::Request),
+}
+
+impl Request {
+    /// The answer as JSON (what `backlash design --json` prints).
+    pub fn answer_json(self) -> Result<String, String> {
+        Ok(match self {
+            Request::Speed(r) => speed::to_json(&speed::solve(r)?),
+            Request::Web(r) => web::to_json(&web::solve(r)?),
+        })
+    }
+
+    /// The answer as text (what `backlash design` prints).
+    pub fn answer_text(self) -> Result<String, String> {
+        Ok(match self {
+            Request::Speed(r) => speed::to_text(&speed::solve(r)?),
+            Request::Web(r) => web::to_text(&web::solve(r)?),
+        })
+    }
+}
+
+/// The design answer as JSON for `model` with settings by name: what the Python binding calls.
+pub fn design_json(model: &str, settings: &[Setting]) -> Result<String, String> {
+    let form = form_named(model).ok_or_else(|| format!("model = {model:?}: choose \"shaft\", \"belt\" or \"web\""))?;
+    build(form, settings, Vocabulary::Arguments)
+        .map_err(|r| r.message)?
+        .answer_json()
+}

@@ -1,0 +1,73 @@
+"""Exact compliance + backlash drive-train FMUs, and the design study that sizes them.
+
+    import backlash_fmu
+    answer = backlash_fmu.design("shaft", accuracy=0.02)        # the design study (docs/model.md §3)
+    path = backlash_fmu.fmu_path("BacklashShaft", fmi=3)       # the FMI 3.0 archive, shipped here
+
+- `design(model, accuracy=None, tension_accuracy=None, **parameters)`: the design answer, the
+  same keys and numbers as `backlash design ... --json`;
+- `fmu_path(model, fmi=2)`: the FMI 2.0 or FMI 3.0 archive of BacklashShaft, BacklashBelt or
+  BacklashWeb, built from the same sources as this package;
+- `backlash_fmu.fmu`: the driver of the archives (FMI 2.0 and 3.0, Co-Simulation and Model
+  Exchange); `backlash_fmu.twin`: the twin closed-loop runs; `backlash_fmu.sweep`: tolerance
+  sweeps; `backlash_fmu.demo`: the paper's experiments.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from . import fmu
+
+__all__ = ["design", "fmu_path", "MODELS"]
+
+# The models whose archives ship with the package, as their manifest lists them.
+MODELS: tuple[str, ...] = fmu.models(fmu.PACKAGED)
+
+
+def design(model: str, accuracy: float | None = None, tension_accuracy: float | None = None,
+           **parameters: float) -> dict:
+    """The design answer for `model` ("shaft", "belt" or "web"): `accuracy` is the load-speed
+    accuracy ε [rad/s] (required for shaft and belt), `tension_accuracy` the web line's ε_T [N]
+    (required for web); `parameters` by the FMUs' variable names (J_m, J_L, b_m, b_L, k or K_b,
+    Delta, R_1, R_2, R_g1, R_g2, R_w, L_w, EA, v_ref, Kp, Ki, Kp_T, Ki_T) replace the defaults.
+    Returns the answer as `backlash design ... --json` prints it. Raises ValueError with the
+    reason on bad input (an unknown model or parameter, a non-finite or out-of-range value)."""
+    from . import _native  # the design library, compiled
+
+    if not isinstance(model, str):
+        raise ValueError(f"model = {model!r}: choose 'shaft', 'belt' or 'web'")
+    values = {}
+    for name, value in parameters.items():
+        values[name] = _number(name, value)
+    text = _native.design_json(
+        model,
+        None if accuracy is None else _number("accuracy", accuracy),
+        None if tension_accuracy is None else _number("tension_accuracy", tension_accuracy),
+        list(values.items()),
+    )
+    return json.loads(text)
+
+
+def _number(name: str, value: object) -> float:
+    """`value` as a float; a bool or a non-number is refused (NaN and ±inf are refused by the
+    study with its reason)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{name} = {value!r} is not a number")
+    return float(value)
+
+
+def fmu_path(model: str, fmi: int = 2) -> Path:
+    """The FMI 2.0 (`fmi=2`) or FMI 3.0 (`fmi=3`) archive of `model` ("BacklashShaft",
+    "BacklashBelt" or "BacklashWeb") shipped in this package. Raises ValueError for another
+    model or standard, FileNotFoundError if the archive is missing from the installation."""
+    if model not in MODELS:
+        raise ValueError(f"model = {model!r}: choose one of {', '.join(MODELS)}")
+    if fmi not in (2, 3):
+        raise ValueError(f"fmi = {fmi!r}: choose 2 or 3")
+    path = fmu.packaged_path(model, fmi)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: this installation of backlash_fmu lacks its archive")
+    return path
+

@@ -1,0 +1,406 @@
+"""The one driver of the packaged FMUs: FMI 2.0 and FMI 3.0, Co-Simulation and Model Exchange,
+through fmpy, as an importer drives them.
+
+    from backlash_fmu import fmu
+    with fmu.Archive.of("BacklashShaft", fmi=3) as archive:
+        cs = archive.co_simulation(params={"Delta": 1e-3}, early_return=True)
+        cs.step(0.0, 1e-3, tau_m=1.0)
+        omega_L, = cs.get("omega_L")
+        cs.free()
+
+Every instance is made with a logger that records what the FMU logs as (status, category,
+message) in `messages`, so that a refused call's reason can be read back (`refused`). The
+archives are the package's own (`fmu_path`), or those of the folder `$BACKLASH_FMU_DIR` (FMI 2.0
+archives and their manifest `models.txt` in it, FMI 3.0 ones in its `fmi3/`), the layout
+`cargo xtask fmu` writes.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+from pathlib import Path
+from typing import Any, Callable, Iterable, NamedTuple
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+
+# The drive train's continuous states in their order (a web line has its span's tension T as a
+# fifth); also the outputs that carry them.
+STATES = ("theta_m", "omega_m", "theta_L", "omega_L")
+# Its two event indicators: u - g and u + g (docs/model.md §6).
+EVENT_INDICATORS = 2
+# The status every refusal is answered with: fmi2Error and fmi3Error are both 3.
+ERROR = 3
+
+# The manifest beside the archives of each standard: the model identifiers, one a line.
+MANIFEST = "models.txt"
+# The package's own archives (FMI 2.0 here, FMI 3.0 in fmi3/), packed when it was built.
+PACKAGED = Path(__file__).resolve().parent / "archives"
+
+
+def archive_dir() -> Path:
+    """The folder of the archives: `$BACKLASH_FMU_DIR` if set, else the package's own."""
+    given = os.environ.get("BACKLASH_FMU_DIR")
+    return Path(given) if given else PACKAGED
+
+
+def models(folder: Path | None = None) -> tuple[str, ...]:
+    """The model identifiers of the manifest in `folder` (default `archive_dir()`), in the
+    packaging's order; () when there is none."""
+    try:
+        text = ((folder or archive_dir()) / MANIFEST).read_text()
+    except FileNotFoundError:
+        return ()
+    return tuple(line.strip() for line in text.splitlines() if line.strip())
+
+
+def _path_in(folder: Path, model: str, fmi: int) -> Path:
+    if fmi not in (2, 3):
+        raise ValueError(f"fmi = {fmi!r}: choose 2 or 3")
+    return (folder if fmi == 2 else folder / "fmi3") / f"{model}.fmu"
+
+
+def fmu_path(model: str, fmi: int = 2) -> Path:
+    """The FMI 2.0 (`fmi=2`) or FMI 3.0 (`fmi=3`) archive of a model identifier in
+    `archive_dir()`."""
+    return _path_in(archive_dir(), model, fmi)
+
+
+def packaged_path(model: str, fmi: int = 2) -> Path:
+    """The archive of a model identifier shipped in the package (whatever $BACKLASH_FMU_DIR says)."""
+    return _path_in(PACKAGED, model, fmi)
+
+
+class StepResult(NamedTuple):
+    """What a Co-Simulation step answers (FMI 3.0's fmi3DoStep; an FMI 2.0 step that returns
+    has run to its end: no event, no early return)."""
+
+    event_handling_needed: bool
+    terminate_simulation: bool
+    early_return: bool
+    last_successful_time: float
+
+
+class Archive:
+    """One unpacked copy of an archive and its model description. Each copy's library is a
+    file of its own, so the dynamic loader gives two copies separate code and data."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"{self.path} not found: build the archives with `cargo xtask fmu`")
+        self.md = read_model_description(str(self.path))
+        self.fmi = 3 if self.md.fmiVersion.startswith("3") else 2
+        self.model = self.md.coSimulation.modelIdentifier
+        self.unzipdir = extract(str(self.path))
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.vr = {name: v.valueReference for name, v in self.variables.items()}
+        self._count = 0
+
+    @classmethod
+    def of(cls, model: str, fmi: int = 2) -> "Archive":
+        """The archive of a model identifier (`fmu_path`), unpacked."""
+        return cls(fmu_path(model, fmi))
+
+    def _name(self, name: str | None, kind: str) -> str:
+        self._count += 1
+        return name or f"{kind}{self._count}"
+
+    def co_simulation(
+        self,
+        name: str | None = None,
+        params: dict[str, float] | None = None,
+        start_time: float = 0.0,
+        *,
+        initialise: bool = True,
+        early_return: bool = False,
+        event_mode: bool = False,
+        log_everything: bool = False,
+    ) -> "CoSimulation":
+        """A Co-Simulation instance, `params` (parameters, start values, inputs) set before
+        initialisation; initialised unless `initialise=False`. `early_return` and `event_mode`
+        are FMI 3.0's earlyReturnAllowed and eventModeUsed."""
+        return CoSimulation(self, self._name(name, "cs"), params, start_time, initialise=initialise,
+                            early_return=early_return, event_mode=event_mode, log_everything=log_everything)
+
+    def model_exchange(
+        self, name: str | None = None, params: dict[str, float] | None = None, start_time: float = 0.0
+    ) -> "ModelExchange":
+        """A Model Exchange instance, initialised and in Continuous-Time Mode."""
+        return ModelExchange(self, self._name(name, "me"), params, start_time)
+
+    def remove(self) -> None:
+        """Deletes the unpacked copy (its instances must be freed first)."""
+        shutil.rmtree(self.unzipdir, ignore_errors=True)
+
+    def __enter__(self) -> "Archive":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.remove()
+
+
+# FMI 2.0's logger is variadic: the FMU logs through format "%s" with the message as the one
+# variadic argument, which arrives like a sixth fixed argument on x86-64 and AArch64 Linux.
+_FMI2_LOGGER = ctypes.CFUNCTYPE(
+    None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p
+)
+
+
+class Instance:
+    """What every instance shares: the recording logger, values by name, the inputs, refusals."""
+
+    def __init__(self, archive: Archive, fmi_class: Any, name: str, **instantiate: Any):
+        self.archive, self.vr, self.fmi = archive, archive.vr, archive.fmi
+        self.messages: list[tuple[int, str, str]] = []
+        self._vrs: dict[tuple[str, ...], list[int]] = {}
+        md = archive.md
+        interface = md.coSimulation if fmi_class.__name__.endswith("Slave") else md.modelExchange
+        self.fmu = fmi_class(guid=md.guid, unzipDirectory=archive.unzipdir,
+                             modelIdentifier=interface.modelIdentifier, instanceName=name)
+        if self.fmi == 2:
+            from fmpy.fmi2 import (
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+                fmi2CallbackLoggerTYPE,
+            )
+
+            def log2(env, instance, status, category, format, text):
+                self.messages.append((status, category.decode(), text.decode()))
+
+            self._logger = _FMI2_LOGGER(log2)  # kept alive as long as the instance
+            self.callbacks = fmi2CallbackFunctions()
+            self.callbacks.logger = ctypes.cast(self._logger, fmi2CallbackLoggerTYPE)
+            self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(0)
+            self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(0)
+            self.fmu.instantiate(callbacks=self.callbacks)
+            self._set_real, self._get_real, self._get_int = self.fmu.setReal, self.fmu.getReal, self.fmu.getInteger
+        else:
+
+            def log3(env, status, category, message):
+                self.messages.append((status, category.decode(), message.decode()))
+
+            # FMI 3.0.2 §2.3.1: with loggingOn = false the FMU calls no logger at all, so every
+            # instance logs; `log_everything` keeps contact events and calls on too.
+            everything = instantiate.pop("log_everything", False)
+            self.fmu.instantiate(loggingOn=True, logMessage=log3, **instantiate)
+            if not everything:
+                self.fmu.setDebugLogging(False, ["logContactEvents", "logCalls"])
+            self._set_real, self._get_real, self._get_int = self.fmu.setFloat64, self.fmu.getFloat64, self.fmu.getInt32
+        self.c = self.fmu.component
+        inputs = [n for n, v in archive.variables.items() if v.causality == "input"]
+        self.input_names = tuple(inputs)
+
+    # --- values -------------------------------------------------------------------------------
+
+    def refs(self, names: Iterable[str]) -> list[int]:
+        """The value references of `names`, cached by the tuple of names."""
+        key = tuple(names)
+        found = self._vrs.get(key)
+        if found is None:
+            found = self._vrs[key] = [self.vr[n] for n in key]
+        return found
+
+    def set(self, values: dict[str, float]) -> None:
+        """Real (FMI 3.0: Float64) values by name."""
+        if values:
+            self._set_real(self.refs(values), [float(v) for v in values.values()])
+
+    def get(self, *names: str) -> list[float]:
+        """Real (FMI 3.0: Float64) values by name, in one call."""
+        return self._get_real(self.refs(names))
+
+    def contact(self) -> int:
+        """The Integer (FMI 3.0: Int32) output `contact`."""
+        return self._get_int([self.vr["contact"]])[0]
+
+    def set_inputs(self, **inputs: float) -> None:
+        """Inputs by name (tau_m, tau_L; a web line's v_in, T_in), in one call."""
+        self.set(inputs)
+
+    # --- refusals -------------------------------------------------------------------------------
+
+    def refused(self, call: Callable[[], object], *mentions: str) -> list[str]:
+        """call() must fail with fmi2Error/fmi3Error and log, under logErrors, a reason that
+        names each of `mentions` (the culprit: a variable, a length); returns the new reasons.
+        Raises AssertionError otherwise."""
+        before = len(self.messages)
+        try:
+            call()
+        except FMICallException as e:
+            if e.status != ERROR:
+                raise AssertionError(f"refused with status {e.status}, not the error status {ERROR}") from e
+        else:
+            raise AssertionError("the call was not refused")
+        reasons = [m[2] for m in self.messages[before:] if m[1] == "logErrors" and m[0] == ERROR]
+        if not any(all(w in r for w in mentions) for r in reasons):
+            raise AssertionError(f"no logged reason names {mentions}: {self.messages[before:]}")
+        return reasons
+
+    def free(self) -> None:
+        self.fmu.freeInstance()
+
+
+class CoSimulation(Instance):
+    """A Co-Simulation instance (FMU2Slave, FMU3Slave), in Step Mode once initialised."""
+
+    def __init__(self, archive: Archive, name: str, params: dict[str, float] | None, start_time: float, *,
+                 initialise: bool, early_return: bool, event_mode: bool, log_everything: bool):
+        if archive.fmi == 2:
+            if early_return or event_mode:
+                raise ValueError("early return and Event Mode are FMI 3.0's: open the FMI 3.0 archive")
+            from fmpy.fmi2 import FMU2Slave
+
+            super().__init__(archive, FMU2Slave, name)
+        else:
+            from fmpy.fmi3 import FMU3Slave
+
+            super().__init__(archive, FMU3Slave, name, eventModeUsed=event_mode,
+                             earlyReturnAllowed=early_return, log_everything=log_everything)
+        self.early_return, self.event_mode = early_return, event_mode
+        self.params = dict(params or {})
+        self.t0 = self.time = start_time
+        self.initial_update = None
+        if initialise:
+            self.initialise(start_time)
+
+    def initialise(self, start_time: float = 0.0) -> None:
+        """Parameters and start values (variability fixed, docs/model.md §4), then
+        initialisation; with FMI 3.0's eventModeUsed initialisation ends in Event Mode
+        (docs/model.md §7): one fmi3UpdateDiscreteStates, then Step Mode."""
+        self.t0 = self.time = start_time
+        self.set(self.params)
+        if self.fmi == 2:
+            self.fmu.setupExperiment(startTime=start_time)
+            self.fmu.enterInitializationMode()
+            self.fmu.exitInitializationMode()
+        else:
+            self.fmu.enterInitializationMode(startTime=start_time)
+            self.fmu.exitInitializationMode()
+            if self.event_mode:
+                self.initial_update = self.fmu.updateDiscreteStates()
+                self.fmu.enterStepMode()
+
+    def do_step(self, t: float, h: float) -> StepResult:
+        """One step from the communication point t; `time` follows its last successful time."""
+        if self.fmi == 2:
+            self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            answer = StepResult(False, False, False, t + h)
+        else:
+            answer = StepResult(*self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h))
+        self.time = answer.last_successful_time
+        return answer
+
+    def step(self, t: float, h: float, **inputs: float) -> StepResult:
+        """The inputs given (held over the step), then one step."""
+        self.set(inputs)
+        return self.do_step(t, h)
+
+    def outputs(self, names: tuple[str, ...]) -> dict[str, float]:
+        """`names` and `contact` read together, as a dict."""
+        out = dict(zip(names, self.get(*names)))
+        out["contact"] = self.contact()
+        return out
+
+    def free(self) -> None:
+        if self.fmi == 2:
+            self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+class ModelExchange(Instance):
+    """A Model Exchange instance (FMU2Model, FMU3Model), initialised and in Continuous-Time
+    Mode, with the calls an integrator makes. States, derivatives and nominals are the drive
+    train's four (STATES); a web line's fifth, T, is set to 0 by `set_state`."""
+
+    def __init__(self, archive: Archive, name: str, params: dict[str, float] | None, start_time: float):
+        if archive.fmi == 2:
+            from fmpy.fmi2 import FMU2Model
+
+            super().__init__(archive, FMU2Model, name)
+        else:
+            from fmpy.fmi3 import FMU3Model
+
+            super().__init__(archive, FMU3Model, name)
+        self.nx = len(archive.md.derivatives)
+        self._x = (ctypes.c_double * self.nx)()
+        self._dx = (ctypes.c_double * self.nx)()
+        self._z = (ctypes.c_double * EVENT_INDICATORS)()
+        self._u = (ctypes.c_double * 2)()
+        self._torques = (ctypes.c_uint * 2)(self.vr["tau_m"], self.vr["tau_L"])
+        self.x_view = np.ctypeslib.as_array(self._x)
+        self.set(params or {})
+        self.start_time = start_time
+        m = self.fmu
+        if self.fmi == 2:
+            m.setupExperiment(startTime=start_time)
+            m.enterInitializationMode()
+            m.exitInitializationMode()
+            self.initial_event = m.newDiscreteStates()
+            self._set_time, self._set_states = m.fmi2SetTime, m.fmi2SetContinuousStates
+            self._get_derivatives, self._get_indicators = m.fmi2GetDerivatives, m.fmi2GetEventIndicators
+        else:
+            m.enterInitializationMode(startTime=start_time)
+            m.exitInitializationMode()
+            self.initial_event = m.updateDiscreteStates()
+            self._set_time, self._set_states = m.fmi3SetTime, m.fmi3SetContinuousStates
+            self._get_derivatives, self._get_indicators = m.fmi3GetContinuousStateDerivatives, m.fmi3GetEventIndicators
+        self.initial_update = self.initial_event
+        m.enterContinuousTimeMode()
+
+    def set_torques(self, tau_m: float, tau_L: float) -> None:
+        """The two torques, in one call without allocation (an integrator's hot path)."""
+        self._u[0], self._u[1] = tau_m, tau_L
+        if self.fmi == 2:
+            self.fmu.fmi2SetReal(self.c, self._torques, 2, self._u)
+        else:
+            self.fmu.fmi3SetFloat64(self.c, self._torques, 2, self._u, 2)
+
+    def set_state(self, t: float, x: Any) -> None:
+        """Time and the drive train's states x[:4]; a web line's T is 0."""
+        n = len(STATES)
+        self._set_time(self.c, t)
+        self.x_view[:n] = x[:n]
+        self._set_states(self.c, self._x, self.nx)
+
+    def derivatives(self, t: float, x: Any, tau_m: float, tau_L: float) -> np.ndarray:
+        """The drive train's derivatives at (t, x[:4]) under the torques."""
+        self.set_state(t, x)
+        self.set_torques(tau_m, tau_L)
+        self._get_derivatives(self.c, self._dx, self.nx)
+        return np.array(self._dx[: len(STATES)])
+
+    def indicators(self, t: float, x: Any) -> np.ndarray:
+        """The event indicators u - g and u + g at (t, x[:4])."""
+        self.set_state(t, x)
+        self._get_indicators(self.c, self._z, EVENT_INDICATORS)
+        return np.array(self._z)
+
+    def nominals(self) -> np.ndarray:
+        """The drive train's state nominals."""
+        out = (ctypes.c_double * self.nx)()
+        self.fmu.getNominalsOfContinuousStates(out, self.nx)
+        return np.array(out[: len(STATES)])
+
+    def continuous_states(self) -> np.ndarray:
+        """The drive train's states."""
+        out = (ctypes.c_double * self.nx)()
+        self.fmu.getContinuousStates(out, self.nx)
+        return np.array(out[: len(STATES)])
+
+    def completed_step(self) -> tuple[bool, bool]:
+        """fmi2CompletedIntegratorStep / fmi3CompletedIntegratorStep: (enterEventMode,
+        terminateSimulation)."""
+        return self.fmu.completedIntegratorStep()
+
+    def event_iteration(self) -> tuple:
+        """Event Mode, one fmi2NewDiscreteStates / fmi3UpdateDiscreteStates, back to
+        Continuous-Time Mode: the event info."""
+        self.fmu.enterEventMode()
+        info = self.fmu.newDiscreteStates() if self.fmi == 2 else self.fmu.updateDiscreteStates()
+        self.fmu.enterContinuousTimeMode()
+        return info
