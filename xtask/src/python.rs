@@ -33,7 +33,11 @@ pub fn install_package() -> Result<(), String> {
 pub fn install_package_for(platforms: &[&'static Platform]) -> Result<(), String> {
     step("the Python package backlash_fmu (pip install . into .venv)");
     let mut install = Command::new(venv_python());
-    install.current_dir(util::repo_root()).args([
+    // maturin's build hooks run the `maturin` program the venv installed, found on PATH.
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    let dirs = std::iter::once(venv_dir().join("bin")).chain(std::env::split_paths(&path));
+    let path = std::env::join_paths(dirs).map_err(|e| format!("PATH with .venv/bin: {e}"))?;
+    install.env("PATH", path).current_dir(util::repo_root()).args([
         "-m",
         "pip",
         "install",
