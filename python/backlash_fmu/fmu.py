@@ -88,14 +88,16 @@ class Archive:
     """One unpacked copy of an archive and its model description. Each copy's library is a
     file of its own, so the dynamic loader gives two copies separate code and data."""
 
-    def __init__(self, path: str | os.PathLike):
+    def __init__(self, path: str | os.PathLike, unzipdir: str | os.PathLike | None = None):
+        """`unzipdir`: a copy of this archive unpacked before, to use instead of unpacking it
+        again (as fmpy's `unzipdir`); `remove` deletes it too."""
         self.path = Path(path)
         if not self.path.is_file():
             raise FileNotFoundError(f"{self.path} not found: build the archives with `cargo xtask fmu`")
         self.md = read_model_description(str(self.path))
         self.fmi = 3 if self.md.fmiVersion.startswith("3") else 2
         self.model = self.md.coSimulation.modelIdentifier
-        self.unzipdir = extract(str(self.path))
+        self.unzipdir = extract(str(self.path)) if unzipdir is None else str(unzipdir)
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.vr = {name: v.valueReference for name, v in self.variables.items()}
         self._count = 0
@@ -307,8 +309,13 @@ class CoSimulation(Instance):
         return out
 
     def free(self) -> None:
+        """fmi2Terminate where the instance can terminate (initialised, not in error), then
+        fmi2FreeInstance / fmi3FreeInstance."""
         if self.fmi == 2:
-            self.fmu.terminate()
+            try:
+                self.fmu.terminate()
+            except FMICallException:
+                pass  # refused (and logged) in a state that cannot terminate; freed all the same
         self.fmu.freeInstance()
 
 

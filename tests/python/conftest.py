@@ -10,17 +10,19 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import pytest  # noqa: E402
+from backlash_fmu.fmu import MANIFEST, Archive, archive_dir, fmu_path  # noqa: E402
 
-import fmu_driver  # noqa: E402
+import archives  # noqa: E402
 
 
 def pytest_sessionstart(session):
-    """The manifest and every archive it names must exist: skipping the tests that need them would
-    let an unbuilt tree pass."""
-    if not fmu_driver.MODELS:
-        pytest.exit(f"model manifest not found or empty: {fmu_driver.manifest_path()} (build with `cargo xtask fmu`)",
+    """The manifest and every archive it names, FMI 2.0 and FMI 3.0, must exist: skipping the
+    tests that need them would let an unbuilt tree pass."""
+    if not archives.MODELS:
+        pytest.exit(f"model manifest not found or empty: {archive_dir() / MANIFEST} (build with `cargo xtask fmu`)",
                     returncode=1)
-    missing = [str(path) for path in map(fmu_driver.fmu_path, fmu_driver.MODELS) if not path.is_file()]
+    paths = [fmu_path(model, fmi) for fmi in (2, 3) for model in archives.MODELS]
+    missing = [str(path) for path in paths if not path.is_file()]
     if missing:
         pytest.exit(f"FMU archive not found: {', '.join(missing)} (build with `cargo xtask fmu`)", returncode=1)
 
@@ -28,15 +30,15 @@ def pytest_sessionstart(session):
 @pytest.fixture(scope="session", autouse=True)
 def _remove_extracted_fmus():
     yield
-    fmu_driver.remove_all()
+    archives.remove_all()
 
 
 @pytest.fixture(scope="session")
-def shaft() -> fmu_driver.Extracted:
-    return fmu_driver.require("BacklashShaft")
+def shaft() -> Archive:
+    return archives.require("BacklashShaft")
 
 
-@pytest.fixture(scope="session", params=fmu_driver.MODELS)
-def fmu(request) -> fmu_driver.Extracted:
-    """Each of the FMUs in turn."""
-    return fmu_driver.require(request.param)
+@pytest.fixture(scope="session", params=archives.MODELS)
+def fmu(request) -> Archive:
+    """Each of the FMUs in turn (its FMI 2.0 archive)."""
+    return archives.require(request.param)

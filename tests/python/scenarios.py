@@ -1,14 +1,16 @@
-"""Runs shared by several test modules, each computed once per session: the FMU through fmpy
-and the independent reference on the same inputs."""
+"""Runs shared by several test modules, each computed once per session: the FMU through
+backlash_fmu.fmu (fmpy) and the independent reference on the same inputs."""
 
 from __future__ import annotations
 
 import functools
 
 import numpy as np
+from backlash_fmu.fmu import STATES
 
-import fmu_driver
+import archives
 import reference
+from loops import Record, run_open_loop, run_pi_loop
 from rigs import RIGS, plant_of, with_delta
 from signals import reversing_torques, sine_reference, step_reference
 
@@ -29,10 +31,10 @@ def open_loop(model: str, case: str):
     h, n, z0 = OPEN_LOOP_CASES[case]
     params, gains = RIGS[model]
     tau_m, tau_L = reversing_torques(n, h, *TORQUE)
-    initial = dict(zip(fmu_driver.STATE_OUTPUTS, z0))
-    inst = fmu_driver.shared(model).instance(f"open-{case}", {**params, **gains, **initial})
+    initial = dict(zip(STATES, z0))
+    inst = archives.shared(model).co_simulation(f"open-{case}", {**params, **gains, **initial})
     try:
-        out = fmu_driver.run_open_loop(inst, tau_m, tau_L, h)
+        out = run_open_loop(inst, tau_m, tau_L, h)
     finally:
         inst.free()
     z, u, ref = reference.run_open_loop(plant_of(model, params), tau_m, tau_L, h, z0=np.array(z0))
@@ -53,9 +55,9 @@ def pi_loop(model: str):
     """(FMU outputs incl. tau_m, reference z, u, tau_m, solver) for the sampled PI loop."""
     params, gains = RIGS[model]
     w_ref, tau_L = pi_inputs()
-    inst = fmu_driver.shared(model).instance("pi-loop", {**params, **gains})
+    inst = archives.shared(model).co_simulation("pi-loop", {**params, **gains})
     try:
-        out = fmu_driver.run_pi_loop(inst, reference.SampledPI(gains["Kp"], gains["Ki"], PI_STEP), PI_STEP, PI_STEPS, w_ref, tau_L)
+        out = run_pi_loop(inst, reference.SampledPI(gains["Kp"], gains["Ki"], PI_STEP), PI_STEP, PI_STEPS, w_ref, tau_L)
     finally:
         inst.free()
     z, u, taus, ref = reference.run_pi_loop(plant_of(model, params), gains["Kp"], gains["Ki"], PI_STEP, PI_STEPS, w_ref, tau_L)
@@ -79,18 +81,18 @@ def twin(reference_name: str):
     params, gains = RIGS[model]
     w_ref, duration = TWIN_REFERENCES[reference_name]
     n = int(round(duration / TWIN_STEP))
-    fmu = fmu_driver.shared(model)
-    insts = [fmu.instance(f"twin-{d}", {**with_delta(params, d), **gains}) for d in (params["Delta"], 0.0)]
+    fmu = archives.shared(model)
+    insts = [fmu.co_simulation(f"twin-{d}", {**with_delta(params, d), **gains}) for d in (params["Delta"], 0.0)]
     try:
         pis = [reference.SampledPI(gains["Kp"], gains["Ki"], TWIN_STEP) for _ in insts]
-        records = [fmu_driver.Record() for _ in insts]
+        records = [Record() for _ in insts]
         for inst, rec in zip(insts, records):
             rec.add(inst)
         for k in range(n):
             t = k * TWIN_STEP
             for inst, pi, rec in zip(insts, pis, records):
                 omega_m = rec.rows[-1][1]  # measured at t_k (Record column order)
-                inst.step(t, TWIN_STEP, pi(w_ref(t), omega_m), 0.0)
+                inst.step(t, TWIN_STEP, tau_m=pi(w_ref(t), omega_m), tau_L=0.0)
                 rec.add(inst)
     finally:
         for inst in insts:

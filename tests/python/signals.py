@@ -31,3 +31,12 @@ def step_reference(value: float):
 
 def sine_reference(amplitude: float, frequency: float):
     return lambda t: amplitude * math.sin(2 * math.pi * frequency * t)
+
+
+def held_table(tau_m, tau_L, h: float) -> np.ndarray:
+    """Held torques as an fmpy input table: every switching time twice (value before, after)."""
+    edges = np.arange(len(tau_m) + 1) * h
+    rows = [
+        row for k in range(len(tau_m)) for row in ((edges[k], tau_m[k], tau_L[k]), (edges[k + 1], tau_m[k], tau_L[k]))
+    ]
+    return np.array(rows, dtype=[("time", np.double), ("tau_m", np.double), ("tau_L", np.double)])

@@ -16,8 +16,9 @@ import math
 import numpy as np
 import pytest
 
-import fmu_driver
+import archives
 import scenarios
+from loops import run_open_loop
 from reference_bound import BoundReference, loop_matrices
 from rigs import BELT_GAINS, RIGS, SHAFT_GAINS, plant_of
 from signals import rel_err
@@ -85,12 +86,12 @@ BOUND_CASES = {
 @pytest.mark.parametrize("case", BOUND_CASES)
 def test_bound_outputs_match_reference(case):
     model, gains, t0 = BOUND_CASES[case]
-    fmu = fmu_driver.require(model)
+    fmu = archives.require(model)
     params = RIGS[model][0]
     h, n = 0.01, 500
-    inst = fmu.instance(case, {**params, **gains}, start_time=t0)
+    inst = fmu.co_simulation(case, {**params, **gains}, start_time=t0)
     try:
-        out = fmu_driver.run_open_loop(inst, np.full(n, 0.3), np.zeros(n), h)
+        out = run_open_loop(inst, np.full(n, 0.3), np.zeros(n), h)
     finally:
         inst.free()
     bound, paper = BoundReference(plant_of(model, params), gains["Kp"], gains["Ki"]).bounds(h, n)
@@ -98,18 +99,18 @@ def test_bound_outputs_match_reference(case):
     assert rel_err(out["bound_paper"], paper) <= TOL
 
 
-@pytest.mark.parametrize("model", fmu_driver.MODELS)
+@pytest.mark.parametrize("model", archives.MODELS)
 def test_bound_sup_is_the_limit_of_bound(model):
-    fmu = fmu_driver.require(model)
+    fmu = archives.require(model)
     params, gains = RIGS[model]
     br = BoundReference(plant_of(model, params), gains["Kp"], gains["Ki"])
     # 12 s is 48 time constants of the slowest excited mode (decay rate ~4 /s).
     assert br.decay_rate() < -3.5
     h, n = 0.05, 240
-    inst = fmu.instance("sup", {**params, **gains})
+    inst = fmu.co_simulation("sup", {**params, **gains})
     try:
         (sup,) = inst.get("bound_sup")
-        out = fmu_driver.run_open_loop(inst, np.zeros(n), np.zeros(n), h)
+        out = run_open_loop(inst, np.zeros(n), np.zeros(n), h)
         (sup_after,) = inst.get("bound_sup")
     finally:
         inst.free()
@@ -129,10 +130,10 @@ def test_bound_sup_is_the_limit_of_bound(model):
 
 def test_bound_sup_of_damped_open_plant_is_finite():
     """Kp = Ki = 0 with b > 0: the open plant's bound (A_p) is finite (docs/model.md §3)."""
-    fmu = fmu_driver.require("BacklashShaft")
+    fmu = archives.require("BacklashShaft")
     params = {**RIGS["BacklashShaft"][0], "b_m": 2.0, "b_L": 2.0}
     gains = {"Kp": 0.0, "Ki": 0.0}
-    inst = fmu.instance("sup-open", {**params, **gains})
+    inst = fmu.co_simulation("sup-open", {**params, **gains})
     try:
         (sup,) = inst.get("bound_sup")
     finally:
@@ -141,11 +142,11 @@ def test_bound_sup_of_damped_open_plant_is_finite():
     assert math.isfinite(expected) and abs(sup - expected) <= TOL * expected
 
 
-@pytest.mark.parametrize("model", fmu_driver.MODELS)
+@pytest.mark.parametrize("model", archives.MODELS)
 def test_bound_sup_is_infinite_without_damping_or_control(model):
-    fmu = fmu_driver.require(model)
+    fmu = archives.require(model)
     params = {**RIGS[model][0], "b_m": 0.0, "b_L": 0.0}
-    inst = fmu.instance("sup-inf", {**params, "Kp": 0.0, "Ki": 0.0})
+    inst = fmu.co_simulation("sup-inf", {**params, "Kp": 0.0, "Ki": 0.0})
     try:
         (sup,) = inst.get("bound_sup")
     finally:

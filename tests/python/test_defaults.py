@@ -13,24 +13,15 @@ import sys
 
 SCRIPT = r"""
 import json, sys
-from fmpy import read_model_description
-from fmpy.fmi2 import FMU2Slave
+from backlash_fmu.fmu import Archive
 path, unzipdir = sys.argv[1:3]
-md = read_model_description(path)
-vr = {v.name: v.valueReference for v in md.modelVariables}
-s = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-              instanceName="defaults")
-s.instantiate()
-s.setupExperiment(startTime=0.0)
-s.enterInitializationMode()
-s.exitInitializationMode()
+s = Archive(path, unzipdir=unzipdir).co_simulation("defaults")
 names = ["theta_m", "omega_m", "theta_L", "omega_L", "psi", "bound", "bound_paper", "bound_sup"]
-s.setReal([vr["tau_m"]], [1.0])
+s.set_inputs(tau_m=1.0)
 for k in range(10):
-    s.doStep(k * 1e-3, 1e-3)
-print(json.dumps(dict(zip(names, s.getReal([vr[n] for n in names])))))
-s.terminate()
-s.freeInstance()
+    s.do_step(k * 1e-3, 1e-3)
+print(json.dumps(dict(zip(names, s.get(*names)))))
+s.free()
 """
 LIMIT_S = 30.0
 

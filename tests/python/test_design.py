@@ -17,11 +17,11 @@ import subprocess
 import numpy as np
 import pytest
 
-import fmu_driver
+import archives
 from reference import Plant
 from reference_bound import BoundReference
 
-REPO = fmu_driver.REPO
+REPO = archives.REPO
 EPS = 0.02  # required load-speed accuracy [m/s] used throughout
 RIG = {"J_m": 2.28, "J_L": 2.55, "b_m": 0.05, "b_L": 0.05, "k": 200.0}
 
@@ -52,7 +52,7 @@ def reference_sup(k: float, delta: float, kp: float, ki: float) -> float:
 
 
 def fmu_bound_sup(shaft, **params) -> float:
-    inst = shaft.instance("sup", dict(RIG, **params))
+    inst = shaft.co_simulation("sup", dict(RIG, **params))
     try:
         return inst.get("bound_sup")[0]
     finally:
@@ -83,8 +83,8 @@ def test_delta_max_agrees_with_the_independent_quadrature(design):
 def twin_deviation(shaft, delta: float, kp: float, ki: float, w_ref, horizon: float, h: float):
     """Max |omega_L^b - omega_L^0| of twin instances (Delta and 0) under the sampled PI loop."""
     common = dict(RIG, Kp=kp, Ki=ki)
-    b = shaft.instance("with_backlash", dict(common, Delta=delta))
-    z = shaft.instance("without_backlash", dict(common, Delta=0.0))
+    b = shaft.co_simulation("with_backlash", dict(common, Delta=delta))
+    z = shaft.co_simulation("without_backlash", dict(common, Delta=0.0))
     try:
         x_b = x_z = 0.0
         worst = bound_paper_sup = 0.0
@@ -94,8 +94,8 @@ def twin_deviation(shaft, delta: float, kp: float, ki: float, w_ref, horizon: fl
             worst = max(worst, abs(wl_b - wl_z))
             bound_paper_sup = max(bound_paper_sup, bp)
             e_b, e_z = w_ref(t) - wm_b, w_ref(t) - wm_z
-            b.step(t, h, kp * e_b + ki * x_b, 0.0)
-            z.step(t, h, kp * e_z + ki * x_z, 0.0)
+            b.step(t, h, tau_m=kp * e_b + ki * x_b, tau_L=0.0)
+            z.step(t, h, tau_m=kp * e_z + ki * x_z, tau_L=0.0)
             x_b += h * e_b
             x_z += h * e_z
         return worst, bound_paper_sup
@@ -157,7 +157,7 @@ def belt_reference_sup(params: dict, kp: float, ki: float) -> float:
 def test_belt_design_starts_from_the_belt_fmu_and_meets_the_accuracy(belt_design):
     """Defaults are the FMU's parameter start values; delta_max, k_min and k_max are where the
     independent quadrature's bound_sup reaches the accuracy, and so is the FMU's own."""
-    belt = fmu_driver.require("BacklashBelt")
+    belt = archives.require("BacklashBelt")
     names = ("J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "Delta")
     defaults = {n: float(belt.variables[n].start) for n in names}
     d = belt_design
@@ -165,7 +165,7 @@ def test_belt_design_starts_from_the_belt_fmu_and_meets_the_accuracy(belt_design
     kp, ki = d["Kp"], d["Ki"]
     at_max = {**defaults, "Delta": d["delta_max"]}
     assert belt_reference_sup(at_max, kp, ki) == pytest.approx(BELT_EPS, rel=1e-6)
-    inst = belt.instance("sup", {**at_max, "Kp": kp, "Ki": ki})
+    inst = belt.co_simulation("sup", {**at_max, "Kp": kp, "Ki": ki})
     try:
         assert inst.get("bound_sup")[0] == pytest.approx(BELT_EPS, rel=1e-6)
     finally:

@@ -9,7 +9,7 @@ References (none takes a number from the FMU):
 - reference_continuous.py: the exact solution of the plant under held torques (expm per mode,
   switches bracketed on a grid with a certified grazing search and refined by brentq to
   ~1e-15 s), checked in test_model_exchange.py against an event-located DOP853 integration.
-- fmi3_driver.switch_sampled_pi: the PI loop sampled at the communication points and at every
+- reference_switch_sampled.switch_sampled_pi: the PI loop sampled at the communication points and at every
   contact switch, closed around that exact plant segment by segment.
 - The FMI 2.0 archive, where a claim is "the same as FMI 2.0" (docs/model.md §7).
 
@@ -23,36 +23,43 @@ import math
 
 import numpy as np
 import pytest
+from backlash_fmu.fmu import STATES, CoSimulation, fmu_path
 from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import fmi3Error
 from fmpy.validation import validate_fmu
 
-import fmi3_driver as f3
-import fmu_driver
-import me_driver
+import archives
 import reference
 import reference_continuous as rc
-from fmi3_driver import STATES, Model3, Slave3, bits, float64_names
+import reference_switch_sampled as rss
+from cvode_check import check_cvode_against_exact
+from loops import state_with_u
 from reference import FREE, MINUS, PLUS
 from rigs import RIGS, plant_of
 from scenarios import pi_inputs
-from signals import rel_err, reversing_torques
+from signals import held_table, rel_err, reversing_torques
 
-MODELS = fmu_driver.MODELS
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _remove_extracted_fmi3():
-    yield
-    f3.remove_all()
+MODELS = archives.MODELS
 
 
 @pytest.fixture(params=MODELS)
 def model(request) -> str:
     """Each model; its FMI 3.0 archive must exist (a missing one fails, never skips)."""
-    f3.require(request.param)
+    archives.require(request.param, fmi=3)
     return request.param
+
+
+def float64_names(fmu) -> list[str]:
+    """Every Float64 (FMI 2.0: Real) variable the interface computes: outputs, locals
+    (derivatives, event indicators) and the calculated parameter bound_sup."""
+    kinds = ("output", "local", "calculatedParameter")
+    return [n for n, v in fmu.variables.items() if v.type in ("Float64", "Real") and v.causality in kinds]
+
+
+def bits(values) -> tuple[str, ...]:
+    """Floats as exact hexadecimal strings: equal only if bit for bit equal (NaN included)."""
+    return tuple(float(x).hex() for x in values)
 
 
 def _rig(model: str) -> dict:
@@ -73,7 +80,7 @@ def test_fmpy_validates_and_simulates_the_fmi3_archive(model):
     every row on the output grid agrees with the plain run to 1e-11 relative (measured 2e-14 at
     most, see the early-return test for why they differ at all), and the run stops early inside
     steps: each extra time lies strictly between two grid points."""
-    assert validate_fmu(str(f3.fmi3_path(model))) == []
+    assert validate_fmu(str(fmu_path(model, 3))) == []
     tau_m, tau_L = reversing_torques(SIM_N, SIM_H, 1.5, 0.6)
     outputs = [*STATES, "psi", "bound", "bound_paper", "contact"]
 
@@ -84,20 +91,20 @@ def test_fmpy_validates_and_simulates_the_fmi3_archive(model):
             start_time=0.0,
             stop_time=SIM_N * SIM_H,
             output_interval=SIM_OUT,
-            input=me_driver.held_table(tau_m, tau_L, SIM_H),
+            input=held_table(tau_m, tau_L, SIM_H),
             start_values=_rig(model),
             output=outputs,
             **kw,
         )
 
-    fmi3 = run(f3.fmi3_path(model))
-    fmi2 = run(fmu_driver.fmu_path(model))
+    fmi3 = run(fmu_path(model, 3))
+    fmi2 = run(fmu_path(model))
     assert fmi3.dtype.names == fmi2.dtype.names and len(fmi3) == len(fmi2) == round(SIM_N * SIM_H / SIM_OUT) + 1
     for name in fmi2.dtype.names:
         assert bits(fmi3[name]) == bits(fmi2[name]), name
     assert len(set(fmi3["contact"])) == 3, "the run must cross the gap"
 
-    early = run(f3.fmi3_path(model), early_return_allowed=True, use_event_mode=True)
+    early = run(fmu_path(model, 3), early_return_allowed=True, use_event_mode=True)
     grid = fmi3["time"]
     on_grid = np.isin(early["time"], grid)
     extra = np.unique(early["time"][~on_grid])
@@ -124,8 +131,8 @@ def _open_loop_steps():
     return h, np.concatenate([[0.0], np.cumsum(h)])
 
 
-def _snapshot(inst, names, getter) -> tuple:
-    return (*bits(getter([inst.vr[n] for n in names])), inst.contact())
+def _snapshot(inst, names) -> tuple:
+    return (*bits(inst.get(*names)), inst.contact())
 
 
 @pytest.mark.parametrize("loop", ["open", "closed"])
@@ -139,13 +146,13 @@ def test_cosimulation_without_early_return_is_the_fmi2_step(model, loop):
     equal only if every earlier output was. Both cross the gap again and again (contact changes
     at 41 / 33 communication points open loop, shaft / belt; 10 / 11 closed loop). fmi3DoStep
     never reports an early return or an event, and its lastSuccessfulTime is the step's end."""
-    fmu2, fmu3 = fmu_driver.require(model), f3.require(model)
+    fmu2, fmu3 = archives.require(model), archives.require(model, fmi=3)
     names = float64_names(fmu3)
     assert names == float64_names(fmu2) and "der(omega_L)" in names and "u_plus_g" in names
     params = _rig(model)
     gains = RIGS[model][1]
-    two = fmu2.instance("fmi2", params)
-    threes = [Slave3(fmu3, "fmi3", params), Slave3(fmu3, "fmi3-event", params, event_mode=True)]
+    two = fmu2.co_simulation("fmi2", params)
+    threes = [fmu3.co_simulation("fmi3", params), fmu3.co_simulation("fmi3-event", params, event_mode=True)]
     try:
         if loop == "open":
             h, t = _open_loop_steps()
@@ -162,19 +169,19 @@ def test_cosimulation_without_early_return_is_the_fmi2_step(model, loop):
                 return lambda k, inst: (pi(w_ref(k * 0.01), inst.get("omega_m")[0]), load(k * 0.01))
 
             inputs = [closed(reference.SampledPI(gains["Kp"], gains["Ki"], 0.01)) for _ in range(3)]
-        expected = _snapshot(two, names, two.slave.getReal)
-        assert all(_snapshot(i, names, i.slave.getFloat64) == expected for i in threes)
+        expected = _snapshot(two, names)
+        assert all(_snapshot(i, names) == expected for i in threes)
         contacts = [expected[-1]]
         for k in range(steps):
             tau = inputs[0](k, two)
-            two.step(float(t[k]), float(h[k]), *tau)
-            expected = _snapshot(two, names, two.slave.getReal)
+            two.step(float(t[k]), float(h[k]), tau_m=tau[0], tau_L=tau[1])
+            expected = _snapshot(two, names)
             contacts.append(expected[-1])
             for j, inst in enumerate(threes):
                 assert inputs[j + 1](k, inst) == tau, (k, j)
-                answer = inst.step(float(t[k]), float(h[k]), *tau)
+                answer = inst.step(float(t[k]), float(h[k]), tau_m=tau[0], tau_L=tau[1])
                 assert answer == (False, False, False, float(t[k]) + float(h[k])), (k, answer)
-                assert _snapshot(inst, names, inst.slave.getFloat64) == expected, (k, inst.slave.instanceName)
+                assert _snapshot(inst, names) == expected, (k, inst.fmu.instanceName)
     finally:
         two.free()
         for inst in threes:
@@ -225,12 +232,12 @@ def _early_run(fmu3, params, h, tau_m, tau_L, names, event_mode: bool):
     with doStep(lastSuccessfulTime, t_k+1 - lastSuccessfulTime) (in Event Mode and back in
     between when eventModeUsed). Returns the rows at the t_k, and per early return
     (time, contact before, contact after, states, event indicators, step k)."""
-    inst = Slave3(fmu3, f"early-{event_mode}", params, early_return=True, event_mode=event_mode)
+    inst = fmu3.co_simulation(f"early-{event_mode}", params, early_return=True, event_mode=event_mode)
     rows, returns, updates = [inst.get(*names)], [], []
     try:
         for k in range(EARLY_STEPS):
             t, t_end = k * h, (k + 1) * h
-            inst.set_inputs(float(tau_m[k]), float(tau_L[k]))
+            inst.set_inputs(tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
             while True:
                 before = inst.contact()
                 event, terminate, early, last = inst.do_step(t, t_end - t)
@@ -241,9 +248,9 @@ def _early_run(fmu3, params, h, tau_m, tau_L, names, event_mode: bool):
                 assert event == event_mode and t < last < t_end, (t, last, t_end)
                 returns.append((last, before, inst.contact(), inst.get(*STATES), inst.get("u_minus_g", "u_plus_g"), k))
                 if event_mode:
-                    inst.slave.enterEventMode()
-                    updates.append(inst.slave.updateDiscreteStates())
-                    inst.slave.enterStepMode()
+                    inst.fmu.enterEventMode()
+                    updates.append(inst.fmu.updateDiscreteStates())
+                    inst.fmu.enterStepMode()
                 t = last
             rows.append(inst.get(*names))
     finally:
@@ -284,7 +291,7 @@ def test_early_return_at_every_switch(model, event_mode):
     assert np.max(np.bincount(np.searchsorted(t_k, switch_times) - 1)) >= 2
     assert np.min(np.abs(switch_times[:, None] - t_k[None, :])) > 1e-6
 
-    fmu3 = f3.require(model)
+    fmu3 = archives.require(model, fmi=3)
     names = float64_names(fmu3)
     rows, returns, updates = _early_run(fmu3, params, h, tau_m, tau_L, names, event_mode)
 
@@ -301,11 +308,11 @@ def test_early_return_at_every_switch(model, event_mode):
         assert len(updates) == len(returns)
         assert all(not u[0] and not u[1] and not u[2] and not u[3] and not u[4] for u in updates), updates
 
-    plain = Slave3(fmu3, "plain", params)
+    plain = fmu3.co_simulation("plain", params)
     try:
         ref_rows = [plain.get(*names)]
         for k in range(EARLY_STEPS):
-            plain.step(k * h, h, float(tau_m[k]), float(tau_L[k]))
+            plain.step(k * h, h, tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
             ref_rows.append(plain.get(*names))
     finally:
         plain.free()
@@ -338,19 +345,19 @@ def _pi_load(k: int) -> float:
 
 
 def _fmu_switch_sampled_loop(fmu3, params, gains):
-    """The loop of fmi3_driver.SwitchSampledPI closed by an importer through fmpy: at t_k the PI
+    """The loop of reference_switch_sampled.SwitchSampledPI closed by an importer through fmpy: at t_k the PI
     is sampled from the omega_m read there and tau_m set (Step Mode); at each early return the
     importer enters Event Mode, samples the PI from the omega_m at the switch, sets tau_m
     (applied from the switch on), calls fmi3UpdateDiscreteStates and returns to Step Mode."""
-    inst = Slave3(fmu3, "switch-pi", params, early_return=True, event_mode=True)
-    pi = f3.SwitchSampledPI(gains["Kp"], gains["Ki"])
+    inst = fmu3.co_simulation("switch-pi", params, early_return=True, event_mode=True)
+    pi = rss.SwitchSampledPI(gains["Kp"], gains["Ki"])
     z, xi, instants, switches, updates = [inst.get(*STATES)], [pi.xi], [], [], []
     try:
         t = 0.0
         for k in range(PI_N):
             t_end = (k + 1) * PI_H
             instants.append(t)
-            inst.set_inputs(pi.sample(_pi_w_ref(k), inst.get("omega_m")[0]), _pi_load(k))
+            inst.set_inputs(tau_m=pi.sample(_pi_w_ref(k), inst.get("omega_m")[0]), tau_L=_pi_load(k))
             while True:
                 before = inst.contact()
                 event, terminate, early, last = inst.do_step(t, t_end - t)
@@ -364,11 +371,11 @@ def _fmu_switch_sampled_loop(fmu3, params, gains):
                 pi.advance(last - t)
                 t = last
                 switches.append((t, before, inst.contact()))
-                inst.slave.enterEventMode()
+                inst.fmu.enterEventMode()
                 instants.append(t)
-                inst.set_inputs(pi.sample(_pi_w_ref(k), inst.get("omega_m")[0]), _pi_load(k))
-                updates.append(inst.slave.updateDiscreteStates())
-                inst.slave.enterStepMode()
+                inst.set_inputs(tau_m=pi.sample(_pi_w_ref(k), inst.get("omega_m")[0]), tau_L=_pi_load(k))
+                updates.append(inst.fmu.updateDiscreteStates())
+                inst.fmu.enterStepMode()
             z.append(inst.get(*STATES))
             xi.append(pi.xi)
     finally:
@@ -377,11 +384,11 @@ def _fmu_switch_sampled_loop(fmu3, params, gains):
 
 
 def test_pi_loop_updated_at_every_early_return(model):
-    """The loop (fmi3_driver.SwitchSampledPI): a PI on omega_m sampled at the communication
+    """The loop (reference_switch_sampled.SwitchSampledPI): a PI on omega_m sampled at the communication
     points t_k = k 10 ms AND at every contact switch, tau_m = Kp e + Ki xi held from each sampling
     instant to the next, xi the exact integral of the held error; w_ref (reversing every 0.4 s)
     and tau_L held per step. Closed by the importer at the early returns (eventModeUsed), against
-    fmi3_driver.switch_sampled_pi, which closes the same loop around the exact plant of
+    reference_switch_sampled.switch_sampled_pi, which closes the same loop around the exact plant of
     reference_continuous.py and finds each switch itself (the hold changes there, so the exact
     solution is built segment by segment from one sampling instant to the next).
 
@@ -393,11 +400,11 @@ def test_pi_loop_updated_at_every_early_return(model):
     than the tolerance (asserted > 1e3 PI_TOL), so the comparison tells the loops apart."""
     params, gains = RIGS[model]
     plant = plant_of(model, params)
-    exact = f3.switch_sampled_pi(plant, gains["Kp"], gains["Ki"], PI_H, PI_N, _pi_w_ref, _pi_load)
+    exact = rss.switch_sampled_pi(plant, gains["Kp"], gains["Ki"], PI_H, PI_N, _pi_w_ref, _pi_load)
     assert len(exact.switches) >= 10
     assert np.min(np.abs(np.array([s[0] for s in exact.switches])[:, None] - exact.t[None, :])) > 1e-6
 
-    fmu3 = f3.require(model)
+    fmu3 = archives.require(model, fmi=3)
     z, xi, instants, switches, updates = _fmu_switch_sampled_loop(fmu3, {**params, **gains}, gains)
 
     assert [s[1:] for s in switches] == [s[1:] for s in exact.switches]
@@ -410,12 +417,12 @@ def test_pi_loop_updated_at_every_early_return(model):
     assert all(not any(u[:5]) for u in updates), updates
 
     # The same PI updated at the t_k only, on a plain instance: another loop.
-    plain = Slave3(fmu3, "plain-pi", {**params, **gains})
+    plain = fmu3.co_simulation("plain-pi", {**params, **gains})
     try:
         pi = reference.SampledPI(gains["Kp"], gains["Ki"], PI_H)
         zp = [plain.get(*STATES)]
         for k in range(PI_N):
-            plain.step(k * PI_H, PI_H, pi(_pi_w_ref(k), plain.get("omega_m")[0]), _pi_load(k))
+            plain.step(k * PI_H, PI_H, tau_m=pi(_pi_w_ref(k), plain.get("omega_m")[0]), tau_L=_pi_load(k))
             zp.append(plain.get(*STATES))
     finally:
         plain.free()
@@ -439,7 +446,7 @@ def test_simulate_fmu_model_exchange_with_cvode(model):
     Every switch is reported as a state event (a repeated output time off the input edges),
     each within the shift that error makes at the crossing speed, 2e-6 max|u| / |u'|."""
     params = RIGS[model][0]
-    me_driver.check_cvode_against_exact(str(f3.fmi3_path(model)), params, plant_of(model, params))
+    check_cvode_against_exact(str(fmu_path(model, 3)), params, plant_of(model, params))
 
 
 def test_model_exchange_equals_fmi2_model_exchange(model):
@@ -452,10 +459,10 @@ def test_model_exchange_equals_fmi2_model_exchange(model):
     fmi3CompletedIntegratorStep (no Event Mode)."""
     params = _rig(model)
     plant = plant_of(model, params)
-    fmu2, fmu3 = fmu_driver.require(model), f3.require(model)
+    fmu2, fmu3 = archives.require(model), archives.require(model, fmi=3)
     names = float64_names(fmu3)
-    two = me_driver.ModelInstance(fmu2, "me2", params)
-    three = Model3(fmu3, "me3", params)
+    two = fmu2.model_exchange("me2", params)
+    three = fmu3.model_exchange("me3", params)
     rng = np.random.default_rng(11)
     knowns = [*STATES, "tau_m", "tau_L"]
     ders = [f"der({s})" for s in STATES]
@@ -465,7 +472,7 @@ def test_model_exchange_equals_fmi2_model_exchange(model):
         cases = []
         for i in range(60):
             u = rng.uniform(-3.0, 3.0) * plant.g if i >= 6 else (plant.g if i % 2 else -plant.g)
-            z = me_driver.state_with_u(plant, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
+            z = state_with_u(plant, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
             if i < 6:  # on a flank to round-off: theta_L = 0, theta_m = +-g / r_m
                 z[0], z[2] = u / plant.r_m, 0.0
             cases.append((float(rng.uniform(0.0, 3.0)), z, rng.uniform(-3, 3, 2)))
@@ -481,10 +488,10 @@ def test_model_exchange_equals_fmi2_model_exchange(model):
             contacts.add(three.contact())
             assert three.contact() == two.contact()
             for k in knowns:
-                j2 = two.model.getDirectionalDerivative([two.vr[n] for n in ders], [two.vr[k]], [1.0])
-                j3 = three.model.getDirectionalDerivative([three.vr[n] for n in ders], [three.vr[k]], [1.0])
+                j2 = two.fmu.getDirectionalDerivative([two.vr[n] for n in ders], [two.vr[k]], [1.0])
+                j3 = three.fmu.getDirectionalDerivative([three.vr[n] for n in ders], [three.vr[k]], [1.0])
                 assert bits(j3) == bits(j2), (k, z)
-            assert three.model.completedIntegratorStep() == (False, False)
+            assert three.fmu.completedIntegratorStep() == (False, False)
         assert contacts == {FREE, PLUS, MINUS}
     finally:
         two.free()
@@ -496,12 +503,12 @@ def test_model_exchange_equals_fmi2_model_exchange(model):
 STATE_H, STATE_N, STATE_AT = 0.05, 120, 60
 
 
-def _drive3(inst: Slave3, k0: int, k1: int, tau_m, tau_L, names) -> list:
+def _drive3(inst: CoSimulation, k0: int, k1: int, tau_m, tau_L, names) -> list:
     """Every doStep answer and every output after it, as exact floats (early returns continued)."""
     rows = []
     for k in range(k0, k1):
         t, t_end = k * STATE_H, (k + 1) * STATE_H
-        inst.set_inputs(float(tau_m[k]), float(tau_L[k]))
+        inst.set_inputs(tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
         while True:
             answer = inst.do_step(t, t_end - t)
             rows.append((answer, bits(inst.get(*names)), inst.contact()))
@@ -523,30 +530,30 @@ def test_fmi2_state_is_refused_and_fmi3_state_continues_bit_for_bit(model):
     lastSuccessfulTime) and every output after it."""
     params = _rig(model)
     other = {**params, "Delta": params["Delta"] * 0.9, "Kp": params["Kp"] * 0.9}
-    fmu2, fmu3 = fmu_driver.require(model), f3.require(model)
+    fmu2, fmu3 = archives.require(model), archives.require(model, fmi=3)
     names = float64_names(fmu3)
     tau_m, tau_L = reversing_torques(STATE_N, STATE_H, 1.5, 0.6)
     if model != "BacklashShaft":
         tau_m = tau_m * 10.0  # the belt's motor acts through r_m = 0.1 m
 
     # FMI 2.0 state -> FMI 3.0 instance
-    two = fmu2.instance("fmi2-state", params)
+    two = fmu2.co_simulation("fmi2-state", params)
     try:
         for k in range(STATE_AT):
-            two.step(k * STATE_H, STATE_H, float(tau_m[k]), float(tau_L[k]))
-        state2 = two.slave.getFMUstate()
-        blob2 = two.slave.serializeFMUstate(state2)
-        two.slave.freeFMUstate(state2)
+            two.step(k * STATE_H, STATE_H, tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
+        state2 = two.fmu.getFMUstate()
+        blob2 = two.fmu.serializeFMUstate(state2)
+        two.fmu.freeFMUstate(state2)
     finally:
         two.free()
-    three = Slave3(fmu3, "refuses-fmi2", params)
+    three = fmu3.co_simulation("refuses-fmi2", params)
     try:
-        three.step(0.0, STATE_H, 1.0, 0.0)
+        three.step(0.0, STATE_H, tau_m=1.0, tau_L=0.0)
         before = (bits(three.get(*names)), three.contact())
 
         def load_fmi2_state():
-            restored = three.slave.deserializeFMUState(blob2)
-            three.slave.setFMUState(restored)
+            restored = three.fmu.deserializeFMUState(blob2)
+            three.fmu.setFMUState(restored)
 
         three.refused(load_fmi2_state, "FMI 2.0", "FMI 3.0")
         assert (bits(three.get(*names)), three.contact()) == before
@@ -555,46 +562,46 @@ def test_fmi2_state_is_refused_and_fmi3_state_continues_bit_for_bit(model):
         three.free()
 
     # FMI 3.0 run with early return; state at a communication point
-    original = Slave3(fmu3, "original", params, early_return=True)
+    original = fmu3.co_simulation("original", params, early_return=True)
     try:
         _drive3(original, 0, STATE_AT, tau_m, tau_L, names)
-        state = original.slave.getFMUState()
-        blob3 = original.slave.serializeFMUState(state)
+        state = original.fmu.getFMUState()
+        blob3 = original.fmu.serializeFMUState(state)
         continuation = _drive3(original, STATE_AT, STATE_N, tau_m, tau_L, names)
-        original.slave.setFMUState(state)
-        original.slave.freeFMUState(state)
+        original.fmu.setFMUState(state)
+        original.fmu.freeFMUState(state)
         assert _drive3(original, STATE_AT, STATE_N, tau_m, tau_L, names) == continuation
     finally:
         original.free()
     assert sum(1 for row in continuation if row[0][2]) >= 10, "the continuation must return early"
     assert {row[2] for row in continuation} == {FREE, PLUS, MINUS}
 
-    fresh = Slave3(f3.separate_copy(model), "fresh", other, early_return=True)
+    fresh = archives.separate_copy(model, fmi=3).co_simulation("fresh", other, early_return=True)
     try:
-        restored = fresh.slave.deserializeFMUState(blob3)
-        fresh.slave.setFMUState(restored)
-        fresh.slave.freeFMUState(restored)
+        restored = fresh.fmu.deserializeFMUState(blob3)
+        fresh.fmu.setFMUState(restored)
+        fresh.fmu.freeFMUState(restored)
         assert fresh.get(*params) == [float(v) for v in params.values()]
         assert _drive3(fresh, STATE_AT, STATE_N, tau_m, tau_L, names) == continuation
     finally:
         fresh.free()
 
     # FMI 3.0 Co-Simulation state -> FMI 2.0 Co-Simulation and FMI 3.0 Model Exchange instances
-    two = f3.LoggedSlave2(fmu2, "refuses-fmi3", params)
+    two = fmu2.co_simulation("refuses-fmi3", params)
     try:
-        two.slave.doStep(0.0, STATE_H)
+        two.fmu.doStep(0.0, STATE_H)
         before = (bits(two.get(*names)), two.contact())
         with pytest.raises(FMICallException) as refusal:
-            two.slave.setFMUstate(two.slave.deSerializeFMUstate(blob3))
+            two.fmu.setFMUstate(two.fmu.deSerializeFMUstate(blob3))
         assert refusal.value.status == fmi3Error  # fmi2Error, the same code
         reasons = [m[2] for m in two.messages if m[1] == "logErrors"]
         assert any("FMI 2.0" in r and "FMI 3.0" in r for r in reasons), two.messages
         assert (bits(two.get(*names)), two.contact()) == before
     finally:
-        two.free()
-    me = Model3(fmu3, "refuses-cs", params)
+        two.fmu.freeInstance()  # in the Error state, where fmi2Terminate is not allowed
+    me = fmu3.model_exchange("refuses-cs", params)
     try:
-        me.refused(lambda: me.model.setFMUState(me.model.deserializeFMUState(blob3)), "Co-Simulation", "Model Exchange")
+        me.refused(lambda: me.fmu.setFMUState(me.fmu.deserializeFMUState(blob3)), "Co-Simulation", "Model Exchange")
     finally:
         me.free()
 
@@ -606,12 +613,12 @@ MISUSE = {
     # name: (instance options, call, words the logged reason must contain)
     "doStep with a NaN step": ({}, lambda s: s.do_step(s.time, math.nan), ("communicationStepSize",)),
     "doStep with a NaN time": ({}, lambda s: s.do_step(math.nan, 0.01), ("currentCommunicationPoint",)),
-    "enterEventMode without eventModeUsed": ({}, lambda s: s.slave.enterEventMode(), ("eventModeUsed",)),
-    "fmi3GetClock": ({}, lambda s: s.slave.getClock([s.vr["contact"]]), ("clocks",)),
-    "fmi3SetClock": ({}, lambda s: s.slave.setClock([s.vr["contact"]], [True]), ("clocks",)),
+    "enterEventMode without eventModeUsed": ({}, lambda s: s.fmu.enterEventMode(), ("eventModeUsed",)),
+    "fmi3GetClock": ({}, lambda s: s.fmu.getClock([s.vr["contact"]]), ("clocks",)),
+    "fmi3SetClock": ({}, lambda s: s.fmu.setClock([s.vr["contact"]], [True]), ("clocks",)),
     "doStep in Event Mode": (
         {"event_mode": True},
-        lambda s: (s.slave.enterEventMode(), s.do_step(s.time, 0.01)),
+        lambda s: (s.fmu.enterEventMode(), s.do_step(s.time, 0.01)),
         ("fmi3DoStep", "EventMode"),
     ),
 }
@@ -624,7 +631,7 @@ def test_misuse_is_refused_with_a_reason(model, case):
     unchanged after it, none NaN; fmi3Reset from the Error state, the same experiment again,
     and the instance reproduces a fresh instance bit for bit."""
     options, call, mentions = MISUSE[case]
-    fmu3 = f3.require(model)
+    fmu3 = archives.require(model, fmi=3)
     names = float64_names(fmu3)
     params = _rig(model)
 
@@ -632,28 +639,28 @@ def test_misuse_is_refused_with_a_reason(model, case):
         out = []
         for k in range(5):
             if inst.event_mode:
-                inst.slave.enterEventMode()
-            inst.set_inputs(50.0 * (k - 1.5), 0.2)
+                inst.fmu.enterEventMode()
+            inst.set_inputs(tau_m=50.0 * (k - 1.5), tau_L=0.2)
             if inst.event_mode:
-                inst.slave.updateDiscreteStates()
-                inst.slave.enterStepMode()
+                inst.fmu.updateDiscreteStates()
+                inst.fmu.enterStepMode()
             assert not inst.do_step(k * 0.02, 0.02)[2]
             out.append((bits(inst.get(*names)), inst.contact()))
         return out
 
-    reference_run = Slave3(fmu3, "reference", params, **options)
+    reference_run = fmu3.co_simulation("reference", params, **options)
     try:
         expected = run(reference_run)
     finally:
         reference_run.free()
-    inst = Slave3(fmu3, "misuse", params, **options)
+    inst = fmu3.co_simulation("misuse", params, **options)
     try:
         assert run(inst) == expected
         before = (bits(inst.get(*names)), inst.contact())
         inst.refused(lambda: call(inst), *mentions)
         assert (bits(inst.get(*names)), inst.contact()) == before
         assert not any(math.isnan(x) for x in inst.get(*names))
-        assert inst.slave.reset() == 0
+        assert inst.fmu.reset() == 0
         inst.initialise(0.0)
         assert run(inst) == expected
     finally:

@@ -10,10 +10,11 @@ from pathlib import Path
 
 import fmpy
 import pytest
+from backlash_fmu.fmu import STATES, archive_dir, fmu_path
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-import fmu_driver
+import archives
 
 XS = "{http://www.w3.org/2001/XMLSchema}"
 # The FMI 2.0 type element of each FMI 3.0 variable element.
@@ -21,10 +22,10 @@ FMI2_TYPE = {"Float64": "Real", "Int32": "Integer"}
 
 
 def fmi3_path(model: str) -> Path:
-    return fmu_driver.fmu_dir() / "fmi3" / f"{model}.fmu"
+    return fmu_path(model, 3)
 
 
-@pytest.fixture(params=fmu_driver.MODELS)
+@pytest.fixture(params=archives.MODELS)
 def model(request) -> str:
     """Each model; its FMI 3.0 archive must exist (a missing one fails, never skips)."""
     if not fmi3_path(request.param).is_file():
@@ -33,12 +34,12 @@ def model(request) -> str:
 
 
 def test_the_manifests_list_the_archives_of_both_standards():
-    """The models the tests run (fmu_driver.MODELS, FMI 2.0's manifest) are those packaged: each
+    """The models the tests run (archives.MODELS, FMI 2.0's manifest) are those packaged: each
     standard's manifest names them, in the same order, and its folder holds their archives and no
     other."""
-    for folder in (fmu_driver.fmu_dir(), fmu_driver.fmu_dir() / "fmi3"):
-        assert tuple((folder / "models.txt").read_text().split()) == fmu_driver.MODELS, folder
-        assert sorted(path.stem for path in folder.glob("*.fmu")) == sorted(fmu_driver.MODELS), folder
+    for folder in (archive_dir(), archive_dir() / "fmi3"):
+        assert tuple((folder / "models.txt").read_text().split()) == archives.MODELS, folder
+        assert sorted(path.stem for path in folder.glob("*.fmu")) == sorted(archives.MODELS), folder
 
 
 def test_fmpy_validation_finds_no_problem(model):
@@ -115,7 +116,7 @@ def _variable(v, version: str) -> tuple:
 
 def test_variables_equal_those_of_the_fmi2_archive(model):
     md3 = read_model_description(str(fmi3_path(model)))
-    md2 = read_model_description(str(fmu_driver.fmu_path(model)))
+    md2 = read_model_description(str(fmu_path(model)))
     assert md2.fmiVersion == "2.0"
     independent = [v for v in md3.modelVariables if v.causality == "independent"]
     assert [(v.name, v.valueReference, v.type, v.start) for v in independent] == [("time", 0, "Float64", None)]
@@ -127,10 +128,10 @@ def test_variables_equal_those_of_the_fmi2_archive(model):
 
 def test_states_derivatives_and_event_indicators(model):
     md3 = read_model_description(str(fmi3_path(model)))
-    md2 = read_model_description(str(fmu_driver.fmu_path(model)))
+    md2 = read_model_description(str(fmu_path(model)))
     pairs = [(u.variable.name, u.variable.derivative.name) for u in md3.derivatives]
     # The web line's span tension T is its fifth state (docs/model.md §8).
-    states = (*fmu_driver.STATE_OUTPUTS, "T") if model == "BacklashWeb" else fmu_driver.STATE_OUTPUTS
+    states = (*STATES, "T") if model == "BacklashWeb" else STATES
     assert pairs == [(f"der({s})", s) for s in states]
     assert pairs == [(u.variable.name, u.variable.derivative.name) for u in md2.derivatives]
     indicators = [(u.variable.name, u.variable.valueReference) for u in md3.eventIndicators]
@@ -140,7 +141,7 @@ def test_states_derivatives_and_event_indicators(model):
 
 
 def test_archive_layout_and_page(model):
-    with zipfile.ZipFile(fmi3_path(model)) as zf3, zipfile.ZipFile(fmu_driver.fmu_path(model)) as zf2:
+    with zipfile.ZipFile(fmi3_path(model)) as zf3, zipfile.ZipFile(fmu_path(model)) as zf2:
         # x86_64-linux always; `cargo xtask fmu --all-platforms` adds Windows and ARM (the FMI 3.0
         # platform tuples), each beside the same binary in the FMI 2.0 archive where it has one.
         names = set(zf3.namelist())

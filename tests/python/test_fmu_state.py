@@ -4,8 +4,9 @@ fmi2Reset: a restored or reset instance reproduces the original run bit for bit.
 from __future__ import annotations
 
 import numpy as np
+from backlash_fmu.fmu import STATES
 
-import fmu_driver
+import archives
 from rigs import RIGS
 from signals import reversing_torques
 
@@ -24,8 +25,8 @@ def _drive(inst, k0, k1, tau_m, tau_L):
     """All outputs after each step k0..k1-1, as exact Python floats and ints."""
     rows = []
     for k in range(k0, k1):
-        inst.step(inst.t0 + k * H, H, float(tau_m[k]), float(tau_L[k]))
-        rows.append((*inst.get(*fmu_driver.STATE_OUTPUTS, "psi", "bound", "bound_paper", "bound_sup"), inst.contact()))
+        inst.step(inst.t0 + k * H, H, tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
+        rows.append((*inst.get(*STATES, "psi", "bound", "bound_paper", "bound_sup"), inst.contact()))
     return rows
 
 
@@ -33,16 +34,16 @@ def test_serialized_state_continues_bit_for_bit_in_a_fresh_instance(fmu):
     params = _params(fmu.model)
     tau_m, tau_L = reversing_torques(N, H, 1.5, 0.6)
 
-    inst = fmu.instance("original", params)
+    inst = fmu.co_simulation("original", params)
     try:
         _drive(inst, 0, SNAPSHOT, tau_m, tau_L)
-        state = inst.slave.getFMUstate()
-        blob = inst.slave.serializeFMUstate(state)
+        state = inst.fmu.getFMUstate()
+        blob = inst.fmu.serializeFMUstate(state)
         continuation = _drive(inst, SNAPSHOT, N, tau_m, tau_L)
         # Same instance: roll back and redo. Exact equality throughout: the same library, state and
         # inputs give the same arithmetic (no BLAS; the FMU spawns no threads), hence the same bits.
-        inst.slave.setFMUstate(state)
-        inst.slave.freeFMUstate(state)
+        inst.fmu.setFMUstate(state)
+        inst.fmu.freeFMUstate(state)
         assert _drive(inst, SNAPSHOT, N, tau_m, tau_L) == continuation
     finally:
         inst.free()
@@ -51,11 +52,11 @@ def test_serialized_state_continues_bit_for_bit_in_a_fresh_instance(fmu):
 
     # A fresh instance from a separately unpacked copy, initialised with other parameters:
     # the serialized state must carry parameters, time, plant and bound state.
-    fresh = fmu_driver.separate_copy(fmu.model).instance("fresh", _params(fmu.model, 0.9))
+    fresh = archives.separate_copy(fmu.model).co_simulation("fresh", _params(fmu.model, 0.9))
     try:
-        restored = fresh.slave.deSerializeFMUstate(blob)
-        fresh.slave.setFMUstate(restored)
-        fresh.slave.freeFMUstate(restored)
+        restored = fresh.fmu.deSerializeFMUstate(blob)
+        fresh.fmu.setFMUstate(restored)
+        fresh.fmu.freeFMUstate(restored)
         assert [float(x) for x in fresh.get(*params)] == list(params.values())  # values passed through
         assert _drive(fresh, SNAPSHOT, N, tau_m, tau_L) == continuation
     finally:
@@ -65,20 +66,20 @@ def test_serialized_state_continues_bit_for_bit_in_a_fresh_instance(fmu):
 def test_reset_reproduces_the_first_run_bit_for_bit(fmu):
     params = _params(fmu.model)
     tau_m, tau_L = reversing_torques(N, H, 1.5, 0.6)
-    inst = fmu.instance("reset", params)
+    inst = fmu.co_simulation("reset", params)
     try:
         first = _drive(inst, 0, N, tau_m, tau_L)
         # fmi2Reset returns every variable to its start value (read in initialisation mode,
         # before the FMU derives anything from them) ...
-        inst.slave.reset()
-        inst.slave.setupExperiment(startTime=0.0)
-        inst.slave.enterInitializationMode()
+        inst.fmu.reset()
+        inst.fmu.setupExperiment(startTime=0.0)
+        inst.fmu.enterInitializationMode()
         starts = [float(fmu.variables[name].start) for name in params]
         # Passed through: the XML's start strings are the shortest round-trip text of these floats.
         assert inst.get(*params) == starts
-        assert inst.get(*fmu_driver.STATE_OUTPUTS) == [0.0] * 4
+        assert inst.get(*STATES) == [0.0] * 4
         # ... and the same experiment then reproduces the first run exactly.
-        inst.slave.reset()
+        inst.fmu.reset()
         inst.initialise(0.0)
         assert _drive(inst, 0, N, tau_m, tau_L) == first
     finally:

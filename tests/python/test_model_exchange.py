@@ -20,20 +20,21 @@ import math
 
 import numpy as np
 import pytest
+from backlash_fmu.fmu import STATES, ModelExchange
 from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
-import fmu_driver
-import me_driver
+import archives
 import reference
 import reference_continuous as rc
-from me_driver import DERIVATIVES, NX, STATES, ModelInstance, PythonPlant, run_loop
+from cvode_check import check_cvode_against_exact
+from loops import DERIVATIVES, NX, PythonPlant, outputs_along, run_loop, state_with_u
 from reference import FREE, MINUS, PLUS
 from reference_bound import loop_matrices
 from rigs import RIGS, plant_of, with_delta
 from signals import rel_err, reversing_torques
 
-MODELS = fmu_driver.MODELS
+MODELS = archives.MODELS
 EPS = np.finfo(float).eps
 
 # --- scenarios ----------------------------------------------------------------------------------
@@ -66,15 +67,15 @@ def fmu_loop(model: str, delta: float | None = None):
     1e-15, the FMU's event indicators as events): the run and the FMU's outputs along it."""
     params, gains = RIGS[model]
     params = params if delta is None else with_delta(params, delta)
-    inst = ModelInstance(fmu_driver.require(model), f"loop-{delta}", {**params, **gains})
+    inst = archives.require(model).model_exchange(f"loop-{delta}", {**params, **gains})
     # The outputs along the run are read by a second instance from the start: the first has
     # completed steps and events, over which time cannot go back (FMI 2.0.4 §3.2.2).
-    reader = ModelInstance(fmu_driver.require(model), f"read-{delta}", {**params, **gains})
+    reader = archives.require(model).model_exchange(f"read-{delta}", {**params, **gains})
     try:
         # Delta = 0: linear right-hand side, nothing to locate (run_loop's events=False)
         events = params["Delta"] > 0.0
         run = run_loop(inst, gains["Kp"], gains["Ki"], loop_holds(), LOOP_TIMES, (0.0, 0.0, 0.0, 0.0), events=events)
-        out = me_driver.outputs_along(reader, run)
+        out = outputs_along(reader, run)
     finally:
         inst.free()
         reader.free()
@@ -167,7 +168,7 @@ def test_reference_finds_a_grazing_touch(depth):
 
 @pytest.mark.parametrize("model", MODELS)
 def test_reference_closed_loop_matches_event_located_integrator(model):
-    """The PI loop with backlash: reference_continuous against me_driver.run_loop integrating the
+    """The PI loop with backlash: reference_continuous against loops.run_loop integrating the
     equations of docs/model.md §1 written in Python (PythonPlant: DOP853 rtol 1e-12 with the
     switches as events): the loop integrator the FMU tests use, on a model known to be right.
     Tolerance 1e-8 relative, as for the FMU below (measured 4e-12 shaft, 9e-12 belt)."""
@@ -188,7 +189,7 @@ def test_model_description_declares_model_exchange(fmu):
     md = fmu.md
     me = md.modelExchange
     assert me is not None and md.coSimulation is not None, "both interfaces in one archive"
-    assert me.modelIdentifier == fmu.model
+    assert me.modelIdentifier == fmu.path.stem  # the model it was asked for (fmu_path)
     assert me.providesDirectionalDerivative and me.canGetAndSetFMUstate and me.canSerializeFMUstate
     assert md.numberOfEventIndicators == 2
     derivatives = [d.variable for d in md.derivatives]  # <ModelStructure><Derivatives>, in order
@@ -217,7 +218,7 @@ def test_initialisation_asks_for_no_events(fmu):
     Event Mode; the continuous states are the start values."""
     params = RIGS[fmu.model][0]
     z0 = {"theta_m": 0.3, "omega_m": -1.2, "theta_L": 0.25, "omega_L": 0.7}
-    inst = ModelInstance(fmu, "init", {**params, **z0})
+    inst = fmu.model_exchange("init", {**params, **z0})
     try:
         needed, terminate, _, _, time_defined, _ = inst.initial_event
         assert not needed and not terminate and not time_defined
@@ -238,7 +239,7 @@ def test_nominals_of_the_continuous_states(fmu, delta):
     w0 = math.sqrt(p.K * (p.r_m**2 / p.J_m + p.r_L**2 / p.J_L))
     th_m, th_L = (p.g / p.r_m, p.g / p.r_L) if p.g > 0.0 else (1e-4, 1e-4)
     expected = np.array([th_m, w0 * th_m, th_L, w0 * th_L])
-    inst = ModelInstance(fmu, "nominals", params)
+    inst = fmu.model_exchange("nominals", params)
     try:
         nominals = inst.nominals()
     finally:
@@ -254,12 +255,12 @@ def test_indicators_psi_contact_and_derivatives_follow_the_state(fmu):
     params = RIGS[fmu.model][0]
     p = plant_of(fmu.model, params)
     rng = np.random.default_rng(7)
-    inst = ModelInstance(fmu, "follow", params)
+    inst = fmu.model_exchange("follow", params)
     seen = set()
     try:
         for _ in range(200):
             u = rng.uniform(-3.0, 3.0) * p.g
-            z = me_driver.state_with_u(p, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
+            z = state_with_u(p, u, rng.uniform(-10, 10), rng.uniform(-5, 5), rng.uniform(-5, 5))
             tau = rng.uniform(-3, 3, 2)
             u_scale = abs(p.r_m * z[0]) + abs(p.r_L * z[2]) + p.g
             slack = 8 * EPS * u_scale
@@ -295,7 +296,7 @@ def test_directional_derivatives(fmu, mode):
     params = RIGS[fmu.model][0]
     p = plant_of(fmu.model, params)
     u = {FREE: 0.3 * p.g, PLUS: 1.7 * p.g, MINUS: -1.7 * p.g}[mode]
-    z, tau = me_driver.state_with_u(p, u), np.array([0.4, -0.3])
+    z, tau = state_with_u(p, u), np.array([0.4, -0.3])
     knowns = [*STATES, "tau_m", "tau_L"]
     unknowns = [*DERIVATIVES, *STATES, "psi"]
     vr = fmu.vr
@@ -309,15 +310,15 @@ def test_directional_derivatives(fmu, mode):
     exact[4:8, :4] = np.eye(4)
     exact[8, :4] = c * p.K * np.array([p.r_m, 0.0, -p.r_L, 0.0])
 
-    inst = ModelInstance(fmu, f"dirder-{mode}", params)
+    inst = fmu.model_exchange(f"dirder-{mode}", params)
     try:
         inst.set_state(0.5, z)
-        inst.set_inputs(*tau)
+        inst.set_torques(*tau)
         jac = np.column_stack(
-            [inst.model.getDirectionalDerivative([vr[n] for n in unknowns], [vr[k]], [1.0]) for k in knowns]
+            [inst.fmu.getDirectionalDerivative([vr[n] for n in unknowns], [vr[k]], [1.0]) for k in knowns]
         )
         seed = np.array([0.3, -1.1, 0.7, 2.0, -0.5, 1.3])
-        combined = np.array(inst.model.getDirectionalDerivative([vr[n] for n in unknowns], [vr[k] for k in knowns], list(seed)))
+        combined = np.array(inst.fmu.getDirectionalDerivative([vr[n] for n in unknowns], [vr[k] for k in knowns], list(seed)))
 
         def evaluate(x, t_in):
             d = inst.derivatives(0.5, x, *t_in)
@@ -368,7 +369,7 @@ def test_simulate_fmu_with_cvode_matches_the_exact_solution(fmu):
     its time within the shift that error makes at the crossing speed, 2e-6 max|u| / |u'|
     (measured: within 0.28 of that, 5e-8 s)."""
     params = RIGS[fmu.model][0]
-    me_driver.check_cvode_against_exact(str(fmu.path), params, plant_of(fmu.model, params))
+    check_cvode_against_exact(str(fmu.path), params, plant_of(fmu.model, params))
 
 
 # --- the continuous-time PI loop closed by the test -----------------------------------------------
@@ -453,21 +454,21 @@ def test_bounds_equal_cosimulation(fmu, case):
     params, gains = RIGS[fmu.model]
     gains, t0 = (gains, 0.0) if case == "closed-loop" else ({"Kp": 0.0, "Ki": 0.0}, 1.5)
     offsets = [0.0, 0.37, 1.25, 0.8, 2.9, 0.05, 2.9, 1.25, 0.0]
-    inst = ModelInstance(fmu, "bounds-me", {**params, **gains}, start_time=t0)
+    inst = fmu.model_exchange("bounds-me", {**params, **gains}, start_time=t0)
     try:
         (sup_me,) = inst.get("bound_sup")
         me = {}
         for s in offsets:
-            inst.model.setTime(t0 + s)
+            inst.fmu.setTime(t0 + s)
             me.setdefault(s, []).append(inst.get("bound", "bound_paper"))
     finally:
         inst.free()
-    cs_inst = fmu.instance("bounds-cs", {**params, **gains}, start_time=t0)
+    cs_inst = fmu.co_simulation("bounds-cs", {**params, **gains}, start_time=t0)
     try:
         (sup_cs,) = cs_inst.get("bound_sup")
         cs, now = {0.0: cs_inst.get("bound", "bound_paper")}, 0.0
         for s in sorted(set(offsets) - {0.0}):
-            cs_inst.slave.doStep(t0 + now, s - now)
+            cs_inst.do_step(t0 + now, s - now)
             cs[s], now = cs_inst.get("bound", "bound_paper"), s
     finally:
         cs_inst.free()
@@ -482,8 +483,8 @@ def test_bounds_equal_cosimulation(fmu, case):
 # --- misuse ------------------------------------------------------------------------------------
 
 
-def _outputs_are_not_nan(inst: ModelInstance):
-    names = [n for n, v in inst.fmu.variables.items() if v.type == "Real" and v.causality == "output"]
+def _outputs_are_not_nan(inst: ModelExchange):
+    names = [n for n, v in inst.archive.variables.items() if v.type == "Real" and v.causality == "output"]
     values = inst.get(*names)
     assert not any(math.isnan(v) for v in values), dict(zip(names, values))
     return dict(zip(names, values))
@@ -496,10 +497,10 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
     can be set in Event Mode."""
     params = RIGS[fmu.model][0]
     plant = plant_of(fmu.model, params)
-    z = me_driver.state_with_u(plant, 1.5 * plant.g)
+    z = state_with_u(plant, 1.5 * plant.g)
 
     def fresh():
-        inst = ModelInstance(fmu, "misuse", params)
+        inst = fmu.model_exchange("misuse", params)
         inst.set_state(0.5, z)
         return inst, _outputs_are_not_nan(inst)
 
@@ -513,25 +514,25 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
             x[:NX] = z
             x[j] = bad
             cases[f"state {j} = {bad}"] = (
-                lambda inst, x=x: inst.model.fmi2SetContinuousStates(inst.c, (ctypes.c_double * nx)(*x), nx),
+                lambda inst, x=x: inst.fmu.fmi2SetContinuousStates(inst.c, (ctypes.c_double * nx)(*x), nx),
                 (names[j],),
             )
     for bad in (math.nan, math.inf, -math.inf):
-        cases[f"time {bad}"] = (lambda inst, bad=bad: inst.model.setTime(bad), ("time",))
-        cases[f"tau_m {bad}"] = (lambda inst, bad=bad: inst.set_inputs(bad, 0.0), ("tau_m",))
-        cases[f"tau_L {bad}"] = (lambda inst, bad=bad: inst.set_inputs(0.0, bad), ("tau_L",))
+        cases[f"time {bad}"] = (lambda inst, bad=bad: inst.fmu.setTime(bad), ("time",))
+        cases[f"tau_m {bad}"] = (lambda inst, bad=bad: inst.set_torques(bad, 0.0), ("tau_m",))
+        cases[f"tau_L {bad}"] = (lambda inst, bad=bad: inst.set_torques(0.0, bad), ("tau_L",))
     buffer = (ctypes.c_double * 8)(*([0.1] * 8))
     for n in (nx - 1, nx + 1, 0):
         lengths = (str(n), str(nx))
-        cases[f"set states n={n}"] = (lambda inst, n=n: inst.model.fmi2SetContinuousStates(inst.c, buffer, n), lengths)
-        cases[f"get states n={n}"] = (lambda inst, n=n: inst.model.fmi2GetContinuousStates(inst.c, buffer, n), lengths)
-        cases[f"derivatives n={n}"] = (lambda inst, n=n: inst.model.fmi2GetDerivatives(inst.c, buffer, n), lengths)
+        cases[f"set states n={n}"] = (lambda inst, n=n: inst.fmu.fmi2SetContinuousStates(inst.c, buffer, n), lengths)
+        cases[f"get states n={n}"] = (lambda inst, n=n: inst.fmu.fmi2GetContinuousStates(inst.c, buffer, n), lengths)
+        cases[f"derivatives n={n}"] = (lambda inst, n=n: inst.fmu.fmi2GetDerivatives(inst.c, buffer, n), lengths)
         cases[f"nominals n={n}"] = (
-            lambda inst, n=n: inst.model.fmi2GetNominalsOfContinuousStates(inst.c, buffer, n),
+            lambda inst, n=n: inst.fmu.fmi2GetNominalsOfContinuousStates(inst.c, buffer, n),
             lengths,
         )
     for n in (1, 3, 0):
-        cases[f"indicators n={n}"] = (lambda inst, n=n: inst.model.fmi2GetEventIndicators(inst.c, buffer, n), (str(n), "2"))
+        cases[f"indicators n={n}"] = (lambda inst, n=n: inst.fmu.fmi2GetEventIndicators(inst.c, buffer, n), (str(n), "2"))
     cases["parameter after initialisation"] = (lambda inst: inst.set({"J_m": 1.0}), ("J_m",))
 
     for name, (call, mentions) in cases.items():
@@ -544,10 +545,10 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
 
     inst, _ = fresh()
     try:
-        inst.model.enterEventMode()
-        inst.set_inputs(1.0, -1.0)
+        inst.fmu.enterEventMode()
+        inst.set_torques(1.0, -1.0)
         assert inst.get("tau_m", "tau_L") == [1.0, -1.0]
-        inst.model.enterContinuousTimeMode()
+        inst.fmu.enterContinuousTimeMode()
         assert np.all(np.isfinite(inst.derivatives(0.5, z, 1.0, -1.0)))
     finally:
         inst.free()

@@ -4,68 +4,41 @@ reaches the outputs, and a fresh instance works normally afterwards."""
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import math
 
 import pytest
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Error
-from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
-from fmpy.fmi1 import FMICallException
+from backlash_fmu.fmu import STATES, Archive, CoSimulation
+from fmpy.fmi2 import fmi2Error
 
-import fmu_driver
 from rigs import RIGS
 
-LOGGER_WITH_ARGUMENT = ctypes.CFUNCTYPE(
-    None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p
-)
+
+def instantiated(fmu: Archive, name: str = "robust") -> CoSimulation:
+    """An FMI 2.0 Co-Simulation instance, instantiated only (not initialised), whose logger
+    records (status, category, message)."""
+    return fmu.co_simulation(name, initialise=False)
 
 
-class Captured:
-    """An instance whose logger records (status, category, message)."""
+def discard(inst: CoSimulation) -> None:
+    """fmi2FreeInstance alone: the instance may be in a state (Instantiated, Initialization Mode,
+    Error) where fmi2Terminate is not allowed."""
+    inst.fmu.freeInstance()
 
-    def __init__(self, fmu: fmu_driver.Extracted, guid: str | None = None, name: str = "robust"):
-        self.messages: list[tuple[int, str, str]] = []
 
-        def log(env, instance, status, category, format, text):
-            # The FMU logs through format "%s" with the message as the one variadic argument;
-            # on x86-64 and AArch64 Linux it arrives like a sixth fixed argument.
-            assert format == b"%s"
-            self.messages.append((status, category.decode(), text.decode()))
+def refused_once(inst: CoSimulation, call, reason: str) -> None:
+    """call() is refused with fmi2Error and exactly one reason logged under logErrors, naming
+    `reason`."""
+    before = len(inst.messages)
+    inst.refused(call, reason)
+    new = [m for m in inst.messages[before:] if m[1] == "logErrors"]
+    assert len(new) == 1 and reason in new[0][2], (reason, inst.messages[before:])
 
-        # Kept alive as long as the instance.
-        self._logger = LOGGER_WITH_ARGUMENT(log)
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = ctypes.cast(self._logger, fmi2CallbackLoggerTYPE)
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(0)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(0)
-        self.slave = FMU2Slave(
-            guid=guid or fmu.md.guid,
-            unzipDirectory=fmu.unzipdir,
-            modelIdentifier=fmu.md.coSimulation.modelIdentifier,
-            instanceName=name,
-        )
-        self.vr = fmu.vr
-        self.slave.instantiate(callbacks=self.callbacks)
 
-    def refused(self, call, reason: str):
-        before = len(self.messages)
-        with pytest.raises(FMICallException) as e:
-            call()
-        assert e.value.status == fmi2Error
-        new = [m for m in self.messages[before:] if m[1] == "logErrors"]
-        assert len(new) == 1 and reason in new[0][2], (reason, self.messages[before:])
-
-    def initialise(self):
-        self.slave.setupExperiment(startTime=0.0)
-        self.slave.enterInitializationMode()
-        self.slave.exitInitializationMode()
-
-    def outputs(self) -> list[float]:
-        names = [n for n in self.vr if n != "contact"]
-        return self.slave.getReal([self.vr[n] for n in names])
-
-    def free(self):
-        self.slave.freeInstance()
+def real_outputs(inst: CoSimulation) -> list[float]:
+    """Every Real variable but `contact`, in the order of the value references."""
+    return inst.get(*[n for n in inst.vr if n != "contact"])
 
 
 def works_normally(fmu):
@@ -75,10 +48,10 @@ def works_normally(fmu):
     params = {"EA": RIGS["BacklashWeb"][0]["EA"]} if fmu.model == "BacklashWeb" else {}
     runs = []
     for _ in range(2):
-        inst = fmu.instance(params=params)
+        inst = fmu.co_simulation(params=params)
         for k in range(20):
-            inst.step(k * 5e-3, 5e-3, 2.0, 0.5)
-        values = inst.get(*fmu_driver.STATE_OUTPUTS, "psi", "bound", "bound_paper")
+            inst.step(k * 5e-3, 5e-3, tau_m=2.0, tau_L=0.5)
+        values = inst.get(*STATES, "psi", "bound", "bound_paper")
         assert all(math.isfinite(x) for x in values)
         assert values[1] > 0.0  # omega_m accelerated by the net torque
         runs.append(values)
@@ -88,80 +61,83 @@ def works_normally(fmu):
 
 def test_bad_step_sizes_are_refused_with_a_reason(fmu):
     for h in (0.0, -1e-3, math.nan, math.inf, -math.inf, 1e300):
-        inst = Captured(fmu)
+        inst = instantiated(fmu)
         inst.initialise()
-        inst.refused(lambda: inst.slave.doStep(0.0, h), "communicationStepSize")
-        assert all(not math.isnan(x) for x in inst.outputs())
-        inst.free()
-    inst = Captured(fmu)
+        refused_once(inst, lambda: inst.fmu.doStep(0.0, h), "communicationStepSize")
+        assert all(not math.isnan(x) for x in real_outputs(inst))
+        discard(inst)
+    inst = instantiated(fmu)
     inst.initialise()
-    inst.refused(lambda: inst.slave.doStep(0.5, 1e-3), "currentCommunicationPoint")
-    inst.free()
+    refused_once(inst, lambda: inst.fmu.doStep(0.5, 1e-3), "currentCommunicationPoint")
+    discard(inst)
     works_normally(fmu)
 
 
 def test_non_finite_and_out_of_range_values_are_refused(fmu):
     for name, value in (("tau_m", math.nan), ("tau_L", math.inf), ("J_m", 0.0), ("J_L", -1.0), ("b_m", -1e-9)):
-        inst = Captured(fmu)
-        inst.slave.enterInitializationMode()
-        inst.refused(lambda: inst.slave.setReal([inst.vr[name]], [value]), f"refused for {name}")
+        inst = instantiated(fmu)
+        inst.fmu.enterInitializationMode()
+        refused_once(inst, lambda: inst.fmu.setReal([inst.vr[name]], [value]), f"refused for {name}")
         # The start value is still in force and every output is finite.
-        assert inst.slave.getReal([inst.vr[name]])[0] == float(fmu.variables[name].start)
-        assert all(math.isfinite(x) or math.isinf(x) and n == "bound_sup" for n, x in zip(inst.vr, inst.outputs()))
-        inst.free()
+        assert inst.fmu.getReal([inst.vr[name]])[0] == float(fmu.variables[name].start)
+        assert all(math.isfinite(x) or math.isinf(x) and n == "bound_sup" for n, x in zip(inst.vr, real_outputs(inst)))
+        discard(inst)
     works_normally(fmu)
 
 
 def test_wrong_calls_and_references_are_refused(fmu):
-    inst = Captured(fmu)
-    inst.refused(lambda: inst.slave.doStep(0.0, 1e-3), "not allowed in state Instantiated")
-    inst.slave.reset()
+    inst = instantiated(fmu)
+    refused_once(inst, lambda: inst.fmu.doStep(0.0, 1e-3), "not allowed in state Instantiated")
+    inst.fmu.reset()
     inst.initialise()
-    inst.refused(lambda: inst.slave.setReal([inst.vr["J_m"]], [1.0]), "fixed parameter")
-    inst.slave.reset()
+    refused_once(inst, lambda: inst.fmu.setReal([inst.vr["J_m"]], [1.0]), "fixed parameter")
+    inst.fmu.reset()
     inst.initialise()
-    inst.refused(lambda: inst.slave.getReal([4242]), "not a variable")
-    inst.slave.reset()
+    refused_once(inst, lambda: inst.fmu.getReal([4242]), "not a variable")
+    inst.fmu.reset()
     inst.initialise()
-    inst.refused(lambda: inst.slave.getInteger([inst.vr["omega_m"]]), "not Integer")
-    inst.free()
+    refused_once(inst, lambda: inst.fmu.getInteger([inst.vr["omega_m"]]), "not Integer")
+    discard(inst)
     works_normally(fmu)
 
 
 def test_a_wrong_guid_is_refused_with_a_reason(fmu):
+    wrong = copy.copy(fmu)
+    wrong.md = copy.copy(fmu.md)
+    wrong.md.guid = "{00000000-0000-0000-0000-000000000000}"
     with pytest.raises(Exception, match="Failed to instantiate"):
-        Captured(fmu, guid="{00000000-0000-0000-0000-000000000000}")
+        instantiated(wrong)
     works_normally(fmu)
 
 
 def test_garbage_fmu_state_bytes_are_refused(fmu):
-    inst = Captured(fmu)
+    inst = instantiated(fmu)
     inst.initialise()
-    inst.slave.doStep(0.0, 1e-2)
-    state = inst.slave.getFMUState()
-    good = inst.slave.serializeFMUState(state)
+    inst.fmu.doStep(0.0, 1e-2)
+    state = inst.fmu.getFMUState()
+    good = inst.fmu.serializeFMUState(state)
     for bad in (good[:-1], good[:12], b"\x00" * len(good), bytes(b ^ 0xFF for b in good)):
-        inst.refused(lambda: inst.slave.deserializeFMUState(bad), "FMU state refused")
-        inst.slave.reset()
+        refused_once(inst, lambda: inst.fmu.deserializeFMUState(bad), "FMU state refused")
+        inst.fmu.reset()
     # The good bytes restore the state exactly.
     inst.initialise()
-    restored = inst.slave.deserializeFMUState(good)
-    inst.slave.setFMUState(restored)
-    inst.slave.doStep(1e-2, 1e-2)
-    a = inst.outputs()
-    inst.slave.setFMUState(state)
-    inst.slave.doStep(1e-2, 1e-2)
-    assert inst.outputs() == a
-    inst.free()
+    restored = inst.fmu.deserializeFMUState(good)
+    inst.fmu.setFMUState(restored)
+    inst.fmu.doStep(1e-2, 1e-2)
+    a = real_outputs(inst)
+    inst.fmu.setFMUState(state)
+    inst.fmu.doStep(1e-2, 1e-2)
+    assert real_outputs(inst) == a
+    discard(inst)
     works_normally(fmu)
 
 
 def test_null_arrays_with_a_positive_length_are_refused(fmu):
-    inst = Captured(fmu)
+    inst = instantiated(fmu)
     inst.initialise()
     before = len(inst.messages)
-    status = inst.slave.dll.fmi2GetReal(inst.slave.component, None, ctypes.c_size_t(2), None)
+    status = inst.fmu.dll.fmi2GetReal(inst.c, None, ctypes.c_size_t(2), None)
     assert status == fmi2Error
     assert any("is NULL" in m[2] for m in inst.messages[before:])
-    inst.free()
+    discard(inst)
     works_normally(fmu)

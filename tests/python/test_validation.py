@@ -93,7 +93,7 @@ def test_fmpy_validation_finds_no_problem(fmu):
 def test_fmu_is_fmi2_cosimulation(fmu):
     assert fmu.md.fmiVersion == "2.0"
     assert fmu.md.coSimulation is not None
-    assert fmu.md.coSimulation.modelIdentifier == fmu.model
+    assert fmu.md.coSimulation.modelIdentifier == fmu.path.stem  # the model it was asked for (fmu_path)
     assert fmu.md.coSimulation.canGetAndSetFMUstate and fmu.md.coSimulation.canSerializeFMUstate
 
 

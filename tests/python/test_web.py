@@ -27,10 +27,12 @@ import re
 
 import numpy as np
 import pytest
+from backlash_fmu.fmu import STATES as DRIVE_TRAIN_STATES, Archive, CoSimulation
 from fmpy.fmi2 import fmi2Warning
 from scipy.linalg import expm
 
-import fmu_driver
+import archives
+import loops
 from reference_web import (
     DRIVE,
     WEB,
@@ -46,7 +48,7 @@ from reference_web import (
 )
 from signals import rel_err
 from test_design_web import EPS_T, design_json, gains_of, params_of
-from test_robustness import Captured, works_normally
+from test_robustness import discard, instantiated, refused_once, works_normally
 
 MODEL = "BacklashWeb"
 INPUTS = ("tau_m", "tau_L", "v_in", "T_in")
@@ -60,21 +62,22 @@ MODES = {"Free": 0, "Positive": 1, "Negative": -1}
 
 
 @pytest.fixture(scope="module")
-def web() -> fmu_driver.Extracted:
-    return fmu_driver.require(MODEL)
+def web() -> Archive:
+    return archives.require(MODEL)
 
 
-def vrs(fmu: fmu_driver.Extracted, names) -> list[int]:
+def vrs(fmu: Archive, names) -> list[int]:
     return [fmu.vr[n] for n in names]
 
 
-def captured(fmu: fmu_driver.Extracted, values: dict | None = None, contact_events: bool = False) -> Captured:
-    """An initialised instance whose logger is recorded; `values` set before initialisation."""
-    inst = Captured(fmu, name="web")
+def captured(fmu: Archive, values: dict | None = None, contact_events: bool = False) -> CoSimulation:
+    """An initialised instance whose logger is recorded; `values` set before initialisation.
+    Freed with test_robustness.discard."""
+    inst = instantiated(fmu, name="web")
     if contact_events:
-        inst.slave.setDebugLogging(True, ["logContactEvents"])
+        inst.fmu.setDebugLogging(True, ["logContactEvents"])
     if values:
-        inst.slave.setReal(vrs(fmu, values), [float(v) for v in values.values()])
+        inst.fmu.setReal(vrs(fmu, values), [float(v) for v in values.values()])
     inst.initialise()
     return inst
 
@@ -113,21 +116,21 @@ def run_fmu_open_loop(web, h: float, n: int, ramps: bool):
     samples = input_signals(np.arange(n + 1) * h)
     slopes = np.diff(samples, axis=0) / h if ramps else None
     names = (*STATES, "psi")
-    rows, contact = [inst.slave.getReal(vrs(web, names))], [inst.slave.getInteger([web.vr["contact"]])[0]]
+    rows, contact = [inst.fmu.getReal(vrs(web, names))], [inst.fmu.getInteger([web.vr["contact"]])[0]]
     for k in range(n):
-        inst.slave.setReal(vrs(web, INPUTS), list(samples[k]))
+        inst.fmu.setReal(vrs(web, INPUTS), list(samples[k]))
         if ramps:
-            inst.slave.setRealInputDerivatives(vrs(web, INPUTS), [1] * 4, list(slopes[k]))
-        inst.slave.doStep(k * h, h)
-        rows.append(inst.slave.getReal(vrs(web, names)))
-        contact.append(inst.slave.getInteger([web.vr["contact"]])[0])
+            inst.fmu.setRealInputDerivatives(vrs(web, INPUTS), [1] * 4, list(slopes[k]))
+        inst.fmu.doStep(k * h, h)
+        rows.append(inst.fmu.getReal(vrs(web, names)))
+        contact.append(inst.fmu.getInteger([web.vr["contact"]])[0])
     switches = []
     for _, category, text in inst.messages:
         if category == "logContactEvents":
             m = re.search(r"t = (\S+) s: (\w+) -> (\w+)", text)
             assert m, text
             switches.append((float(m.group(1)), MODES[m.group(2)], MODES[m.group(3)]))
-    inst.free()
+    discard(inst)
     out = {name: np.array(rows)[:, j] for j, name in enumerate(names)}
     out["contact"] = np.array(contact)
     return out, switches, samples[:-1], slopes
@@ -202,9 +205,9 @@ def test_bound_sups_are_the_l1_norms_of_the_loop(web, case):
     params, gains = BOUND_CASES[case]
     p = {**WEB, **params}
     inst = captured(web, fmu_params(params, gains))
-    sup_T, sup = inst.slave.getReal(vrs(web, ("bound_T_sup", "bound_sup")))
+    sup_T, sup = inst.fmu.getReal(vrs(web, ("bound_T_sup", "bound_sup")))
     assert not [m for m in inst.messages if m[1] == "logWarnings"], inst.messages
-    inst.free()
+    discard(inst)
     _, _, K, g = transmission(p)
     A, d, c_T, c_w = reduced_loop(p, *gains)
     ref_T, ref = K * g * l1_norm(A, d, c_T), K * g * l1_norm(A, d, c_w)
@@ -225,15 +228,15 @@ def test_bound_T_at_finite_times_is_the_finite_horizon_l1_integral(web, case):
     p = {**WEB, **params}
     inst = captured(web, fmu_params(params, gains))
     # Exactly 0.0 at the start: nothing has been integrated yet.
-    assert inst.slave.getReal(vrs(web, ("bound_T", "bound"))) == [0.0, 0.0]
+    assert inst.fmu.getReal(vrs(web, ("bound_T", "bound"))) == [0.0, 0.0]
     t, got = 0.0, []
     for target in BOUND_TIMES:
         while t < target:  # unequal steps: the bounds must not depend on how time is cut
             h = min(target - t, 7.3e-3)
-            inst.slave.doStep(t, h)
+            inst.fmu.doStep(t, h)
             t += h
-        got.append(inst.slave.getReal(vrs(web, ("bound_T", "bound"))))
-    inst.free()
+        got.append(inst.fmu.getReal(vrs(web, ("bound_T", "bound"))))
+    discard(inst)
     got = np.array(got)
     ref_T, ref = bounds_until(p, gains, BOUND_TIMES)
     err_T, err = np.max(np.abs(got[:, 0] / ref_T - 1)), np.max(np.abs(got[:, 1] / ref - 1))
@@ -258,17 +261,17 @@ def test_the_finite_horizon_reference_reaches_the_l1_norm():
 def test_an_unstable_loop_has_infinite_sups_with_a_warning_and_finite_bounds(web, gains):
     A = reduced_loop(WEB, *gains)[0]
     assert np.max(np.linalg.eigvals(A).real) > 0.0, "the reference must find this loop unstable"
-    inst = Captured(web, name="unstable")
-    inst.slave.setReal(vrs(web, GAIN_NAMES), list(gains))
-    inst.slave.setupExperiment(startTime=0.0)
-    inst.slave.enterInitializationMode()
-    assert inst.slave.exitInitializationMode() == fmi2Warning
+    inst = instantiated(web, name="unstable")
+    inst.fmu.setReal(vrs(web, GAIN_NAMES), list(gains))
+    inst.fmu.setupExperiment(startTime=0.0)
+    inst.fmu.enterInitializationMode()
+    assert inst.fmu.exitInitializationMode() == fmi2Warning
     assert any(m[1] == "logWarnings" and "unstable" in m[2] for m in inst.messages), inst.messages
-    assert inst.slave.getReal(vrs(web, ("bound_T_sup", "bound_sup"))) == [math.inf, math.inf]
+    assert inst.fmu.getReal(vrs(web, ("bound_T_sup", "bound_sup"))) == [math.inf, math.inf]
     for k in range(20):
-        inst.slave.doStep(k * 1e-3, 1e-3)
-    got = inst.slave.getReal(vrs(web, ("bound_T", "bound")))
-    inst.free()
+        inst.fmu.doStep(k * 1e-3, 1e-3)
+    got = inst.fmu.getReal(vrs(web, ("bound_T", "bound")))
+    discard(inst)
     ref_T, ref = bounds_until(WEB, gains, [0.02])
     assert got[0] == pytest.approx(ref_T[0], rel=BOUND_TOL)
     assert got[1] == pytest.approx(ref[0], rel=BOUND_TOL)
@@ -298,8 +301,8 @@ def sampled_twin(web, params: dict, gains, w_ref, h: float, n: int, *, T_ref, ta
     Kp, Ki, Kp_T, Ki_T = gains
     runs = []
     for delta in (params.get("Delta", WEB["Delta"]), 0.0):
-        inst = fmu_driver.Instance(web, "twin", fmu_params({**params, "Delta": delta}, gains))
-        slave, ins, outs = inst.slave, vrs(web, INPUTS), vrs(web, TWIN_OUTPUTS)
+        inst = web.co_simulation("twin", fmu_params({**params, "Delta": delta}, gains))
+        slave, ins, outs = inst.fmu, vrs(web, INPUTS), vrs(web, TWIN_OUTPUTS)
         x_c = x_T = 0.0
         rows = [slave.getReal(outs)]
         for k in range(n):
@@ -375,15 +378,15 @@ def test_design_delta_max_gives_bound_T_sup_equal_to_the_accuracy_and_twins_with
     gains = gains_of(d)
     p = params_of(d, Delta=d["delta_max"])
     inst = captured(web, fmu_params(p, gains))
-    sup_T = inst.slave.getReal([web.vr["bound_T_sup"]])[0]
-    inst.free()
+    sup_T = inst.fmu.getReal([web.vr["bound_T_sup"]])[0]
+    discard(inst)
     # delta_max = EPS_T / (bound_T_sup per unit Delta), both from the plant library's norm at
     # tail tolerance 1e-13: the FMU at delta_max gives EPS_T to round-off.
     print(f"\n{name}: delta_max {d['delta_max']:.6e} m, FMU bound_T_sup {sup_T!r} N (rel {sup_T / EPS_T - 1:.1e})")
     assert sup_T == pytest.approx(EPS_T, rel=1e-8)
     inst = captured(web, fmu_params(params_of(d, Delta=1.01 * d["delta_max"]), gains))
-    assert inst.slave.getReal([web.vr["bound_T_sup"]])[0] > EPS_T
-    inst.free()
+    assert inst.fmu.getReal([web.vr["bound_T_sup"]])[0] > EPS_T
+    discard(inst)
 
     # Twins at delta_max under the sampled loops, driven at the peak of |H_T(jw)| (phi -> T) with
     # a reversing 10 rad/s reference, as test_design_web does with the continuous loop.
@@ -409,20 +412,20 @@ def test_decoupled_web_moves_as_the_belt_fmu(web):
     """EA = 1e-9 N, T from 0, T_in = v_in = 0: T stays ~1e-12 N and its pull ~1e-12 of the torques.
     Over 150 ms only: the lightly damped belt rattling in the gap amplifies such differences
     (tests/physics_web.rs)."""
-    belt = fmu_driver.require("BacklashBelt")
+    belt = archives.require("BacklashBelt")
     drive = {k: WEB[k] for k in DRIVE}
     gains = dict(zip(("Kp", "Ki"), SPEED))
     h, n = 5e-4, 300
     t = np.arange(n) * h
     tau_m = 0.03 * np.sin(2 * np.pi * 8 * t)
     tau_L = np.full(n, -0.01)
-    names = (*fmu_driver.STATE_OUTPUTS, "psi", "bound", "bound_paper")
+    names = (*DRIVE_TRAIN_STATES, "psi", "bound", "bound_paper")
     runs = []
     for fmu, extra in ((web, {"EA": 1e-9, "T": 0.0}), (belt, {})):
-        inst = fmu.instance("decoupled", {**drive, **gains, **extra})
+        inst = fmu.co_simulation("decoupled", {**drive, **gains, **extra})
         if fmu is web:
             inst.set({"v_in": 0.0, "T_in": 0.0})
-        out = fmu_driver.run_open_loop(inst, tau_m, tau_L, h)
+        out = loops.run_open_loop(inst, tau_m, tau_L, h)
         out["bound_sup"] = inst.get("bound_sup")[0]
         if fmu is web:
             out["T"] = inst.get("T")[0]
@@ -448,40 +451,40 @@ def test_decoupled_web_moves_as_the_belt_fmu(web):
 @pytest.mark.parametrize("name", ["R_w", "L_w", "EA", "v_ref"])
 def test_web_parameters_must_be_finite_and_positive(web, name):
     for value in (0.0, -1.0, math.nan, math.inf, -math.inf):
-        inst = Captured(web)
-        inst.slave.enterInitializationMode()
-        inst.refused(lambda: inst.slave.setReal([web.vr[name]], [value]), f"refused for {name}")
+        inst = instantiated(web)
+        inst.fmu.enterInitializationMode()
+        refused_once(inst, lambda: inst.fmu.setReal([web.vr[name]], [value]), f"refused for {name}")
         # The start value untouched: the XML's start is the shortest round-trip text of it.
-        assert inst.slave.getReal([web.vr[name]])[0] == float(web.variables[name].start)
-        inst.free()
+        assert inst.fmu.getReal([web.vr[name]])[0] == float(web.variables[name].start)
+        discard(inst)
     # In scale (docs/model.md §1): 1e-120 and 1e120 are refused when the plant is built.
     for value in (1e-120, 1e120):
-        inst = Captured(web)
-        inst.slave.setReal([web.vr[name]], [value])
-        inst.slave.setupExperiment(startTime=0.0)
-        inst.slave.enterInitializationMode()
-        inst.refused(inst.slave.exitInitializationMode, f"parameter {name}")
-        inst.free()
+        inst = instantiated(web)
+        inst.fmu.setReal([web.vr[name]], [value])
+        inst.fmu.setupExperiment(startTime=0.0)
+        inst.fmu.enterInitializationMode()
+        refused_once(inst, inst.fmu.exitInitializationMode, f"parameter {name}")
+        discard(inst)
     works_normally(web)
 
 
 @pytest.mark.parametrize("name", ["v_in", "T_in", "Kp_T", "Ki_T"])
 def test_non_finite_web_inputs_and_tension_gains_are_refused(web, name):
     for value in (math.nan, math.inf, -math.inf):
-        inst = Captured(web)
-        inst.slave.enterInitializationMode()
-        inst.refused(lambda: inst.slave.setReal([web.vr[name]], [value]), f"refused for {name}")
-        inst.free()
+        inst = instantiated(web)
+        inst.fmu.enterInitializationMode()
+        refused_once(inst, lambda: inst.fmu.setReal([web.vr[name]], [value]), f"refused for {name}")
+        discard(inst)
     if name in ("v_in", "T_in"):  # also between steps: the refused value is not stored
-        inst = Captured(web)
+        inst = instantiated(web)
         inst.initialise()
-        inst.slave.setReal([web.vr[name]], [1.0])
-        inst.slave.doStep(0.0, 1e-3)
-        before = inst.slave.getReal(vrs(web, (*STATES, name)))
-        inst.refused(lambda: inst.slave.setReal([web.vr[name]], [math.nan]), f"refused for {name}")
+        inst.fmu.setReal([web.vr[name]], [1.0])
+        inst.fmu.doStep(0.0, 1e-3)
+        before = inst.fmu.getReal(vrs(web, (*STATES, name)))
+        refused_once(inst, lambda: inst.fmu.setReal([web.vr[name]], [math.nan]), f"refused for {name}")
         # The same stored numbers read again: the refused call changed nothing.
-        assert inst.slave.getReal(vrs(web, (*STATES, name))) == before
-        inst.free()
+        assert inst.fmu.getReal(vrs(web, (*STATES, name))) == before
+        discard(inst)
     works_normally(web)
 
 
@@ -500,7 +503,7 @@ def test_output_derivatives_of_T_omega_L_and_bound_T(web):
     _, r_L, K, g = transmission(p)
     A, d, c_T, _ = reduced_loop(p, *gains)
     inst = captured(web, fmu_params({}, gains))
-    s = inst.slave
+    s = inst.fmu
     h, delta, n = 1e-3, 1e-7, 60
     inputs = input_signals(np.arange(n) * h)
     read = (*STATES, "psi", "bound_T", "der(T)")
@@ -527,7 +530,7 @@ def test_output_derivatives_of_T_omega_L_and_bound_T(web):
         terms_w = np.array([tau_L, -p["b_L"] * w_L, r_L * values["psi"], -p["R_w"] * T]) / p["J_L"]
         exact = K * g * abs(c_T @ expm(A * (t + delta)) @ d)
         checked.append((t + delta, rates, values, terms_T, terms_w, exact, central))
-    inst.free()
+    discard(inst)
     assert len(checked) == n // 6
     worst = 0.0
     for t, rates, values, terms_T, terms_w, exact, central in checked:
