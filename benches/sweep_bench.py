@@ -17,6 +17,10 @@ mode runs --repeats times, interleaved, and the fastest counts: on a shared mach
 runs measure the neighbours.
 
     python benches/sweep_bench.py [--samples 40] [--repeats 2] [--seed 1] [--fmu PATH]
+
+The sweep is the package's (backlash_fmu.sweep, its default config); the archive is
+BacklashShaft.fmu of $BACKLASH_FMU_DIR when that is set, else the package's own, unless --fmu
+names one.
 """
 
 from __future__ import annotations
@@ -29,13 +33,10 @@ from pathlib import Path
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from sweep import config, engine  # noqa: E402
+from backlash_fmu.sweep import config, default_archive, engine  # noqa: E402
 
 
-def emit(key: str, *values) -> None:
+def emit(key: str, *values: object) -> None:
     print("@", key, *values, flush=True)
 
 
@@ -44,13 +45,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=40)
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
-    default_fmu = Path(os.environ.get("BACKLASH_FMU_DIR", REPO / "target" / "fmu")) / "BacklashShaft.fmu"
-    ap.add_argument("--fmu", type=Path, default=default_fmu)
+    ap.add_argument("--fmu", type=Path, help="BacklashShaft.fmu (default: $BACKLASH_FMU_DIR's, else the package's)")
     args = ap.parse_args(argv)
 
     cfg = config.load(None)
     draws, settings = cfg.draw(args.samples, args.seed), cfg.settings()
-    data = args.fmu.read_bytes()
+    data = (default_archive() if args.fmu is None else args.fmu).read_bytes()
     n = args.samples
 
     emit("sweep_config", n, settings["horizon"], settings["h"])

@@ -13,6 +13,10 @@ speed, at the time scale of its drive's form (a shaft's or a belt's stiffness, r
 description; a web line's span inputs stay at their start values). After every step it records
 every Real variable, `contact` and the output derivatives of the Real outputs, as exact
 hexadecimal floats (`--dump` writes them, one line per step).
+
+The archives are driven through the package's driver, backlash_fmu.fmu (each scenario on an
+unpacked copy of its own); fmi2SetRealInputDerivatives and fmi2GetRealOutputDerivatives, which
+the driver does not wrap, are called on its instance's fmpy object (`fmu`).
 """
 
 from __future__ import annotations
@@ -20,61 +24,53 @@ from __future__ import annotations
 import argparse
 import hashlib
 import math
-import shutil
 import sys
 from pathlib import Path
 
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from backlash_fmu import fmu
 
 SCENARIOS = ("open", "ramp", "closed", "initial_speed")
 STEPS = 1500
 DERIVED = ["omega_m", "omega_L", "theta_m", "theta_L", "psi", "bound", "bound_paper"]
 
 
-def run(path: str, model: str, scenario: str) -> list[str]:
-    md = read_model_description(path)
-    unzipdir = extract(path)
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=model, instanceName="fingerprint")
-    lines = [f"# {model} {scenario}"]
-    try:
-        fmu.instantiate()
-        vr = {v.name: v.valueReference for v in md.modelVariables}
-        reals = [v.valueReference for v in md.modelVariables if v.type == "Real"]
+def run(path: Path, scenario: str) -> list[str]:
+    """The lines of one scenario on the FMI 2.0 archive at `path`: its header, then one line per
+    step."""
+    with fmu.Archive(path) as archive:
+        lines = [f"# {archive.model} {scenario}"]
+        vr = archive.vr
+        reals = [v.name for v in archive.md.modelVariables if v.type == "Real"]
         derived = [vr[n] for n in DERIVED]
         # The rig's time scale follows the compliant member: a shaft's k, or a belt's K_b.
         shaft = "k" in vr
         gains = {"Kp": 5.0, "Ki": 10.0} if shaft else {"Kp": 0.05, "Ki": 1.0}
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        fmu.setReal([vr[n] for n in gains], list(gains.values()))
-        if scenario == "initial_speed":
-            fmu.setReal([vr["omega_L"]], [0.3])
-        fmu.exitInitializationMode()
-        # Steps short against each rig's contact period, so that switches fall inside steps.
-        h = 1e-3 if shaft else 1e-5
-        t, x_c = 0.0, 0.0
-        for i in range(STEPS):
-            if scenario == "open":
-                tau = math.sin(7 * t) if shaft else 0.05 * math.sin(300 * t)
-                fmu.setReal([vr["tau_m"], vr["tau_L"]], [tau, -0.1 * tau])
-            elif scenario == "ramp":
-                if i % 100 == 0:
-                    fmu.setRealInputDerivatives([vr["tau_m"]], [1], [(-1) ** (i // 100) * 3.0])
-            elif scenario == "closed":
-                ref = math.sin(5 * t) if shaft else 10 * math.sin(500 * t)
-                e = ref - fmu.getReal([vr["omega_m"]])[0]
-                fmu.setReal([vr["tau_m"]], [gains["Kp"] * e + gains["Ki"] * x_c])
-                x_c += h * e
-            fmu.doStep(t, h)
-            t += h
-            values = list(fmu.getReal(reals)) + list(fmu.getRealOutputDerivatives(derived, [1] * len(derived)))
-            contact = fmu.getInteger([vr["contact"]])[0]
-            lines.append(" ".join(float(x).hex() for x in values) + f" {contact}")
-        fmu.terminate()
-    finally:
-        fmu.freeInstance()
-        shutil.rmtree(unzipdir, ignore_errors=True)
+        start = dict(gains, omega_L=0.3) if scenario == "initial_speed" else gains
+        inst = archive.co_simulation(name="fingerprint", params=start)
+        try:
+            slave = inst.fmu  # fmpy's FMU2Slave, for the input and output derivatives
+            # Steps short against each rig's contact period, so that switches fall inside steps.
+            h = 1e-3 if shaft else 1e-5
+            t, x_c = 0.0, 0.0
+            for i in range(STEPS):
+                if scenario == "open":
+                    tau = math.sin(7 * t) if shaft else 0.05 * math.sin(300 * t)
+                    inst.set({"tau_m": tau, "tau_L": -0.1 * tau})
+                elif scenario == "ramp":
+                    if i % 100 == 0:
+                        slave.setRealInputDerivatives([vr["tau_m"]], [1], [(-1) ** (i // 100) * 3.0])
+                elif scenario == "closed":
+                    ref = math.sin(5 * t) if shaft else 10 * math.sin(500 * t)
+                    e = ref - inst.get("omega_m")[0]
+                    inst.set({"tau_m": gains["Kp"] * e + gains["Ki"] * x_c})
+                    x_c += h * e
+                inst.do_step(t, h)
+                t += h
+                values = list(inst.get(*reals)) + list(slave.getRealOutputDerivatives(derived, [1] * len(derived)))
+                contact = inst.contact()
+                lines.append(" ".join(float(x).hex() for x in values) + f" {contact}")
+        finally:
+            inst.free()
     return lines
 
 
@@ -89,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     lines = []
     for archive in archives:
-        model = read_model_description(str(archive)).coSimulation.modelIdentifier
-        own = [line for scenario in SCENARIOS for line in run(str(archive), model, scenario)]
+        own = [line for scenario in SCENARIOS for line in run(archive, scenario)]
+        model = own[0].split()[1]
         digest = hashlib.sha256(("\n".join(own) + "\n").encode()).hexdigest()
         print(f"{digest}  {model} ({len(own)} lines: {len(SCENARIOS)} scenarios)")
         lines += own

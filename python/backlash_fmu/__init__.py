@@ -20,7 +20,7 @@ from pathlib import Path
 
 from . import fmu
 
-__all__ = ["design", "fmu_path", "MODELS"]
+__all__ = ["design", "design_json", "fmu_path", "MODELS"]
 
 # The models whose archives ship with the package, as their manifest lists them.
 MODELS: tuple[str, ...] = fmu.models(fmu.PACKAGED)
@@ -34,20 +34,24 @@ def design(model: str, accuracy: float | None = None, tension_accuracy: float | 
     Delta, R_1, R_2, R_g1, R_g2, R_w, L_w, EA, v_ref, Kp, Ki, Kp_T, Ki_T) replace the defaults.
     Returns the answer as `backlash design ... --json` prints it. Raises ValueError with the
     reason on bad input (an unknown model or parameter, a non-finite or out-of-range value)."""
+    return json.loads(design_json(model, accuracy, tension_accuracy, **parameters))
+
+
+def design_json(model: str, accuracy: float | None = None, tension_accuracy: float | None = None,
+                **parameters: float) -> str:
+    """`design`'s answer as the JSON text `backlash design ... --json` prints (one key a line,
+    no final newline)."""
     from . import _native  # the design library, compiled
 
     if not isinstance(model, str):
         raise ValueError(f"model = {model!r}: choose 'shaft', 'belt' or 'web'")
-    values = {}
-    for name, value in parameters.items():
-        values[name] = _number(name, value)
-    text = _native.design_json(
+    values = {name: _number(name, value) for name, value in parameters.items()}
+    return _native.design_json(
         model,
         None if accuracy is None else _number("accuracy", accuracy),
         None if tension_accuracy is None else _number("tension_accuracy", tension_accuracy),
         list(values.items()),
     )
-    return json.loads(text)
 
 
 def _number(name: str, value: object) -> float:

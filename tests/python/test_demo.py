@@ -1,10 +1,15 @@
-"""The demonstration's scripts in short mode, as `cargo xtask demo --short` runs them.
+"""The demonstration in short mode, `python -m backlash_fmu.demo --out DIR --short`, as
+`cargo xtask demo --short` runs it.
 
-demo/paper_experiments.py: it runs, prints one line per case, and writes its CSV and PNG files
-with numbers that say what the demo claims (the true bound holds in every case, the bound as
-printed in the paper does not).
+The design answers: DIR/design.json and DIR/design_web.json are backlash_fmu.design's answers
+for the paper's rig (accuracy 0.02 m/s at Delta = 0.775 mm) and the film line (eps_T = 20 N), in
+the layout of `backlash design ... --json`.
 
-demo/web_line.py: its twin web lines keep |T^b - T^0| within bound_T and |omega_L^b - omega_L^0|
+backlash_fmu.demo.paper_experiments: it runs, prints one line per case, and writes its CSV and
+PNG files with numbers that say what the demo claims (the true bound holds in every case, the
+bound as printed in the paper does not).
+
+backlash_fmu.demo.web_line: its twin web lines keep |T^b - T^0| within bound_T and |omega_L^b - omega_L^0|
 within bound at every communication point, with no margin beyond round-off: the bounds belong to
 the continuous-time loops, and the loops sampled at h = 0.1 ms stay at 0.83 and 0.50 of them;
 they come close enough to the bounds to test them; and the FMU reads the design answer back
@@ -21,34 +26,48 @@ import sys
 
 import numpy as np
 import pytest
+from backlash_fmu import design_json
 
-import fmu_driver
-from test_design import design_json
-from test_design_web import design_json as web_design_json
+from archives import REPO
 
-SCRIPT = fmu_driver.REPO / "demo" / "paper_experiments.py"
-WEB_SCRIPT = fmu_driver.REPO / "demo" / "web_line.py"
 CASES = 12  # 3 gaps x 2 readings of the gap x 2 references
 # Round-off allowed in the pointwise comparisons (the bounds and the deviations start at 0).
 TOL = 1e-12
 
 
-def run_script(script, model: str, design: dict, out) -> tuple:
-    """(out, stdout) of a demo script in --short mode on `model`'s archive and the design answer."""
-    path = out / "design.json"
-    path.write_text(json.dumps(design))
-    fmu = fmu_driver.require(model).path
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory) -> tuple:
+    """(out, stdout) of `python -m backlash_fmu.demo --out DIR --short`: both experiments, on the
+    archives of backlash_fmu.fmu.archive_dir() (this run's $BACKLASH_FMU_DIR)."""
+    out = tmp_path_factory.mktemp("demo")
     proc = subprocess.run(
-        [sys.executable, str(script), "--fmu", str(fmu), "--design", str(path), "--out", str(out), "--short"],
-        capture_output=True, text=True, timeout=600,
+        [sys.executable, "-m", "backlash_fmu.demo", "--out", str(out), "--short"],
+        cwd=REPO, capture_output=True, text=True, timeout=900,
     )
     assert proc.returncode == 0, proc.stderr
     return out, proc.stdout
 
 
 @pytest.fixture(scope="module")
-def demo_run(tmp_path_factory):
-    return run_script(SCRIPT, "BacklashShaft", design_json(), tmp_path_factory.mktemp("demo"))
+def demo_run(demo):
+    return demo
+
+
+def test_the_design_answers_are_written_as_the_design_command_prints_them(demo):
+    """design.json and design_web.json: backlash_fmu.design's answers, one key a line as
+    `backlash design ... --json` prints them, with a final newline."""
+    out, stdout = demo
+    answers = {
+        "design.json": design_json("shaft", accuracy=0.02, Delta=0.775e-3),
+        "design_web.json": design_json("web", tension_accuracy=20.0),
+    }
+    for name, answer_text in answers.items():
+        text = (out / name).read_text()
+        answer = json.loads(answer_text)
+        assert text == answer_text + "\n", name
+        assert text.startswith('{\n  "plant": {"form": ') and text.endswith("\n}\n")
+        assert len(text.splitlines()) == len(answer) + 2
+        assert f"wrote {out / name}" in stdout or f"wrote {name}" in stdout
 
 
 def test_one_progress_line_per_case(demo_run):
@@ -97,8 +116,8 @@ def test_pngs_are_written(demo_run):
 
 
 @pytest.fixture(scope="module")
-def web_run(tmp_path_factory):
-    return run_script(WEB_SCRIPT, "BacklashWeb", web_design_json("tension"), tmp_path_factory.mktemp("web_line"))
+def web_run(demo):
+    return demo
 
 
 def test_web_line_deviations_stay_within_their_bounds_at_every_row(web_run):

@@ -1,9 +1,12 @@
-"""The tolerance sweep (sweep/, `python -m sweep`): the same table serially, on a LocalCluster, on
-a real `dask scheduler` with two `dask worker` processes, and after a worker is killed mid-run;
-bad configs and an unreachable scheduler refused in one line before any work.
+"""The tolerance sweep (backlash_fmu.sweep, `python -m backlash_fmu.sweep`): the same table
+serially, on a LocalCluster, on a real `dask scheduler` with two `dask worker` processes, and after
+a worker is killed mid-run; bad configs and an unreachable scheduler refused in one line before
+any work, also by the check that runs with the standard library only; the defaults are the
+design answer's.
 
-Every server binds to 127.0.0.1. The workers run from an empty directory without this package on
-their path: they get the task code and the FMU archive from the client.
+Every server binds to 127.0.0.1. The workers run from an empty directory without PYTHONPATH: they
+get the task code (backlash_fmu.twin and backlash_fmu.fmu, by value) and the FMU archive from the
+client.
 """
 
 from __future__ import annotations
@@ -19,13 +22,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from backlash_fmu import design, twin
+from backlash_fmu.fmu import fmu_path
+from backlash_fmu.sweep import config as sweep_config
+from backlash_fmu.sweep import engine, report
 
-import fmu_driver
+from archives import REPO
 
-sys.path.insert(0, str(fmu_driver.REPO))
-
-from sweep import config as sweep_config  # noqa: E402
-from sweep import engine, report  # noqa: E402
+# The check that `cargo xtask sweep` runs by path with the base python3 before building.
+CHECK = REPO / "python" / "backlash_fmu" / "sweep" / "check.py"
 
 SAMPLES = 8
 SEED = 7
@@ -44,10 +49,11 @@ def config_file(tmp_path_factory) -> Path:
 
 
 def sweep(out: Path, config: Path, *extra: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    """`python -m sweep` in a session of its own, so that a timeout also ends its LocalCluster."""
-    args = [sys.executable, "-m", "sweep", "--fmu", str(fmu_driver.fmu_path("BacklashShaft")), "--samples",
+    """`python -m backlash_fmu.sweep` in a session of its own, so that a timeout also ends its
+    LocalCluster."""
+    args = [sys.executable, "-m", "backlash_fmu.sweep", "--fmu", str(fmu_path("BacklashShaft")), "--samples",
             str(SAMPLES), "--seed", str(SEED), "--config", str(config), "--out", str(out), "--no-progress", *extra]
-    with subprocess.Popen(args, cwd=fmu_driver.REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    with subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                           start_new_session=True) as proc:
         try:
             stdout, stderr = proc.communicate(timeout=timeout)
@@ -177,7 +183,7 @@ def test_killed_worker_loses_no_sample(tmp_path, config_file, serial_table, clus
 
     cfg = sweep_config.load(config_file)
     draws = cfg.draw(SAMPLES, SEED)
-    fmu_bytes = fmu_driver.fmu_path("BacklashShaft").read_bytes()
+    fmu_bytes = fmu_path("BacklashShaft").read_bytes()
     outcome = engine.run_dask(fmu_bytes, draws, cfg.settings(), scheduler=cluster.address, progress=False,
                               after_first=kill)
     assert killed and victim.poll() is not None
@@ -205,14 +211,62 @@ def test_bad_config_is_refused_in_one_line(tmp_path, text, says):
     assert not (tmp_path / "out").exists()
 
 
+# Run by path under a guard that refuses every import outside the standard library: the check
+# needs neither the package's dependencies nor the package itself installed.
+STDLIB_ONLY = """
+import runpy, sys
+class Guard:
+    def find_spec(self, name, path=None, target=None):
+        top = name.split(".")[0]
+        if top not in sys.stdlib_module_names and not top.startswith("_backlash_fmu_sweep_check"):
+            raise ImportError(f"not in the standard library: {name}")
+sys.meta_path.insert(0, Guard())
+sys.argv = sys.argv[1:]
+runpy.run_path(sys.argv[0], run_name="__main__")
+"""
+
+
+def check(*args: str) -> subprocess.CompletedProcess:
+    """check.py run by path as `cargo xtask sweep` runs it, in isolated mode (no PYTHONPATH, no
+    user site) and with the standard library only."""
+    return subprocess.run([sys.executable, "-I", "-c", STDLIB_ONLY, str(CHECK), *args], cwd=REPO,
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("text, says", [
+    ("[parameters]\nk = { low = 220.0, high = 180.0 }\n", "inverted range"),
+    ("[loop]\nKp = -1.0\n", "parameters.Kp: must be >= 0"),
+    ("[reference]\nfrequency = -1.0\n", "reference.frequency: must be >= 0"),
+    ("[run]\nh = 2.0\n", "run.h = 2.0 is longer than run.horizon = 1.5"),
+])
+def test_the_check_by_path_refuses_a_bad_config_with_the_standard_library_only(tmp_path, text, says):
+    """The same one line and status 2 as the sweep itself, without the design's defaults."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    done = check("--samples", "2", "--seed", "1", "--config", str(bad), "--out", str(tmp_path / "out"))
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: config {bad}: ") and says in lines[0], done.stderr
+    itself = sweep(tmp_path / "out", bad, "--serial", timeout=60)
+    assert itself.returncode == 2 and itself.stderr == done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_check_by_path_accepts_a_good_config_with_the_standard_library_only(tmp_path, config_file):
+    done = check("--samples", "2", "--seed", "1", "--config", str(config_file), "--out", str(tmp_path / "out"))
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_cargo_xtask_sweep_refuses_a_bad_config_before_building(tmp_path):
-    """The config is checked by `python3 -m sweep --check` (standard library only) before the
-    FMUs and the venv are built: the refusal is the sweep's one line, and no build step ran."""
+    """The config is checked by python/backlash_fmu/sweep/check.py (run by path with the base
+    python3, standard library only) before the FMUs, the venv and the package are built: the
+    refusal is the sweep's one line, and no build step ran."""
     bad = tmp_path / "bad.toml"
     bad.write_text("[parameters]\nk = { low = 220.0, high = 180.0 }\n")
     cargo = os.environ.get("CARGO", "cargo")
     done = subprocess.run([cargo, "xtask", "sweep", "--samples", "2", "--seed", "1", "--config", str(bad),
-                           "--out", str(tmp_path / "out")], cwd=fmu_driver.REPO, capture_output=True, text=True,
+                           "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True,
                           timeout=900)
     assert done.returncode == 2, done.stderr
     errors = [line for line in done.stderr.splitlines() if line.startswith("error")]
@@ -254,35 +308,36 @@ def test_bad_arguments_are_refused_in_one_line_before_any_work(tmp_path, config_
     assert not (tmp_path / "out").exists()
 
 
-def test_the_defaults_are_the_demos_rig_gains_and_reference():
-    """The default config repeats numbers that `cargo xtask design` computes for the demo: they
-    must not drift from it.
+def test_the_defaults_are_the_design_answers_rig_gains_and_reference():
+    """The default config is the design answer for the shaft at the default accuracy,
+    `backlash_fmu.design("shaft", accuracy=0.02)`: its plant as the nominal drive, its gains, and
+    the mean natural frequency of its poles; the wear range, the tolerances, the amplitude and
+    the run are the sweep's own.
 
-    The rig and the accuracy are decimal literals on both sides, read into the same doubles. The
-    gains are not compared digit for digit: they maximise the smallest damping ratio, whose
-    maximum lies on a ridge where two pole pairs meet (a near-double pole), so a fresh run on
-    another machine (another libm) finds them only to about sqrt(eps) and may print other last
-    digits. What the rule fixes is its value: the frozen gains must attain the fresh run's
-    min_damping_ratio, and the frozen frequency must be the poles' mean natural frequency, both
-    to the round-off of the poles, computed here independently (numpy's eig of A_cl, docs/model.md
-    §3). Bauer-Fike: a computed pole lies within cond(V) eps |A| of an exact one; the design's own
-    poles add as much again. (zeta* - zeta at gains sqrt(eps) off the ridge's top is O(eps).)"""
+    The design's gains and poles are then checked independently (numpy's eig of A_cl,
+    docs/model.md §3): the gains attain the answer's min_damping_ratio, and the frequency is the
+    poles' mean natural frequency, both to the round-off of the poles. Bauer-Fike: a computed
+    pole lies within cond(V) eps |A| of an exact one; the design's own poles add as much again."""
     from reference_bound import loop_matrices
     from rigs import plant_of
-    from sweep import twin
-    from test_design import design_json
 
-    d = design_json(0.02)
-    defaults = sweep_config.DEFAULT_PARAMETERS
+    d = design("shaft", accuracy=sweep_config.DESIGN_ACCURACY)
+    assert d["accuracy"] == 0.02
+    cfg = sweep_config.load(None)
     plant = d["plant"]
-    assert (defaults["J_m"], defaults["b_m"], defaults["b_L"]) == (plant["J_m"], plant["b_m"], plant["b_L"])
-    assert (defaults["k"]["nominal"], defaults["J_L"]["nominal"]) == (plant["k"], plant["J_L"])
-    assert sweep_config.DEFAULT_RUN["accuracy"] == d["accuracy"]
-    assert sweep_config.DEFAULT_REFERENCE["amplitude"] == twin.SPEED
+    dist = cfg.distributions
+    Fixed, Uniform = sweep_config.Fixed, sweep_config.Uniform
+    assert (dist["J_m"], dist["b_m"], dist["b_L"]) == (Fixed(plant["J_m"]), Fixed(plant["b_m"]), Fixed(plant["b_L"]))
+    assert dist["k"] == Uniform(plant["k"] * (1 - 0.10), plant["k"] * (1 + 0.10))
+    assert dist["J_L"] == Uniform(plant["J_L"] * (1 - 0.05), plant["J_L"] * (1 + 0.05))
+    assert dist["Delta"] == Uniform(0.5e-3, 3e-3)
+    assert (dist["Kp"], dist["Ki"]) == (Fixed(d["Kp"]), Fixed(d["Ki"]))
+    assert cfg.accuracy == d["accuracy"] and (cfg.horizon, cfg.h) == (1.5, 1e-3)
+    assert cfg.amplitude == twin.SPEED
+    assert cfg.frequency == twin.reference_frequency(d["poles"])
 
     rig = {name: plant[name] for name in ("J_m", "J_L", "b_m", "b_L", "k", "Delta")}
-    loop = sweep_config.DEFAULT_LOOP
-    A, _, _ = loop_matrices(plant_of("BacklashShaft", rig), loop["Kp"], loop["Ki"])
+    A, _, _ = loop_matrices(plant_of("BacklashShaft", rig), d["Kp"], d["Ki"])
     lam, V = np.linalg.eig(A)
     poles = np.delete(lam, np.argmin(np.abs(lam)))  # without the free position's 0
     pole_error = 2 * np.linalg.cond(V) * np.finfo(float).eps * np.linalg.norm(A, 2)
@@ -290,4 +345,4 @@ def test_the_defaults_are_the_demos_rig_gains_and_reference():
     zeta = float(np.min(-poles.real / np.abs(poles)))
     assert abs(zeta - d["min_damping_ratio"]) <= 2 * pole_error / np.min(np.abs(poles)), (zeta, d["min_damping_ratio"])
     frequency = twin.reference_frequency([(p.real, p.imag) for p in poles])
-    assert abs(sweep_config.DEFAULT_REFERENCE["frequency"] - frequency) <= pole_error / (2 * math.pi)
+    assert abs(cfg.frequency - frequency) <= pole_error / (2 * math.pi)

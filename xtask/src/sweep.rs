@@ -1,9 +1,14 @@
 //! `cargo xtask sweep`: the tolerance sweep. Has the flags, the config and the output directory
-//! checked first (`python3 -m sweep --check`, standard library only, so a bad config is refused
-//! in a second rather than after minutes of building), builds the FMUs, makes sure the Python
-//! environment exists, then runs `python -m sweep` (the package sweep/) from the repository root
-//! on BacklashShaft.fmu with the flags given here.
+//! checked first, so that a bad config is refused in a second rather than after minutes of
+//! building: the base `python3` runs python/backlash_fmu/sweep/check.py by its path, which loads
+//! the sweep's own parser and config validation with the standard library only (neither the venv
+//! nor the package need exist yet; the same as `python -m backlash_fmu.sweep --check`). Then it
+//! builds the FMUs, makes sure the Python environment exists, installs the package
+//! `backlash_fmu` into it, and runs `python -m backlash_fmu.sweep` from the repository root with
+//! the flags given here, on the installed package's BacklashShaft.fmu (`BACKLASH_FMU_DIR` is
+//! removed from its environment) and with its defaults (the design answer for the shaft).
 
+use std::path::PathBuf;
 use std::process::Command;
 
 use crate::util::{self, step};
@@ -14,9 +19,10 @@ usage: cargo xtask sweep --samples N --seed S [--scheduler tcp://HOST:PORT] [--w
                          [--config FILE] [--out DIR] [--accuracy EPS] [--serial]
 
 Tolerance sweep of the shaft drive: for each of N drives, Delta, k and J_L drawn from the
-config's distributions (default: the paper's rig, Delta uniform over a wear range, k +-10 %,
-J_L +-5 %, the demo's gains and reversing reference), a twin closed-loop run through fmpy (with
-and without backlash) recording the max deviation, bound_sup and whether the accuracy is met.
+config's distributions (default: the drive, the gains and the reversing reference's frequency of
+the design answer for the shaft at eps = 0.02, Delta uniform over a wear range, k +-10 %,
+J_L +-5 %), a twin closed-loop run through fmpy (with and without backlash) recording the max
+deviation, bound_sup and whether the accuracy is met.
 Runs on a Dask LocalCluster (one worker per core) or an existing cluster (--scheduler). Writes
 results/sweep/samples.csv, summary.json, histogram.png and deviation_vs_delta.png.
 
@@ -25,14 +31,15 @@ results/sweep/samples.csv, summary.json, histogram.png and deviation_vs_delta.pn
   --scheduler ADDR  a running Dask scheduler (`dask scheduler`, `dask worker ADDR`)
   --workers N       LocalCluster worker processes (default: one per core); with
                     --scheduler, how many workers to wait for (default 1)
-  --config FILE     TOML distributions and settings (format: README.md, sweep/config.py)
+  --config FILE     TOML distributions and settings (format: README.md,
+                    python/backlash_fmu/sweep/config.py)
   --out DIR         output directory (default: results/sweep)
   --accuracy EPS    required load-speed accuracy [m/s] (default 0.02)
   --serial          no Dask: every sample in one process
   --connect-timeout seconds to reach the scheduler (default 10)
   --no-progress     no progress bar";
 
-/// Flags forwarded to `python -m sweep` with their value, and those without one.
+/// Flags forwarded to `python -m backlash_fmu.sweep` with their value, and those without one.
 const WITH_VALUE: [&str; 8] = [
     "--samples",
     "--seed",
@@ -70,35 +77,46 @@ pub fn run(args: &[String]) -> Result<(), String> {
         }
     }
 
-    step("checking the sweep's flags and config (python3 -m sweep --check)");
+    step("checking the sweep's flags and config (python3 python/backlash_fmu/sweep/check.py)");
     let mut check = Command::new(python::base_python());
     check
         .current_dir(util::repo_root())
-        .args(["-m", "sweep", "--check"])
+        .arg(check_script())
         .args(&forwarded);
     sweep_status(&mut check)?;
 
     step("building the FMUs");
     fmu::package_all()?;
     python::ensure_venv()?;
+    python::install_package()?;
 
-    step("tolerance sweep (python -m sweep)");
-    let python = python::venv_python();
-    let mut cmd = Command::new(python);
+    step("tolerance sweep (python -m backlash_fmu.sweep)");
+    let mut cmd = Command::new(python::venv_python());
     cmd.current_dir(util::repo_root())
-        .args(["-m", "sweep", "--fmu"])
-        .arg(util::fmu_dir().join("BacklashShaft.fmu"))
+        .env_remove("BACKLASH_FMU_DIR")
+        .args(["-m", "backlash_fmu.sweep"])
         .args(&forwarded);
     sweep_status(&mut cmd)
 }
 
-/// Runs `python -m sweep`; it says what went wrong in one line, so its exit code is passed on.
+/// The sweep's check run by its path: the arguments, the config and the output directory, with
+/// the standard library only (python/backlash_fmu/sweep/check.py).
+fn check_script() -> PathBuf {
+    util::repo_root()
+        .join("python")
+        .join("backlash_fmu")
+        .join("sweep")
+        .join("check.py")
+}
+
+/// Runs the sweep (or its check); it says what went wrong in one line, so its exit code is
+/// passed on.
 fn sweep_status(cmd: &mut Command) -> Result<(), String> {
     let status = util::status(cmd)?;
     match status.code() {
         Some(0) => Ok(()),
         Some(code) => std::process::exit(code),
-        None => Err(format!("python -m sweep was stopped ({status})")),
+        None => Err(format!("the sweep was stopped ({status})")),
     }
 }
 

@@ -595,7 +595,7 @@ fn fmpy_loop(md: &mut Md, plan: &Plan, r: &Results, s: &Schedules, f: &Figures) 
         "benches/python_bench.py: the sampled PI of tests/python/reference.py on omega_m, speed reference \
          5 sin(pi t) rad/s, load torque -2 N.m from t = 4 s, h = 1 ms, {} simulated s, BacklashShaft with \
          rigs.SHAFT (Delta = 2.69 mm) and rigs.SHAFT_GAINS, driven with fmpy's FMU2Slave through \
-         tests/python/fmu_driver.py (`inst.get(\"omega_m\")`, `inst.step(...)` = setReal + doStep). \
+         backlash_fmu.fmu (`inst.get(\"omega_m\")`, `inst.step(...)` = setReal + doStep). \
          Median [IQR] of {} runs.",
         plan.loop_seconds, plan.loop_repeats
     ));
@@ -820,7 +820,7 @@ fn dask_sweep(md: &mut Md, r: &Results) -> Result<(), String> {
     let scaling = r.num("sweep_scaling", 0)?;
     let overhead = r.num("sweep_overhead", 0)?;
     md.line(format!(
-        "The same {} samples of `python -m sweep` (default config: twin closed-loop runs of {} s each \
+        "The same {} samples of `python -m backlash_fmu.sweep` (default config: twin closed-loop runs of {} s each \
          through fmpy), wall time from the first task handed out to the last row received, fastest of \
          the interleaved repeats; start = the LocalCluster's start, the archive sent to the workers, \
          their imports and unpacking. The tables of the three runs are {}.",

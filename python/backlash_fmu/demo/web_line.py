@@ -3,11 +3,11 @@ tension bound, and the tension design answer read back through the FMU.
 
 Line: BacklashBelt's belt drive whose load roller (radius R_w) pulls one span of a film web
 (length L_w, stiffness EA, transport speed v_ref). Its parameters and the speed PI gains are
-those of results/design_web.json, the design answer written by `cargo xtask demo` (the same Rust
-code as `cargo xtask design --model web`).
+those of the web-tension design answer (`backlash_fmu.design("web", tension_accuracy=20)`,
+backlash_fmu.demo.web_design; written to design_web.json by `python -m backlash_fmu.demo`).
 
-Loops (docs/model.md §8), closed OUTSIDE the FMU through fmpy and sampled at every communication
-point (step h, zero-order hold on the motor torque):
+Loops (docs/model.md §8; backlash_fmu.twin.twin_web_run), closed OUTSIDE the FMU through fmpy and
+sampled at every communication point (step h, zero-order hold on the motor torque):
     tension PI:  e_T,n = T_ref - T(t_n),  w_ref,n = w_ref0(t_n) + Kp_T e_T,n + Ki_T x_T,n,
                  x_T,n+1 = x_T,n + h e_T,n
     speed PI:    e_n = w_ref,n - omega_m(t_n),  tau_m = Kp e_n + Ki x_c,n,  x_c,n+1 = x_c,n + h e_n
@@ -24,9 +24,11 @@ continuous-time loops; a rerun at h/2 shows how little the sampling changes the 
 The design answer (Delta_max and the K_b window for the tension accuracy eps_T, with the design's
 gains) is checked through the FMU: its `bound_T_sup` there is eps_T.
 
-Run by `cargo xtask demo [--short]`; standalone:
-    python demo/web_line.py --fmu target/fmu/BacklashWeb.fmu \
-        --design results/design_web.json --out results [--short]
+Run by `python -m backlash_fmu.demo` (and `cargo xtask demo [--short]`) after the paper's
+experiments; alone:
+    python -m backlash_fmu.demo.web_line [--out results] [--short] [--design FILE] [--fmu PATH]
+with the design answer computed (web_design) unless a JSON answer is given, and the archive
+BacklashWeb.fmu of $BACKLASH_FMU_DIR, else the package's own, unless --fmu names one.
 """
 
 from __future__ import annotations
@@ -34,13 +36,10 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
-import os
-import shutil
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -48,9 +47,19 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-# The FMU access lives in the package sweep/ at the repository root, shared with the shaft's demo.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from sweep.twin import Fmu, Instance  # noqa: E402
+from .. import fmu  # noqa: E402
+from ..twin import (  # noqa: E402
+    KI_T,
+    KP_T,
+    SPEED_AMPLITUDE,
+    SPEED_FREQUENCY,
+    T_IN,
+    T_REF,
+    V_IN,
+    WebRun,
+    bound_t_sup,
+    twin_web_run,
+)
 
 # Communication step [s]: h times the belt drive's contact natural frequency
 # (sqrt(K_b (R_1²/J_m + α_1²/J_L)) ≈ 1170 rad/s, docs/model.md §1) is 0.12; the rerun at h/2
@@ -58,132 +67,8 @@ from sweep.twin import Fmu, Instance  # noqa: E402
 H = 1e-4
 HORIZON_FULL = 1.0
 HORIZON_SHORT = 0.5
-# Speed reference on the motor: amplitude [rad/s] and frequency [Hz] of the reversing sine.
-SPEED_AMPLITUDE = 30.0
-SPEED_FREQUENCY = 5.0
-# Tension PI: Kp_T [rad/s per N], Ki_T [rad/s² per N] (slowest closed-loop poles -4.3 ± 4.0j),
-# and the tension set point T_ref [N].
-KP_T = 0.01
-KI_T = 0.05
-T_REF = 2.0
-# Upstream web: speed v_in [m/s] and tension T_in [N], held.
-V_IN = 0.0
-T_IN = 0.0
 # Pointwise comparisons allow for round-off only (both sides start at exactly 0).
 TOL = 1e-12
-
-
-# ------------------------------------------------------------------------------------------
-# FMU access
-# ------------------------------------------------------------------------------------------
-
-
-# What the twin run reads at every communication point (besides `contact`).
-OUTPUTS = ("omega_m", "omega_L", "T", "bound", "bound_T")
-
-
-class WebFmu(Fmu):
-    """BacklashWeb's archive, extracted once (removed by `remove`); its instances read OUTPUTS
-    and start with the upstream web (V_IN, T_IN) set."""
-
-    def __init__(self, path: Path):
-        super().__init__(path, OUTPUTS)
-
-    def instance(self, params: dict[str, float]) -> Instance:
-        return super().instance(dict(params, v_in=V_IN, T_in=T_IN))
-
-    def bound_t_sup(self, params: dict[str, float]) -> float:
-        """bound_T_sup of an instance with these parameters."""
-        inst = self.instance(params)
-        try:
-            return inst.get("bound_T_sup")[0]
-        finally:
-            inst.close()
-
-    def remove(self) -> None:
-        shutil.rmtree(self.unzipdir, ignore_errors=True)
-
-
-# ------------------------------------------------------------------------------------------
-# The twin experiment
-# ------------------------------------------------------------------------------------------
-
-
-@dataclass
-class WebRun:
-    """Twin web lines (b: with Delta, 0: Delta = 0) at the communication points."""
-
-    t: np.ndarray
-    T_b: np.ndarray
-    T_0: np.ndarray
-    omega_L_b: np.ndarray
-    omega_L_0: np.ndarray
-    bound_T: np.ndarray
-    bound: np.ndarray
-    contact: np.ndarray
-    bound_T_sup: float
-    bound_sup: float
-
-    @property
-    def dT(self) -> np.ndarray:
-        return np.abs(self.T_b - self.T_0)
-
-    @property
-    def d_omega_L(self) -> np.ndarray:
-        return np.abs(self.omega_L_b - self.omega_L_0)
-
-    @property
-    def switches(self) -> int:
-        """Changes of the contact mode between consecutive communication points."""
-        return int(np.count_nonzero(np.diff(self.contact)))
-
-
-def reference(t: float) -> float:
-    """The motor-speed reference w_ref0 [rad/s]: a sine that reverses the drive."""
-    return SPEED_AMPLITUDE * math.sin(2.0 * math.pi * SPEED_FREQUENCY * t)
-
-
-def twin_web_run(fmu: WebFmu, params: dict[str, float], kp: float, ki: float, horizon: float, h: float) -> WebRun:
-    """The speed and tension PI loops closed on each of two instances (Delta and Delta = 0)."""
-    common = dict(params, Kp=kp, Ki=ki, Kp_T=KP_T, Ki_T=KI_T)
-    twins = (fmu.instance(common), fmu.instance(dict(common, Delta=0.0)))
-    try:
-        n = int(round(horizon / h))
-        cols = np.zeros((n + 1, 2, len(OUTPUTS)))
-        contact = np.zeros(n + 1, dtype=int)
-        x_c = [0.0, 0.0]  # speed PI integrators
-        x_T = [0.0, 0.0]  # tension PI integrators
-        for i in range(n + 1):
-            t = i * h
-            outs = [inst.outputs() for inst in twins]
-            for j, out in enumerate(outs):
-                cols[i, j] = [out[name] for name in OUTPUTS]
-            contact[i] = outs[0]["contact"]
-            if i == n:
-                break
-            for j, (inst, out) in enumerate(zip(twins, outs)):
-                e_T = T_REF - out["T"]
-                e = reference(t) + KP_T * e_T + KI_T * x_T[j] - out["omega_m"]
-                inst.step(t, h, kp * e + ki * x_c[j])
-                x_c[j] += h * e
-                x_T[j] += h * e_T
-        bound_T_sup, bound_sup = twins[0].get("bound_T_sup", "bound_sup")
-    finally:
-        for inst in twins:
-            inst.close()
-    column = {name: k for k, name in enumerate(OUTPUTS)}
-    return WebRun(
-        t=np.arange(n + 1) * h,
-        T_b=cols[:, 0, column["T"]],
-        T_0=cols[:, 1, column["T"]],
-        omega_L_b=cols[:, 0, column["omega_L"]],
-        omega_L_0=cols[:, 1, column["omega_L"]],
-        bound_T=cols[:, 0, column["bound_T"]],
-        bound=cols[:, 0, column["bound"]],
-        contact=contact,
-        bound_T_sup=bound_T_sup,
-        bound_sup=bound_sup,
-    )
 
 
 def holds(dev: np.ndarray, bound: np.ndarray) -> bool:
@@ -251,24 +136,38 @@ def plot(path: Path, run: WebRun, delta: float) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--fmu", type=Path, required=True, help="BacklashWeb.fmu")
-    ap.add_argument("--design", type=Path, required=True,
-                    help="JSON from `cargo xtask design --model web --json` (results/design_web.json)")
-    ap.add_argument("--out", type=Path, required=True, help="output directory")
-    ap.add_argument("--short", action="store_true", help="short horizon (CI)")
+    """The web line alone (see the module's docstring); returns the exit status."""
+    from . import short_mode, web_design
+
+    ap = argparse.ArgumentParser(prog="python -m backlash_fmu.demo.web_line", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("results"), help="output directory (default: results)")
+    ap.add_argument("--short", action="store_true", help="short horizon (also when the environment has CI=true)")
+    ap.add_argument("--design", type=Path,
+                    help="a web design answer as JSON (`backlash design --model web --json`; default: computed)")
+    ap.add_argument("--fmu", type=Path, help="BacklashWeb.fmu (default: $BACKLASH_FMU_DIR's, else the package's)")
     args = ap.parse_args(argv)
-    short = args.short or os.environ.get("CI", "") in ("true", "1")
+    if args.design is None:
+        design, name = json.loads(web_design()), "computed"
+    else:
+        design, name = json.loads(args.design.read_text()), args.design.name
+    return run(design, args.out, short_mode(args.short), args.fmu, design_name=name)
+
+
+def run(design: dict[str, Any], out: Path, short: bool, archive: Path | None = None, *,
+        design_name: str = "design_web.json") -> int:
+    """The twin web lines with the line and the speed gains of the web design answer `design` (a
+    dict as `backlash_fmu.design("web", ...)` returns), on the archive `archive` (default:
+    BacklashWeb's, backlash_fmu.fmu.fmu_path), writing under `out`; `short`: the short horizon;
+    `design_name` names the answer in what is printed. Prints the table and the design answer
+    read back through the FMU; returns the exit status (0)."""
     horizon = HORIZON_SHORT if short else HORIZON_FULL
     started = time.perf_counter()
 
-    design = json.loads(args.design.read_text())
     params = {name: value for name, value in design["plant"].items() if name != "form"}
     kp, ki = design["Kp"], design["Ki"]
     delta = params["Delta"]
-    args.out.mkdir(parents=True, exist_ok=True)
-    fmu = WebFmu(args.fmu)
-    try:
+    out.mkdir(parents=True, exist_ok=True)
+    with fmu.Archive(fmu.fmu_path("BacklashWeb") if archive is None else archive) as web:
         print(f"web line: BacklashBelt's drive, Δ = {delta * 1e3:g} mm, pulling a span with "
               f"R_w = {params['R_w']:g} m, L_w = {params['L_w']:g} m, EA = {params['EA']:g} N, "
               f"v_ref = {params['v_ref']:g} m/s")
@@ -278,9 +177,9 @@ def main(argv: list[str] | None = None) -> int:
               f"{' (short)' if short else ''}; motor-speed reference {SPEED_AMPLITUDE:g} rad/s sine at "
               f"{SPEED_FREQUENCY:g} Hz, upstream web held (v_in = {V_IN:g} m/s, T_in = {T_IN:g} N)")
 
-        run = twin_web_run(fmu, params, kp, ki, horizon, H)
-        write_csv(args.out / "web_line.csv", run)
-        plot(args.out / "web_line.png", run, delta)
+        run = twin_web_run(web, params, kp, ki, horizon, H)
+        write_csv(out / "web_line.csv", run)
+        plot(out / "web_line.png", run, delta)
         ratio_t, ratio_w = worst_ratio(run.dT, run.bound_T), worst_ratio(run.d_omega_L, run.bound)
         both_hold = holds(run.dT, run.bound_T) and holds(run.d_omega_L, run.bound)
         print()
@@ -293,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{ratio_w:12.3f} {run.switches:8d} {'yes' if both_hold else 'NO':>5s}")
         print("(max |ΔT|/bound_T and max |Δω_L|/bound over the communication points; bound_T at the horizon; "
               "switches: contact changes between communication points)")
-        half = twin_web_run(fmu, params, kp, ki, horizon, H / 2)
+        half = twin_web_run(web, params, kp, ki, horizon, H / 2)
         print(f"sampling: halving h to {H / 2 * 1e3:g} ms changes max |ΔT| by "
               f"{(half.dT.max() / run.dT.max() - 1) * 100:+.2f} % (to {half.dT.max():.4f} N)")
 
@@ -302,22 +201,20 @@ def main(argv: list[str] | None = None) -> int:
         loop = "no tension loop" if gains["Kp_T"] == gains["Ki_T"] == 0 else \
             f"tension PI Kp_T = {gains['Kp_T']:g}, Ki_T = {gains['Ki_T']:g}"
         print()
-        print(f"design answer for tension accuracy ε_T = {eps_t:g} N ({args.design.name}; speed PI above, {loop}):")
+        print(f"design answer for tension accuracy ε_T = {eps_t:g} N ({design_name}; speed PI above, {loop}):")
         print(f"  bound_T_sup at Δ = {delta * 1e3:g} mm: {design['bound_T_sup_at_delta']:.4f} N; "
               f"Δ_max = {design['delta_max'] * 1e3:.6f} mm")
-        at_max = fmu.bound_t_sup(dict(params, **gains, Delta=design["delta_max"]))
+        at_max = bound_t_sup(web, dict(params, **gains, Delta=design["delta_max"]))
         print(f"  FMU bound_T_sup at Δ = Δ_max: {at_max:.12g} N (relative to ε_T {at_max / eps_t - 1:+.2e})")
         for key, side in (("k_min", "below"), ("k_max", "above")):
             if design[key] is None:
                 print(f"  {key}: none within the scan (ε_T holds {side} the nominal K_b to the scan's edge)")
                 continue
-            at_k = fmu.bound_t_sup(dict(params, **gains, K_b=design[key]))
+            at_k = bound_t_sup(web, dict(params, **gains, K_b=design[key]))
             print(f"  K_b {key[2:]} = {design[key]:.1f} N/m at Δ = {delta * 1e3:g} mm; FMU bound_T_sup there: "
                   f"{at_k:.12g} N (relative to ε_T {at_k / eps_t - 1:+.2e})")
-    finally:
-        fmu.remove()
 
-    print(f"\nwrote {args.out / 'web_line.csv'} and {args.out / 'web_line.png'} "
+    print(f"\nwrote {out / 'web_line.csv'} and {out / 'web_line.png'} "
           f"in {time.perf_counter() - started:.1f} s")
     return 0
 

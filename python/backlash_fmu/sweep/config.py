@@ -10,8 +10,8 @@ Config file (TOML, every entry optional; an entry replaces the default of the sa
     J_m   = 2.28                            # a plain number: fixed in every sample
 
     [loop]                        # the PI on the motor speed, closed outside the FMU
-    Kp = 42.70304505387717
-    Ki = 179.2424837177854
+    Kp = 42.7
+    Ki = 179.2
 
     [reference]                   # w_ref(t) = amplitude * sin(2 pi frequency t)
     amplitude = 0.05
@@ -24,14 +24,27 @@ Config file (TOML, every entry optional; an entry replaces the default of the sa
 
 Parameters: J_m, J_L, b_m, b_L, k, Delta, and the gains Kp, Ki may also be drawn (listed under
 [parameters] instead of [loop]). Every bound of a range must be >= 0 and low <= high.
+
+Defaults: the nominal drive, the gains and the reference's frequency are those of the design
+answer for the shaft at the default accuracy, `backlash_fmu.design("shaft", accuracy=0.02)`
+(DESIGN_ACCURACY): its "plant" (J_m, b_m, b_L fixed; k and J_L the nominals of the tolerances),
+its "Kp" and "Ki" (best-damped rule), and its "poles" (the frequency is their mean natural
+frequency, `twin.reference_frequency`). The wear range of Delta, the tolerances of k and J_L,
+the reference's amplitude and the run's horizon, step and accuracy are the sweep's own (WEAR,
+TOLERANCES, AMPLITUDE, DEFAULT_RUN).
+
+This module needs only the standard library until a config is built with its defaults: a
+config is checked without them (`check`, what `--check` runs), and numpy is imported by `draw`.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 # Order of the draws inside one sample, and of the table's columns: fixed, so a sample's values
 # depend only on the seed and its index.
@@ -39,50 +52,61 @@ PARAMETERS = ("Delta", "k", "J_L", "J_m", "b_m", "b_L", "Kp", "Ki")
 # Quantities that must be strictly positive for the FMU to accept them (docs/model.md §4).
 POSITIVE = {"J_m", "J_L", "k"}
 
-# The test rigs, kept in tests/fixtures/rigs.toml. Read here, when the command line builds its
-# config (the path is this package's, in the repository); the workers get the drawn values,
-# never this module.
-RIGS_FIXTURE = Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "rigs.toml"
-
-
-def _rig(model: str) -> dict[str, float]:
-    """A model's rig of the fixture: its parameter sets applied in order (tests/python/rigs.py)."""
-    with open(RIGS_FIXTURE, "rb") as f:
-        fixture = tomllib.load(f)
-    values: dict[str, float] = {}
-    for name in fixture["rigs"][model]["parameters"]:
-        values.update(fixture["sets"][name])
-    return values
-
-
-# The nominal drive: the fixture's BacklashShaft rig, the paper's experiment in shaft form
-# (PlantParams::paper_rig, the rectilinear ECP system). Delta is not the rig's (2.69 mm) but a
-# wear range, from a new gear pair (0.5 mm) to a worn one (3 mm, past the paper's largest
-# measured gap read as 2 Delta); k and J_L: manufacturing tolerances about the rig's values.
-_SHAFT = _rig("BacklashShaft")
-DEFAULT_PARAMETERS: dict[str, object] = {
-    "Delta": {"low": 0.5e-3, "high": 3e-3},
-    "k": {"nominal": _SHAFT["k"], "tol": 0.10},
-    "J_L": {"nominal": _SHAFT["J_L"], "tol": 0.05},
-    "J_m": _SHAFT["J_m"],
-    "b_m": _SHAFT["b_m"],
-    "b_L": _SHAFT["b_L"],
-}
-# The demo's PI gains: Kp, Ki of `cargo xtask design --accuracy 0.02 --json` (best-damped rule
-# on the nominal rig); one controller for every drive of the line. Not the fixture's
-# shaft_gains (Kp = 42, Ki = 180, the tests' grid-search round values): the demo's own.
-DEFAULT_LOOP = {"Kp": 42.70304505387717, "Ki": 179.2424837177854}
-# The demo's reversing reference: its SPEED sine at the closed-loop poles' natural frequency,
-# mean |pole| / 2 pi of the "poles" of the same command's output.
-DEFAULT_REFERENCE = {"amplitude": 0.05, "frequency": 1.4103246998179486}
+# The accuracy the default gains are designed for [m/s]: the demo's (backlash_fmu.demo).
+DESIGN_ACCURACY = 0.02
+# Delta is not the design's (0.775 mm) but a wear range, from a new gear pair (0.5 mm) to a worn
+# one (3 mm, past the paper's largest measured gap read as 2 Delta); k and J_L: manufacturing
+# tolerances about the nominal drive's values.
+WEAR = {"low": 0.5e-3, "high": 3e-3}
+TOLERANCES = {"k": 0.10, "J_L": 0.05}
+# The demo's reversing reference: its speed amplitude [m/s] (backlash_fmu.twin.SPEED), at the
+# frequency of the design's poles.
+AMPLITUDE = 0.05
 # The demo's short horizon and step, and its accuracy epsilon [m/s].
-DEFAULT_RUN = {"horizon": 1.5, "h": 1e-3, "accuracy": 0.02}
+DEFAULT_RUN = {"horizon": 1.5, "h": 1e-3, "accuracy": DESIGN_ACCURACY}
 
-SECTIONS = {"parameters", "loop", "reference", "run"}
+# The entries of each section but [parameters] (PARAMETERS), in the order the errors list them.
+ENTRIES = {
+    "loop": ("Kp", "Ki"),
+    "reference": ("amplitude", "frequency"),
+    "run": tuple(DEFAULT_RUN),
+}
+SECTIONS = {"parameters", *ENTRIES}
 
 
 class ConfigError(ValueError):
     """A config the sweep refuses before any work starts; the message is one line."""
+
+
+@functools.cache
+def design_answer() -> dict[str, Any]:
+    """The design answer the defaults come from: `backlash_fmu.design("shaft",
+    accuracy=DESIGN_ACCURACY)`, computed once per process."""
+    from .. import design
+
+    return design("shaft", accuracy=DESIGN_ACCURACY)
+
+
+def defaults(answer: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The default of every section's entries, from a shaft design answer (`design_answer()`):
+    its plant, its gains and the frequency of its poles, with the sweep's own wear range,
+    tolerances, amplitude and run."""
+    from ..twin import reference_frequency
+
+    plant = answer["plant"]
+    return {
+        "parameters": {
+            "Delta": dict(WEAR),
+            "k": {"nominal": plant["k"], "tol": TOLERANCES["k"]},
+            "J_L": {"nominal": plant["J_L"], "tol": TOLERANCES["J_L"]},
+            "J_m": plant["J_m"],
+            "b_m": plant["b_m"],
+            "b_L": plant["b_L"],
+        },
+        "loop": {"Kp": answer["Kp"], "Ki": answer["Ki"]},
+        "reference": {"amplitude": AMPLITUDE, "frequency": reference_frequency(answer["poles"])},
+        "run": dict(DEFAULT_RUN),
+    }
 
 
 @dataclass(frozen=True)
@@ -133,7 +157,7 @@ class Config:
         return out
 
 
-def _number(where: str, value) -> float:
+def _number(where: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(f"{where}: expected a number, got {value!r}")
     value = float(value)
@@ -142,7 +166,7 @@ def _number(where: str, value) -> float:
     return value
 
 
-def _distribution(name: str, spec) -> Uniform | Fixed:
+def _distribution(name: str, spec: object) -> Uniform | Fixed:
     where = f"parameters.{name}"
     if not isinstance(spec, dict):
         value = _number(where, spec)
@@ -168,18 +192,34 @@ def _distribution(name: str, spec) -> Uniform | Fixed:
     return Uniform(low, high)
 
 
-def _section(doc: dict, name: str, defaults: dict) -> dict:
+def _section(doc: dict, name: str) -> dict:
+    """The entries given in section [name], each a known one."""
     given = doc.get(name, {})
     if not isinstance(given, dict):
         raise ConfigError(f"[{name}] must be a table")
-    unknown = sorted(set(given) - set(defaults))
+    known = ENTRIES[name]
+    unknown = sorted(set(given) - set(known))
     if unknown:
-        raise ConfigError(f"[{name}]: unknown entry {unknown[0]!r} (known: {', '.join(defaults)})")
-    return {**defaults, **given}
+        raise ConfigError(f"[{name}]: unknown entry {unknown[0]!r} (known: {', '.join(known)})")
+    return given
 
 
-def build(doc: dict, source: str = "defaults") -> Config:
-    """The config from a parsed TOML document (empty: all defaults), validated."""
+def build(doc: dict, source: str = "defaults", answer: dict[str, Any] | None = None) -> Config:
+    """The config from a parsed TOML document (empty: all defaults), validated; the defaults
+    from the design answer `answer` (default: `design_answer()`)."""
+    return _validated(doc, source, defaults(design_answer() if answer is None else answer))
+
+
+def check(doc: dict, source: str = "defaults") -> None:
+    """Validates a parsed TOML document as `build` does, with the standard library only: every
+    entry given is checked, and the defaults (valid by construction) are not computed. Raises
+    ConfigError on the error `build` would report."""
+    _validated(doc, source, None)
+
+
+def _validated(doc: dict, source: str, default: dict[str, dict[str, Any]] | None) -> Config | None:
+    """The config of `doc` over the defaults `default`; with None, only the entries of `doc` and
+    the defaults that are the sweep's own are checked, and nothing is returned."""
     unknown = sorted(set(doc) - SECTIONS)
     if unknown:
         raise ConfigError(f"unknown section [{unknown[0]}] (known: {', '.join(sorted(SECTIONS))})")
@@ -189,36 +229,58 @@ def build(doc: dict, source: str = "defaults") -> Config:
     for name in params:
         if name not in PARAMETERS:
             raise ConfigError(f"unknown parameter {name!r} (known: {', '.join(PARAMETERS)})")
-    loop = _section(doc, "loop", DEFAULT_LOOP)
-    both = sorted(set(params) & set(doc.get("loop", {})))
+    loop = _section(doc, "loop")
+    both = sorted(set(params) & set(loop))
     if both:
         raise ConfigError(f"{both[0]} given both in [parameters] and [loop]")
-    specs = {**DEFAULT_PARAMETERS, **loop, **params}
-    distributions = {name: _distribution(name, specs[name]) for name in PARAMETERS}
-    reference = {k: _number(f"reference.{k}", v) for k, v in _section(doc, "reference", DEFAULT_REFERENCE).items()}
-    run = {k: _number(f"run.{k}", v) for k, v in _section(doc, "run", DEFAULT_RUN).items()}
+    own = {"parameters": {"Delta": WEAR}, "loop": {}, "reference": {"amplitude": AMPLITUDE}, "run": DEFAULT_RUN}
+    base = own if default is None else default
+    specs = {**base["parameters"], **base["loop"], **loop, **params}
+    distributions = {name: _distribution(name, specs[name]) for name in PARAMETERS if name in specs}
+    reference = {k: _number(f"reference.{k}", v)
+                 for k, v in {**base["reference"], **_section(doc, "reference")}.items()}
+    run = {k: _number(f"run.{k}", v) for k, v in {**base["run"], **_section(doc, "run")}.items()}
     for key in ("horizon", "h", "accuracy"):
         if run[key] <= 0:
             raise ConfigError(f"run.{key}: must be > 0, got {run[key]!r}")
     if run["h"] > run["horizon"]:
         raise ConfigError(f"run.h = {run['h']!r} is longer than run.horizon = {run['horizon']!r}")
-    if reference["frequency"] < 0:
+    if reference.get("frequency", 0.0) < 0:
         raise ConfigError(f"reference.frequency: must be >= 0, got {reference['frequency']!r}")
+    if default is None:
+        return None
     return Config(distributions, reference["amplitude"], reference["frequency"], run["horizon"], run["h"],
                   run["accuracy"], source)
 
 
-def load(path: Path | None) -> Config:
+def read(path: Path | None) -> tuple[dict, str]:
+    """The parsed TOML document of the config file at `path` and the source to report ({} and
+    "defaults" without a file)."""
     if path is None:
-        return build({})
+        return {}, "defaults"
     try:
         with open(path, "rb") as f:
-            doc = tomllib.load(f)
+            return tomllib.load(f), str(path)
     except OSError as e:
         raise ConfigError(f"cannot read config {path}: {e.strerror}") from None
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"config {path} is not valid TOML: {e}") from None
+
+
+def load(path: Path | None, answer: dict[str, Any] | None = None) -> Config:
+    """The config of the file at `path` (None: all defaults), validated; the defaults from the
+    design answer `answer` (default: `design_answer()`)."""
+    doc, source = read(path)
     try:
-        return build(doc, str(path))
+        return build(doc, source, answer)
+    except ConfigError as e:
+        raise ConfigError(f"config {path}: {e}") from None
+
+
+def load_checked(path: Path | None) -> None:
+    """Checks the config file at `path` as `load` would, with the standard library only."""
+    doc, source = read(path)
+    try:
+        check(doc, source)
     except ConfigError as e:
         raise ConfigError(f"config {path}: {e}") from None

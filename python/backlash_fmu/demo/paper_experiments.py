@@ -11,15 +11,18 @@ through fmpy and sampled at every communication point (step h, zero-order hold o
 Two instances run side by side from rest: one with the backlash (Delta > 0) and its twin without
 (Delta = 0). The deviation |omega_L^b - omega_L^0| is compared with the FMU's outputs `bound`
 (docs/model.md §3, rigorous) and `bound_paper` (eq. 37 as printed) and with `bound_sup` (the
-horizontal line of the paper's figures). The gains come from results/design.json, written by
-`cargo xtask demo` with the same Rust code as `cargo xtask design` (best-damped rule).
+horizontal line of the paper's figures). The gains are those of the design answer
+(`backlash_fmu.design`, best-damped rule; backlash_fmu.demo.shaft_design), which is also checked
+through the FMU.
 
 The paper's gaps (1.55, 3.56, 5.38 mm) are ambiguous (docs/model.md §5): both readings are run,
 Delta = gap/2 (the nomenclature: Delta is the half gap) and Delta = gap.
 
-Run by `cargo xtask demo [--short]`; standalone:
-    python demo/paper_experiments.py --fmu target/fmu/BacklashShaft.fmu \
-        --design results/design.json --out results [--short]
+Run by `python -m backlash_fmu.demo` (and `cargo xtask demo [--short]`) with the web line;
+alone:
+    python -m backlash_fmu.demo.paper_experiments [--out results] [--short] [--design FILE] [--fmu PATH]
+with the design answer computed (shaft_design) unless a JSON answer is given, and the archive
+BacklashShaft.fmu of $BACKLASH_FMU_DIR, else the package's own, unless --fmu names one.
 """
 
 from __future__ import annotations
@@ -28,10 +31,10 @@ import argparse
 import csv
 import json
 import math
-import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -39,9 +42,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-# The twin run lives in the package sweep/ at the repository root, shared with the tolerance sweep.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from sweep.twin import SPEED, Fmu, Run, reference_frequency, references, twin_run  # noqa: E402
+from .. import fmu  # noqa: E402
+from ..twin import SPEED, Run, bound_sup, reference_frequency, references, twin_run  # noqa: E402
 
 GAPS_MM = (1.55, 3.56, 5.38)
 READINGS = {"half": 0.5, "full": 1.0}  # Delta = factor * gap
@@ -131,7 +133,7 @@ def plot_gap(path: Path, gap: float, runs: dict[tuple[str, str], Run], f_ref: fl
     plt.close(fig)
 
 
-def plot_design(path: Path, design: dict, fmu_checks: list[tuple[float, float, float]]) -> None:
+def plot_design(path: Path, design: dict[str, Any], fmu_checks: list[tuple[float, float, float]]) -> None:
     """bound_sup over (Delta, k): bound_sup = Delta * S(k), S from the design scan."""
     eps = design["accuracy"]
     scan = np.array([[k, s] for k, s in design["k_scan"] if s is not None])
@@ -188,25 +190,48 @@ def plot_design(path: Path, design: dict, fmu_checks: list[tuple[float, float, f
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--fmu", type=Path, required=True, help="BacklashShaft.fmu")
-    ap.add_argument("--design", type=Path, required=True, help="JSON from `cargo xtask design --json`")
-    ap.add_argument("--out", type=Path, required=True, help="output directory")
-    ap.add_argument("--short", action="store_true", help="short horizons (CI)")
+    """The experiments alone (see the module's docstring); returns the exit status."""
+    from . import shaft_design, short_mode
+
+    ap = argparse.ArgumentParser(prog="python -m backlash_fmu.demo.paper_experiments",
+                                 description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("results"), help="output directory (default: results)")
+    ap.add_argument("--short", action="store_true", help="short horizons (also when the environment has CI=true)")
+    ap.add_argument("--design", type=Path,
+                    help="a shaft design answer as JSON (`backlash design --json`; default: computed)")
+    ap.add_argument("--fmu", type=Path, help="BacklashShaft.fmu (default: $BACKLASH_FMU_DIR's, else the package's)")
     args = ap.parse_args(argv)
-    short = args.short or os.environ.get("CI", "") in ("true", "1")
+    design = json.loads(shaft_design()) if args.design is None else json.loads(args.design.read_text())
+    return run(design, args.out, short_mode(args.short), args.fmu)
+
+
+def run(design: dict[str, Any], out: Path, short: bool, archive: Path | None = None) -> int:
+    """The experiments with the gains and the rig of the shaft design answer `design` (a dict as
+    `backlash_fmu.design("shaft", ...)` returns), on the archive `archive` (default:
+    BacklashShaft's, backlash_fmu.fmu.fmu_path), writing under `out`; `short`: the short
+    horizon. Prints the tables; returns the exit status (0)."""
     horizon = HORIZON_SHORT if short else HORIZON_FULL
     started = time.perf_counter()
     started_at = time.time() - 1.0  # files written by this run are newer (1 s for coarse clocks)
+    out.mkdir(parents=True, exist_ok=True)
+    with fmu.Archive(fmu.fmu_path("BacklashShaft") if archive is None else archive) as shaft:
+        _experiments(design, out, horizon, short, shaft)
 
-    design = json.loads(args.design.read_text())
+    def written(pattern: str) -> int:
+        return sum(1 for path in out.glob(pattern) if path.stat().st_mtime >= started_at)
+
+    print(f"\nwrote {written('*.csv')} CSV and {written('*.png')} PNG files "
+          f"under {out} in {time.perf_counter() - started:.1f} s")
+    return 0
+
+
+def _experiments(design: dict[str, Any], out: Path, horizon: float, short: bool, shaft: fmu.Archive) -> None:
+    """The twelve cases, the sampling study and the design checks, on the unpacked `shaft`."""
     p = design["plant"]
     plant = {"J_m": p["J_m"], "J_L": p["J_L"], "b_m": p["b_m"], "b_L": p["b_L"], "k": p["k"]}
     kp, ki = design["Kp"], design["Ki"]
     f_ref = reference_frequency(design["poles"])
     omega_n = 2 * math.pi * f_ref
-    args.out.mkdir(parents=True, exist_ok=True)
-    fmu = Fmu(args.fmu)
 
     print(f"rig: J_m = {p['J_m']} kg, J_L = {p['J_L']} kg, k = {p['k']} N/m, b_m = b_L = {p['b_m']} N.s/m")
     print(f"PI on motor speed, {design['gain_rule']}:")
@@ -222,10 +247,10 @@ def main(argv: list[str] | None = None) -> int:
             delta = factor * gap * 1e-3
             for ref_name, ref in references(f_ref).items():
                 t0 = time.perf_counter()
-                run = twin_run(fmu, plant, delta, kp, ki, ref, horizon, H)
+                run = twin_run(shaft, plant, delta, kp, ki, ref, horizon, H)
                 runs[(ref_name, reading)] = run
                 case = f"gap{gap:.2f}mm_{reading}_{ref_name}"
-                write_run_csv(args.out / f"run_{case}.csv", run)
+                write_run_csv(out / f"run_{case}.csv", run)
                 dev = run.deviation
                 row = {
                     "case": case,
@@ -244,9 +269,9 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"case {len(rows):2d}/12 {case:28s} max|dev| = {row['max_deviation']:.5f} m/s, "
                       f"sup bound_paper = {row['sup_bound_paper']:.5f}, sup bound = {row['sup_bound']:.5f} "
                       f"({time.perf_counter() - t0:.1f} s)", flush=True)
-        plot_gap(args.out / f"fig{FIGURE_OF_GAP[gap]}_gap{gap:.2f}mm.png", gap, runs, f_ref)
+        plot_gap(out / f"fig{FIGURE_OF_GAP[gap]}_gap{gap:.2f}mm.png", gap, runs, f_ref)
 
-    with (args.out / "summary.csv").open("w", newline="") as f:
+    with (out / "summary.csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
@@ -272,11 +297,11 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(f"sampling study (sine, Δ = {delta * 1e3:.3f} mm): max|dev| as the communication step h grows")
     base = None
-    with (args.out / "sampling.csv").open("w", newline="") as f:
+    with (out / "sampling.csv").open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["h_s", "max_deviation", "sup_bound", "relative_change"])
         for h in (H / 2, H, 5 * H, 20 * H):
-            run = twin_run(fmu, plant, delta, kp, ki, sine, horizon, h)
+            run = twin_run(shaft, plant, delta, kp, ki, sine, horizon, h)
             m = float(run.deviation.max())
             base = m if base is None else base
             w.writerow([h, m, float(run.bound.max()), m / base - 1])
@@ -290,11 +315,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"design (paper's open question) for accuracy ε = {eps:g} m/s, gains above:")
     print(f"  bound_sup per unit Δ at k = {p['k']:g}: {design['bound_sup_per_unit_delta']:.6f} (m/s)/m")
     print(f"  Δ_max = {design['delta_max'] * 1e3:.6f} mm (gap {2 * design['delta_max'] * 1e3:.6f} mm read as 2Δ)")
-    inst = fmu.instance(dict(plant, Kp=kp, Ki=ki, Delta=design["delta_max"]))
-    via_fmu = inst.bound_sup()
-    inst.close()
+    via_fmu = bound_sup(shaft, dict(plant, Kp=kp, Ki=ki, Delta=design["delta_max"]))
     print(f"  FMU bound_sup at Δ = Δ_max: {via_fmu:.12g} (relative error {via_fmu / eps - 1:+.2e})")
-    run = twin_run(fmu, plant, design["delta_max"], kp, ki, sine, horizon, H)
+    run = twin_run(shaft, plant, design["delta_max"], kp, ki, sine, horizon, H)
     print(f"  closed loop at Δ = Δ_max, sine reference: max|dev| = {run.deviation.max():.6f} m/s <= ε: "
           f"{run.deviation.max() <= eps}")
     mono = "monotone" if design["k_monotone"] else \
@@ -310,25 +333,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  k_max = {design['k_max']:.6f} N/m: a stiffer member with the same gains exceeds ε again")
     checks = []
     for k in [kk for kk in (design["k_min"], p["k"], design["k_max"], 10.0, 2000.0) if kk is not None]:
-        inst = fmu.instance(dict(plant, k=k, Kp=kp, Ki=ki, Delta=p["Delta"]))
-        b = inst.bound_sup()
-        inst.close()
+        b = bound_sup(shaft, dict(plant, k=k, Kp=kp, Ki=ki, Delta=p["Delta"]))
         idx = int(np.argmin([abs(math.log(s[0] / k)) for s in design["k_scan"]]))
         checks.append((k, b, design["k_scan"][idx][1]))
     print("  FMU bound_sup at k = " + ", ".join(f"{k:.2f}: {b:.6f}" for k, b, _ in checks))
-    with (args.out / "design_bound_sup.csv").open("w", newline="") as f:
+    with (out / "design_bound_sup.csv").open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["k", "bound_sup_at_Delta", "bound_sup_per_unit_Delta"])
         for k, s in design["k_scan"]:
             w.writerow([k, s, None if s is None else s / p["Delta"]])
-    plot_design(args.out / "design_bound_sup.png", design, checks)
-
-    def written(pattern: str) -> int:
-        return sum(1 for path in args.out.glob(pattern) if path.stat().st_mtime >= started_at)
-
-    print(f"\nwrote {written('*.csv')} CSV and {written('*.png')} PNG files "
-          f"under {args.out} in {time.perf_counter() - started:.1f} s")
-    return 0
+    plot_design(out / "design_bound_sup.png", design, checks)
 
 
 if __name__ == "__main__":

@@ -6,13 +6,14 @@ import csv
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 from .config import PARAMETERS, Config
 
 COLUMNS = ("sample", *PARAMETERS, "max_dev", "bound_sup", "ratio", "meets")
 
 
-def _cell(value) -> str:
+def _cell(value: object) -> str:
     # repr: the shortest text that reads back as the same float, so tables compare byte for byte.
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -27,7 +28,7 @@ def write_table(path: Path, rows: list[dict]) -> None:
             w.writerow([_cell(row[c]) for c in COLUMNS])
 
 
-def summarize(rows: list[dict], config: Config, seed: int) -> dict:
+def summarize(rows: list[dict], config: Config, seed: int) -> dict[str, Any]:
     n = len(rows)
     meeting = sum(r["meets"] for r in rows)
     worst = max(rows, key=lambda r: r["ratio"])
@@ -50,7 +51,7 @@ def summarize(rows: list[dict], config: Config, seed: int) -> dict:
     }
 
 
-def _finish(fig, ax, path: Path, legend_size: int) -> Path:
+def _finish(fig: Any, ax: Any, path: Path, legend_size: int) -> Path:
     """Legend, grid and layout of a figure, written to `path` and closed."""
     import matplotlib.pyplot as plt
 
@@ -101,9 +102,9 @@ def plot(out: Path, rows: list[dict], config: Config) -> list[Path]:
     return paths
 
 
-def write_summary(path: Path, summary: dict) -> None:
+def write_summary(path: Path, summary: dict[str, Any]) -> None:
     # JSON has no infinity (a ratio with bound_sup = 0): such numbers are written as null.
-    def finite(value):
+    def finite(value: Any) -> Any:
         if isinstance(value, float) and not math.isfinite(value):
             return None
         if isinstance(value, dict):

@@ -1,13 +1,22 @@
 """Tolerance sweep of the shaft drive: N drives with backlash, stiffness and load inertia drawn
 from distributions, each run as a twin closed loop (with and without backlash) through fmpy.
 
-    python -m sweep --samples 1000 --seed 1 [--scheduler tcp://HOST:PORT] [--workers N]
-                    [--config FILE] [--out DIR] [--fmu PATH] [--serial] [--accuracy EPS]
+    python -m backlash_fmu.sweep --samples 1000 --seed 1 [--scheduler tcp://HOST:PORT] [--workers N]
+                                 [--config FILE] [--out DIR] [--fmu PATH] [--serial] [--accuracy EPS]
+
+or `backlash_fmu.sweep.main([...])` with the same arguments. The defaults (config.py) are the
+design answer for the shaft, `backlash_fmu.design("shaft", accuracy=0.02)`: its drive as the
+nominal one, its gains and the frequency of its poles; the archive is BacklashShaft.fmu of
+$BACKLASH_FMU_DIR when that is set, else the package's own (`backlash_fmu.fmu_path`).
 
 Writes DIR/samples.csv (one row per sample), DIR/summary.json, DIR/histogram.png and
 DIR/deviation_vs_delta.png. Exit status: 0 done, 1 a sample's max deviation exceeded its
 bound_sup (the bound would be wrong), 2 bad usage, config, unreadable archive, output directory
 or scheduler (refused before any sample runs), 3 any other failure (its reason on one line).
+
+Modules: config (defaults, the TOML config, the draws), engine (serial or Dask runs of
+backlash_fmu.twin's sample), report (the table, the summary, the plots), check (the arguments
+and the config checked with the standard library only, run by path before anything is built).
 """
 
 from __future__ import annotations
@@ -16,10 +25,11 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import Callable, NoReturn
 
-# Tiny matrices by the thousand: BLAS threads only add synchronisation (tests/python/conftest.py).
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+__all__ = ["main", "parse", "UsageError"]
+
+MODEL = "BacklashShaft"
 
 
 class UsageError(Exception):
@@ -27,11 +37,11 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         raise UsageError(message)
 
 
-def _int_at_least(low: int):
+def _int_at_least(low: int) -> Callable[[str], int]:
     def convert(text: str) -> int:
         try:
             value = int(text)
@@ -58,22 +68,25 @@ def _check_writable(out: Path) -> None:
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    ap = _Parser(prog="python -m sweep", description=__doc__.split("\n\n")[0])
+    """The command line, validated; raises UsageError with a one-line reason."""
+    ap = _Parser(prog="python -m backlash_fmu.sweep", description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", type=_positive_int, required=True, help="number of drives")
     ap.add_argument("--seed", type=_int_at_least(0), required=True, help="seed of the draws (same seed, same table)")
     ap.add_argument("--scheduler", help="tcp://HOST:PORT of a running Dask scheduler (default: a LocalCluster)")
     ap.add_argument("--workers", type=_positive_int,
                     help="LocalCluster worker processes (default: one per core); with --scheduler: wait for this many")
-    ap.add_argument("--config", type=Path, help="TOML config (format: sweep/config.py, README.md)")
+    ap.add_argument("--config", type=Path, help="TOML config (format: backlash_fmu/sweep/config.py, README.md)")
     ap.add_argument("--out", type=Path, default=Path("results/sweep"), help="output directory")
-    ap.add_argument("--fmu", type=Path, default=Path("target/fmu/BacklashShaft.fmu"), help="BacklashShaft.fmu")
+    ap.add_argument("--fmu", type=Path,
+                    help="BacklashShaft.fmu (default: $BACKLASH_FMU_DIR's if set, else the package's own)")
     ap.add_argument("--serial", action="store_true", help="no Dask: every sample in this process")
     ap.add_argument("--accuracy", type=float, help="required load-speed accuracy [m/s] (overrides the config)")
     ap.add_argument("--connect-timeout", type=float, default=10.0, help="seconds to reach the scheduler")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     ap.add_argument("--check", action="store_true",
                     help="check the arguments, the config and the output directory, then stop (needs only the "
-                         "standard library: `cargo xtask sweep` runs it before building anything)")
+                         "standard library, also as `python3 backlash_fmu/sweep/check.py ARGS` without the package "
+                         "installed: `cargo xtask sweep` runs it before building anything)")
     args = ap.parse_args(argv)
     if args.serial and (args.scheduler or args.workers):
         raise UsageError("--serial runs without Dask: it takes neither --scheduler nor --workers")
@@ -84,14 +97,35 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
+def default_archive() -> Path:
+    """BacklashShaft.fmu of $BACKLASH_FMU_DIR when that is set (backlash_fmu.fmu.fmu_path), else
+    the package's own (backlash_fmu.fmu_path). Raises UsageError when the package has none."""
+    from .. import fmu, fmu_path
+
+    if os.environ.get("BACKLASH_FMU_DIR"):
+        return fmu.fmu_path(MODEL)
+    try:
+        return fmu_path(MODEL)
+    except (ValueError, FileNotFoundError) as e:
+        raise UsageError(f"no FMU archive given and none in the package: {e} (give --fmu PATH)") from None
+
+
+def _read_archive(path: Path | None) -> bytes:
+    path = default_archive() if path is None else path
+    try:
+        return path.read_bytes()
+    except OSError as e:
+        raise UsageError(f"cannot read the FMU archive {path}: {e.strerror} "
+                         "(build it with `cargo xtask fmu`)") from None
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The sweep's command line (`python -m backlash_fmu.sweep --help`); returns the exit status."""
     from . import config as config_mod
 
     try:
         args = parse(argv)
-        config = config_mod.load(args.config)
-        if args.accuracy is not None:
-            config.accuracy = args.accuracy
+        config_mod.load_checked(args.config)
         _check_writable(args.out)
     except (UsageError, config_mod.ConfigError) as e:
         print(f"error: {e}", file=sys.stderr)
@@ -103,9 +137,12 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         try:
-            fmu_bytes = args.fmu.read_bytes()
-        except OSError as e:
-            raise UsageError(f"cannot read the FMU archive {args.fmu}: {e.strerror} (build it with `cargo xtask fmu`)")
+            config = config_mod.load(args.config)
+        except config_mod.ConfigError as e:
+            raise UsageError(str(e)) from None
+        if args.accuracy is not None:
+            config.accuracy = args.accuracy
+        fmu_bytes = _read_archive(args.fmu)
         draws = config.draw(args.samples, args.seed)
         settings = config.settings()
         if args.serial:
@@ -149,7 +186,3 @@ def main(argv: list[str] | None = None) -> int:
               "the deviation exceeds the bound", file=sys.stderr)
         return 1
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

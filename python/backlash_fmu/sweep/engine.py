@@ -2,8 +2,9 @@
 or on an existing cluster. The rows are the same whichever runs them: each task gets its drawn
 parameters and the FMU archive as bytes, and the rows are sorted by sample index at the end.
 
-A worker needs only Python, fmpy and numpy: the task code (sweep.twin) is shipped by value, and
-the archive travels as a scattered bytes object, unpacked once per worker process.
+A worker needs only Python, fmpy and numpy (not this package): the task code (backlash_fmu.twin
+and the driver it runs on, backlash_fmu.fmu) is shipped by value, and the archive travels as a
+scattered bytes object, unpacked once per worker process.
 """
 
 from __future__ import annotations
@@ -14,11 +15,11 @@ import logging
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 from tqdm import tqdm
 
-from . import twin
+from .. import fmu, twin
 
 
 @dataclass
@@ -68,7 +69,7 @@ def task_keys(fmu_bytes: bytes, draws: list[dict], settings: dict) -> list[str]:
     return keys
 
 
-def connect(scheduler: str | None, workers: int | None, timeout: float):
+def connect(scheduler: str | None, workers: int | None, timeout: float) -> tuple[Any, Any]:
     """A Client on the given scheduler, or on a LocalCluster of `workers` single-threaded worker
     processes (default: one per core) bound to the loopback interface."""
     import dask
@@ -100,39 +101,63 @@ def connect(scheduler: str | None, workers: int | None, timeout: float):
 
 
 class _Shipped:
-    """A function that travels by value even through plain pickle: the scheduler unpickles the
-    graph with the standard library, so a reference to this package would fail on a cluster that
-    does not have it. Unpickled, it is a small closure that loads the real function (and its
-    imports, fmpy and numpy) when a worker first calls it, once per process."""
+    """A function of backlash_fmu.twin that travels by value even through plain pickle: the
+    scheduler unpickles the graph with the standard library, and the workers of an existing
+    cluster need not have this package. Unpickled, it is a small closure that carries the source
+    of the modules the task runs on (backlash_fmu.fmu, then backlash_fmu.twin): when a worker first
+    calls it, it executes them into a private package of that process (named by their digest;
+    their own imports, fmpy and numpy, are the worker's) and calls the function of that name,
+    once per process."""
 
-    def __init__(self, fn: Callable):
+    # The modules shipped, dependencies first: twin imports fmu (`from . import fmu`).
+    MODULES = (fmu, twin)
+
+    def __init__(self, fn: Callable) -> None:
+        import inspect
+
         import cloudpickle
 
-        # Shipped by value: workers of an existing cluster do not have this package installed.
-        cloudpickle.register_pickle_by_value(twin)
-        payload = cloudpickle.dumps(fn)
-        digest = "f" + hashlib.sha256(payload).hexdigest()
+        if fn.__module__ != twin.__name__:
+            raise ValueError(f"{fn.__qualname__} is not a function of {twin.__name__}")
+        name = fn.__name__
+        sources = tuple((module.__name__.rsplit(".", 1)[1], inspect.getsource(module)) for module in self.MODULES)
+        digest = hashlib.sha256(repr(sources).encode()).hexdigest()[:20]
 
-        def call(*args):
+        def call(*args: Any) -> Any:
             import sys
+            import threading
             import types
 
-            import cloudpickle
-
-            loaded = sys.modules.setdefault("_backlash_sweep_code", types.ModuleType("_backlash_sweep_code"))
-            fn = getattr(loaded, digest, None)
-            if fn is None:
-                fn = cloudpickle.loads(payload)
-                setattr(loaded, digest, fn)
-            return fn(*args)
+            package = f"_backlash_fmu_shipped_{digest}"
+            store = sys.modules.setdefault("_backlash_sweep_code", types.ModuleType("_backlash_sweep_code"))
+            lock = store.__dict__.setdefault("lock", threading.Lock())
+            with lock:
+                loaded = sys.modules.get(package)
+                if loaded is None:
+                    loaded = types.ModuleType(package)
+                    loaded.__path__ = []
+                    sys.modules[package] = loaded
+                    try:
+                        for module_name, source in sources:
+                            module = types.ModuleType(f"{package}.{module_name}")
+                            module.__package__ = package
+                            module.__file__ = f"<{package}/{module_name}.py>"
+                            sys.modules[module.__name__] = module
+                            exec(compile(source, module.__file__, "exec"), module.__dict__)
+                            setattr(loaded, module_name, module)
+                    except BaseException:
+                        for key in [k for k in sys.modules if k == package or k.startswith(package + ".")]:
+                            del sys.modules[key]
+                        raise
+            return getattr(loaded.twin, name)(*args)
 
         self.call = call
         self.pickled = cloudpickle.dumps(call)
 
-    def __call__(self, *args):
+    def __call__(self, *args: Any) -> Any:
         return self.call(*args)
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Callable, tuple[bytes]]:
         import cloudpickle
 
         return cloudpickle.loads, (self.pickled,)

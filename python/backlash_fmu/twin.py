@@ -1,0 +1,349 @@
+"""The twin closed-loop runs: two Co-Simulation instances of one archive side by side, one with
+the backlash (Delta > 0) and its twin without (Delta = 0), each under loops closed OUTSIDE the FMU
+and sampled at every communication point (step h, zero-order hold on the motor torque).
+
+- `twin_run`: a shaft or belt drive (BacklashShaft, BacklashBelt) under a PI loop on the motor
+  speed (docs/model.md §3):
+      e_n = w_ref(t_n) - omega_m(t_n),  tau_m = Kp e_n + Ki x_n,  x_{n+1} = x_n + h e_n;
+- `twin_web_run`: a web line (BacklashWeb) under that speed PI and an outer tension PI that
+  trims its reference (docs/model.md §8):
+      e_T,n = T_ref - T(t_n),  w_ref,n = w_ref0(t_n) + Kp_T e_T,n + Ki_T x_T,n,  x_T,n+1 = x_T,n + h e_T,n
+      e_n = w_ref,n - omega_m(t_n),  tau_m = Kp e_n + Ki x_c,n,  x_c,n+1 = x_c,n + h e_n;
+- `sample_row`, `sweep_task`, `prepare`, `archive_from_bytes`: one sample of a tolerance sweep
+  (backlash_fmu.sweep), on an archive sent as bytes and unpacked once per process.
+
+One definition shared by the demonstration (backlash_fmu.demo) and the tolerance sweep, so that
+both measure the same thing; every instance is driven through backlash_fmu.fmu.
+
+    from backlash_fmu import fmu, twin
+    with fmu.Archive.of("BacklashShaft") as archive:
+        run = twin.twin_run(archive, plant, 1e-3, kp, ki, twin.references(1.4)["sine"], 1.5, 1e-3)
+    print(run.deviation.max(), run.bound_sup)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from . import fmu
+
+# Reference amplitude [m/s]: a speed the rig reaches without the spring force exceeding a few N.
+SPEED = 0.05
+
+# What the twin run reads of a drive at every communication point (besides `contact`).
+SHAFT_OUTPUTS = ("omega_m", "omega_L", "bound", "bound_paper", "psi")
+
+# The plant parameters of a shaft drive that a sweep's sample sets (besides Delta and the gains).
+SHAFT_PLANT = ("J_m", "J_L", "b_m", "b_L", "k")
+
+
+# ------------------------------------------------------------------------------------------
+# The speed loop of a drive
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Run:
+    """Twin drives (b: with Delta, 0: Delta = 0) at the communication points t_0..t_N."""
+
+    t: np.ndarray
+    ref: np.ndarray
+    omega_m_b: np.ndarray
+    omega_L_b: np.ndarray
+    omega_m_0: np.ndarray
+    omega_L_0: np.ndarray
+    tau_b: np.ndarray
+    tau_0: np.ndarray
+    bound: np.ndarray
+    bound_paper: np.ndarray
+    contact: np.ndarray
+    bound_sup: float
+
+    @property
+    def deviation(self) -> np.ndarray:
+        """|omega_L^b - omega_L^0| at every communication point."""
+        return np.abs(self.omega_L_b - self.omega_L_0)
+
+
+def bound_sup(archive: fmu.Archive, params: dict[str, float]) -> float:
+    """`bound_sup` of an instance of `archive` with these parameters."""
+    inst = archive.co_simulation(params=params)
+    try:
+        return inst.get("bound_sup")[0]
+    finally:
+        inst.free()
+
+
+def twin_run(
+    archive: fmu.Archive,
+    plant: dict[str, float],
+    delta: float,
+    kp: float,
+    ki: float,
+    ref: Callable[[float], float],
+    horizon: float,
+    h: float,
+) -> Run:
+    """The PI loop closed on each of two instances of `archive` (Delta = `delta` and Delta = 0),
+    from rest, for `horizon` seconds at the communication step `h`; `plant` holds the drive's
+    parameters by their FMU names, `ref` is the motor-speed reference w_ref(t)."""
+    common = dict(plant, Kp=kp, Ki=ki)
+    with_b = archive.co_simulation(params=dict(common, Delta=delta))
+    without = archive.co_simulation(params=dict(common, Delta=0.0))
+    try:
+        n = int(round(horizon / h))
+        cols = {k: np.zeros(n + 1) for k in ("ref", "wmb", "wLb", "wm0", "wL0", "taub", "tau0", "b", "bp")}
+        contact = np.zeros(n + 1, dtype=int)
+        x_b = x_0 = 0.0  # controller integrator states
+        for i in range(n + 1):
+            t = i * h
+            ob, o0 = with_b.outputs(SHAFT_OUTPUTS), without.outputs(SHAFT_OUTPUTS)
+            r = ref(t)
+            e_b, e_0 = r - ob["omega_m"], r - o0["omega_m"]
+            tau_b, tau_0 = kp * e_b + ki * x_b, kp * e_0 + ki * x_0
+            cols["ref"][i], cols["wmb"][i], cols["wLb"][i] = r, ob["omega_m"], ob["omega_L"]
+            cols["wm0"][i], cols["wL0"][i] = o0["omega_m"], o0["omega_L"]
+            cols["taub"][i], cols["tau0"][i] = tau_b, tau_0
+            cols["b"][i], cols["bp"][i] = ob["bound"], ob["bound_paper"]
+            contact[i] = ob["contact"]
+            if i == n:
+                break
+            with_b.step(t, h, tau_m=tau_b)
+            without.step(t, h, tau_m=tau_0)
+            x_b += h * e_b
+            x_0 += h * e_0
+        sup = with_b.get("bound_sup")[0]
+    finally:
+        with_b.free()
+        without.free()
+    return Run(
+        t=np.arange(n + 1) * h,
+        ref=cols["ref"],
+        omega_m_b=cols["wmb"],
+        omega_L_b=cols["wLb"],
+        omega_m_0=cols["wm0"],
+        omega_L_0=cols["wL0"],
+        tau_b=cols["taub"],
+        tau_0=cols["tau0"],
+        bound=cols["b"],
+        bound_paper=cols["bp"],
+        contact=contact,
+        bound_sup=sup,
+    )
+
+
+def reference_frequency(poles: Iterable[Iterable[float]]) -> float:
+    """The reversing reference's frequency [Hz]: the closed-loop poles' mean natural frequency,
+    where h oscillates, so that the deviation comes close to the true bound. `poles` as the
+    design answer lists them (backlash_fmu.design(...)["poles"]), [re, im] pairs."""
+    return float(np.mean([math.hypot(re, im) for re, im in poles])) / (2 * math.pi)
+
+
+def references(f_ref: float, amplitude: float = SPEED) -> dict[str, Callable[[float], float]]:
+    """The motor-speed references by name: "step" (constant `amplitude`) and "sine" (`amplitude`
+    sin(2 pi f_ref t), reversing)."""
+    return {
+        "step": lambda t: amplitude,
+        "sine": lambda t: amplitude * math.sin(2.0 * math.pi * f_ref * t),
+    }
+
+
+# ------------------------------------------------------------------------------------------
+# The web line: speed loop and tension loop
+# ------------------------------------------------------------------------------------------
+
+
+# What the twin web run reads at every communication point (besides `contact`).
+WEB_OUTPUTS = ("omega_m", "omega_L", "T", "bound", "bound_T")
+# Speed reference on the motor: amplitude [rad/s] and frequency [Hz] of the reversing sine.
+SPEED_AMPLITUDE = 30.0
+SPEED_FREQUENCY = 5.0
+# Tension PI: Kp_T [rad/s per N], Ki_T [rad/s² per N] (slowest closed-loop poles -4.3 ± 4.0j),
+# and the tension set point T_ref [N].
+KP_T = 0.01
+KI_T = 0.05
+T_REF = 2.0
+# Upstream web: speed v_in [m/s] and tension T_in [N], held.
+V_IN = 0.0
+T_IN = 0.0
+
+
+@dataclass
+class WebRun:
+    """Twin web lines (b: with Delta, 0: Delta = 0) at the communication points."""
+
+    t: np.ndarray
+    T_b: np.ndarray
+    T_0: np.ndarray
+    omega_L_b: np.ndarray
+    omega_L_0: np.ndarray
+    bound_T: np.ndarray
+    bound: np.ndarray
+    contact: np.ndarray
+    bound_T_sup: float
+    bound_sup: float
+
+    @property
+    def dT(self) -> np.ndarray:
+        """|T^b - T^0| at every communication point."""
+        return np.abs(self.T_b - self.T_0)
+
+    @property
+    def d_omega_L(self) -> np.ndarray:
+        """|omega_L^b - omega_L^0| at every communication point."""
+        return np.abs(self.omega_L_b - self.omega_L_0)
+
+    @property
+    def switches(self) -> int:
+        """Changes of the contact mode between consecutive communication points."""
+        return int(np.count_nonzero(np.diff(self.contact)))
+
+
+def web_line(archive: fmu.Archive, params: dict[str, float]) -> fmu.CoSimulation:
+    """An instance of BacklashWeb's `archive` with `params`, its upstream web (v_in, T_in) held
+    at V_IN, T_IN."""
+    return archive.co_simulation(params=dict(params, v_in=V_IN, T_in=T_IN))
+
+
+def bound_t_sup(archive: fmu.Archive, params: dict[str, float]) -> float:
+    """`bound_T_sup` of a web line with these parameters."""
+    inst = web_line(archive, params)
+    try:
+        return inst.get("bound_T_sup")[0]
+    finally:
+        inst.free()
+
+
+def web_reference(t: float) -> float:
+    """The motor-speed reference w_ref0 [rad/s]: a sine that reverses the drive."""
+    return SPEED_AMPLITUDE * math.sin(2.0 * math.pi * SPEED_FREQUENCY * t)
+
+
+def twin_web_run(archive: fmu.Archive, params: dict[str, float], kp: float, ki: float, horizon: float,
+                 h: float) -> WebRun:
+    """The speed and tension PI loops closed on each of two web lines of BacklashWeb's `archive`
+    (the Delta of `params` and Delta = 0), from rest and T = 0, for `horizon` seconds at the
+    communication step `h`; the tension loop's gains are KP_T, KI_T."""
+    common = dict(params, Kp=kp, Ki=ki, Kp_T=KP_T, Ki_T=KI_T)
+    twins = (web_line(archive, common), web_line(archive, dict(common, Delta=0.0)))
+    try:
+        n = int(round(horizon / h))
+        cols = np.zeros((n + 1, 2, len(WEB_OUTPUTS)))
+        contact = np.zeros(n + 1, dtype=int)
+        x_c = [0.0, 0.0]  # speed PI integrators
+        x_T = [0.0, 0.0]  # tension PI integrators
+        for i in range(n + 1):
+            t = i * h
+            outs = [inst.outputs(WEB_OUTPUTS) for inst in twins]
+            for j, out in enumerate(outs):
+                cols[i, j] = [out[name] for name in WEB_OUTPUTS]
+            contact[i] = outs[0]["contact"]
+            if i == n:
+                break
+            for j, (inst, out) in enumerate(zip(twins, outs)):
+                e_T = T_REF - out["T"]
+                e = web_reference(t) + KP_T * e_T + KI_T * x_T[j] - out["omega_m"]
+                inst.step(t, h, tau_m=kp * e + ki * x_c[j])
+                x_c[j] += h * e
+                x_T[j] += h * e_T
+        t_sup, sup = twins[0].get("bound_T_sup", "bound_sup")
+    finally:
+        for inst in twins:
+            inst.free()
+    column = {name: k for k, name in enumerate(WEB_OUTPUTS)}
+    return WebRun(
+        t=np.arange(n + 1) * h,
+        T_b=cols[:, 0, column["T"]],
+        T_0=cols[:, 1, column["T"]],
+        omega_L_b=cols[:, 0, column["omega_L"]],
+        omega_L_0=cols[:, 1, column["omega_L"]],
+        bound_T=cols[:, 0, column["bound_T"]],
+        bound=cols[:, 0, column["bound"]],
+        contact=contact,
+        bound_T_sup=t_sup,
+        bound_sup=sup,
+    )
+
+
+# ------------------------------------------------------------------------------------------
+# One sample of a tolerance sweep
+# ------------------------------------------------------------------------------------------
+
+
+def sample_row(archive: fmu.Archive, index: int, params: dict[str, float], settings: dict[str, float]) -> dict:
+    """One sample of a sweep: the twin run at these parameters (SHAFT_PLANT, Delta, Kp, Ki) under
+    the sine reference, reduced to what the table records. Pure: the same inputs give the same
+    row, bit for bit."""
+    plant = {name: params[name] for name in SHAFT_PLANT}
+    amplitude, frequency = settings["amplitude"], settings["frequency"]
+    run = twin_run(archive, plant, params["Delta"], params["Kp"], params["Ki"],
+                   references(frequency, amplitude)["sine"], settings["horizon"], settings["h"])
+    max_dev = float(run.deviation.max())
+    sup = float(run.bound_sup)
+    return {
+        "sample": index,
+        **params,
+        "max_dev": max_dev,
+        "bound_sup": sup,
+        "ratio": max_dev / sup if sup > 0 else (0.0 if max_dev == 0 else math.inf),
+        "meets": max_dev <= settings["accuracy"],
+    }
+
+
+def _process_cache() -> Any:
+    """Per-process store of unpacked archives. Lives in sys.modules because this module may be
+    shipped by value to Dask workers, and each shipped task then gets fresh module globals."""
+    import sys
+    import threading
+    import types
+
+    store = types.ModuleType("_backlash_sweep_archives")
+    store.archives, store.lock = {}, threading.Lock()
+    return sys.modules.setdefault(store.__name__, store)
+
+
+def archive_from_bytes(data: bytes) -> fmu.Archive:
+    """The archive given as bytes, written and unpacked once per process (keyed by its hash);
+    both copies are deleted when the process exits."""
+    import atexit
+    import hashlib
+    import shutil
+    import tempfile
+
+    store = _process_cache()
+    digest = hashlib.sha256(data).hexdigest()
+    with store.lock:
+        archive = store.archives.get(digest)
+        if archive is None:
+            folder = tempfile.mkdtemp(prefix="backlash-sweep-")
+            path = Path(folder) / "BacklashShaft.fmu"
+            path.write_bytes(data)
+            archive = fmu.Archive(path)
+            atexit.register(shutil.rmtree, folder, True)
+            atexit.register(archive.remove)
+            store.archives[digest] = archive
+    return archive
+
+
+def prepare(fmu_bytes: bytes) -> None:
+    """The one-time work of a process before its first sample: imports, unpacking, and loading
+    the model's shared library (one instance made and freed)."""
+    archive_from_bytes(fmu_bytes).co_simulation(params={"Delta": 0.0}).free()
+
+
+def sweep_task(fmu_bytes: bytes, index: int, params: dict[str, float],
+               settings: dict[str, float]) -> tuple[dict, str]:
+    """One sample as a task: (row, address of the Dask worker that ran it, or "local")."""
+    row = sample_row(archive_from_bytes(fmu_bytes), index, params, settings)
+    try:
+        from distributed import get_worker
+
+        where = get_worker().address
+    except (ImportError, ValueError):
+        where = "local"
+    return row, where
