@@ -9,8 +9,9 @@ and sampled at every communication point (step h, zero-order hold on the motor t
   trims its reference (docs/model.md §8):
       e_T,n = T_ref - T(t_n),  w_ref,n = w_ref0(t_n) + Kp_T e_T,n + Ki_T x_T,n,  x_T,n+1 = x_T,n + h e_T,n
       e_n = w_ref,n - omega_m(t_n),  tau_m = Kp e_n + Ki x_c,n,  x_c,n+1 = x_c,n + h e_n;
-- `sample_row`, `sweep_task`, `prepare`, `archive_from_bytes`: one sample of a tolerance sweep
-  (backlash_fmu.sweep), on an archive sent as bytes and unpacked once per process.
+- `sample_row`, `sample_rows`, `prepare`, `archive_from_bytes`: one sample (or a
+  chunk of samples) of a tolerance sweep (backlash_fmu.sweep) of any of the three models, on an
+  archive sent as bytes and unpacked once per process.
 
 One definition shared by the demonstration (backlash_fmu.demo) and the tolerance sweep, so that
 both measure the same thing; every instance is driven through backlash_fmu.fmu.
@@ -40,6 +41,9 @@ SHAFT_OUTPUTS = ("omega_m", "omega_L", "bound", "bound_paper", "psi")
 
 # The plant parameters of a shaft drive that a sweep's sample sets (besides Delta and the gains).
 SHAFT_PLANT = ("J_m", "J_L", "b_m", "b_L", "k")
+# Those of a belt drive, and of a web line (the belt drive and its span).
+BELT_PLANT = ("J_m", "J_L", "b_m", "b_L", "K_b", "R_1", "R_2", "R_g1", "R_g2")
+WEB_PLANT = (*BELT_PLANT, "R_w", "L_w", "EA", "v_ref")
 
 
 # ------------------------------------------------------------------------------------------
@@ -225,11 +229,23 @@ def web_reference(t: float) -> float:
 
 
 def twin_web_run(archive: fmu.Archive, params: dict[str, float], kp: float, ki: float, horizon: float,
-                 h: float) -> WebRun:
+                 h: float, *, kp_t: float = KP_T, ki_t: float = KI_T, t_ref: float = T_REF,
+                 ref: Callable[[float], float] = web_reference) -> WebRun:
     """The speed and tension PI loops closed on each of two web lines of BacklashWeb's `archive`
     (the Delta of `params` and Delta = 0), from rest and T = 0, for `horizon` seconds at the
-    communication step `h`; the tension loop's gains are KP_T, KI_T."""
-    common = dict(params, Kp=kp, Ki=ki, Kp_T=KP_T, Ki_T=KI_T)
+    communication step `h`; the tension loop's gains are `kp_t`, `ki_t` (default KP_T, KI_T), its
+    set point `t_ref` (T_REF), the motor-speed reference w_ref0 is `ref` (web_reference).
+
+    The sampling, exactly (a twin run written out elsewhere agrees bit for bit when it does the
+    same): each line is `web_line(archive, dict(params, Kp=kp, Ki=ki, Kp_T=kp_t, Ki_T=ki_t))`
+    (the twin with Delta = 0.0 besides), n = round(horizon / h) steps; at t_i = i * h, i = 0..n,
+    both lines' outputs (WEB_OUTPUTS and contact) are read, then, for i < n, on each line with
+    its own integrators x_c, x_T (both 0.0 at the start):
+        e_T = t_ref - T,   e = ref(t_i) + kp_t * e_T + ki_t * x_T - omega_m
+        step(t_i, h, tau_m = kp * e + ki * x_c),   x_c += h * e,   x_T += h * e_T
+    (the line with Delta first). bound_T_sup and bound_sup are read from the line with Delta
+    after the last step."""
+    common = dict(params, Kp=kp, Ki=ki, Kp_T=kp_t, Ki_T=ki_t)
     twins = (web_line(archive, common), web_line(archive, dict(common, Delta=0.0)))
     try:
         n = int(round(horizon / h))
@@ -246,8 +262,8 @@ def twin_web_run(archive: fmu.Archive, params: dict[str, float], kp: float, ki: 
             if i == n:
                 break
             for j, (inst, out) in enumerate(zip(twins, outs)):
-                e_T = T_REF - out["T"]
-                e = web_reference(t) + KP_T * e_T + KI_T * x_T[j] - out["omega_m"]
+                e_T = t_ref - out["T"]
+                e = ref(t) + kp_t * e_T + ki_t * x_T[j] - out["omega_m"]
                 inst.step(t, h, tau_m=kp * e + ki * x_c[j])
                 x_c[j] += h * e
                 x_T[j] += h * e_T
@@ -275,11 +291,35 @@ def twin_web_run(archive: fmu.Archive, params: dict[str, float], kp: float, ki: 
 # ------------------------------------------------------------------------------------------
 
 
-def sample_row(archive: fmu.Archive, index: int, params: dict[str, float], settings: dict[str, float]) -> dict:
-    """One sample of a sweep: the twin run at these parameters (SHAFT_PLANT, Delta, Kp, Ki) under
-    the sine reference, reduced to what the table records. Pure: the same inputs give the same
-    row, bit for bit."""
-    plant = {name: params[name] for name in SHAFT_PLANT}
+def _ratio(dev: float, sup: float) -> float:
+    """dev / sup, with a bound of 0 (no backlash) giving 0 for no deviation and inf for one."""
+    return dev / sup if sup > 0 else (0.0 if dev == 0 else math.inf)
+
+
+def sample_row(archive: fmu.Archive, index: int, params: dict[str, float], settings: dict[str, Any]) -> dict:
+    """One sample of a sweep, reduced to what the table records; `archive` is the model's
+    (settings["model"]: "shaft", the default, on BacklashShaft; "belt" on BacklashBelt; "web" on
+    BacklashWeb). Pure: the same inputs give the same row, bit for bit.
+
+    - shaft, belt: the twin speed loop (`twin_run`) at these parameters (SHAFT_PLANT or
+      BELT_PLANT, Delta, Kp, Ki) under the sine reference (settings "amplitude", "frequency"),
+      for settings "horizon" at step "h": the row has the parameters, max_dev = max
+      |omega_L^b - omega_L^0|, bound_sup, ratio = max_dev / bound_sup and meets = max_dev <=
+      settings["accuracy"];
+    - web: the twin web line (`twin_web_run`) at these parameters (WEB_PLANT, Delta, Kp, Ki, Kp_T,
+      Ki_T) under the speed PI and the tension PI (set point settings "T_ref"), the sine
+      reference on the motor speed: the speed figures as above (meets only when
+      settings["accuracy"] is not None) and max_dev_T = max |T^b - T^0|, bound_T_sup, ratio_T,
+      meets_T = max_dev_T <= settings["tension_accuracy"].
+
+    The sine is `references(frequency, amplitude)["sine"]`, amplitude * sin(2.0 * pi * frequency
+    * t_i) at t_i = i * h; the maxima are over the communication points t_0..t_n."""
+    model = settings.get("model", "shaft")
+    if model == "web":
+        return _web_row(archive, index, params, settings)
+    if model not in ("shaft", "belt"):
+        raise ValueError(f"model = {model!r}: choose shaft, belt or web")
+    plant = {name: params[name] for name in (SHAFT_PLANT if model == "shaft" else BELT_PLANT)}
     amplitude, frequency = settings["amplitude"], settings["frequency"]
     run = twin_run(archive, plant, params["Delta"], params["Kp"], params["Ki"],
                    references(frequency, amplitude)["sine"], settings["horizon"], settings["h"])
@@ -290,14 +330,38 @@ def sample_row(archive: fmu.Archive, index: int, params: dict[str, float], setti
         **params,
         "max_dev": max_dev,
         "bound_sup": sup,
-        "ratio": max_dev / sup if sup > 0 else (0.0 if max_dev == 0 else math.inf),
+        "ratio": _ratio(max_dev, sup),
         "meets": max_dev <= settings["accuracy"],
     }
 
 
+def _web_row(archive: fmu.Archive, index: int, params: dict[str, float], settings: dict[str, Any]) -> dict:
+    """sample_row of a web line."""
+    line = {name: params[name] for name in WEB_PLANT}
+    line["Delta"] = params["Delta"]
+    run = twin_web_run(archive, line, params["Kp"], params["Ki"], settings["horizon"], settings["h"],
+                       kp_t=params["Kp_T"], ki_t=params["Ki_T"], t_ref=settings["T_ref"],
+                       ref=references(settings["frequency"], settings["amplitude"])["sine"])
+    max_dev, sup = float(run.d_omega_L.max()), float(run.bound_sup)
+    max_dev_t, sup_t = float(run.dT.max()), float(run.bound_T_sup)
+    row = {"sample": index, **params, "max_dev": max_dev, "bound_sup": sup, "ratio": _ratio(max_dev, sup)}
+    if settings.get("accuracy") is not None:
+        row["meets"] = max_dev <= settings["accuracy"]
+    row.update(max_dev_T=max_dev_t, bound_T_sup=sup_t, ratio_T=_ratio(max_dev_t, sup_t),
+               meets_T=max_dev_t <= settings["tension_accuracy"])
+    return row
+
+
+def sample_rows(archive: fmu.Archive, samples: list[tuple[int, dict[str, float]]],
+                settings: dict[str, Any]) -> list[dict]:
+    """A chunk of samples, (index, parameters) each: their rows, in the order given (each
+    `sample_row`)."""
+    return [sample_row(archive, index, params, settings) for index, params in samples]
+
+
 def _process_cache() -> Any:
-    """Per-process store of unpacked archives. Lives in sys.modules because this module may be
-    shipped by value to Dask workers, and each shipped task then gets fresh module globals."""
+    """Per-process store of unpacked archives, kept in sys.modules: one store per process even if
+    this module is loaded more than once."""
     import sys
     import threading
     import types
@@ -321,7 +385,7 @@ def archive_from_bytes(data: bytes) -> fmu.Archive:
         archive = store.archives.get(digest)
         if archive is None:
             folder = tempfile.mkdtemp(prefix="backlash-sweep-")
-            path = Path(folder) / "BacklashShaft.fmu"
+            path = Path(folder) / "model.fmu"  # any model's archive: the name is not read
             path.write_bytes(data)
             archive = fmu.Archive(path)
             atexit.register(shutil.rmtree, folder, True)
@@ -334,16 +398,3 @@ def prepare(fmu_bytes: bytes) -> None:
     """The one-time work of a process before its first sample: imports, unpacking, and loading
     the model's shared library (one instance made and freed)."""
     archive_from_bytes(fmu_bytes).co_simulation(params={"Delta": 0.0}).free()
-
-
-def sweep_task(fmu_bytes: bytes, index: int, params: dict[str, float],
-               settings: dict[str, float]) -> tuple[dict, str]:
-    """One sample as a task: (row, address of the Dask worker that ran it, or "local")."""
-    row = sample_row(archive_from_bytes(fmu_bytes), index, params, settings)
-    try:
-        from distributed import get_worker
-
-        where = get_worker().address
-    except (ImportError, ValueError):
-        where = "local"
-    return row, where
