@@ -2,31 +2,37 @@
 serially (no Dask, one process), on a LocalCluster of 1 worker and of 2 workers.
 
 Prints `@ <key> <value> ...` lines, collected by xtask/src/bench/run.rs:
-    @ sweep_config <samples> <horizon s> <step s>
+    @ sweep_config <samples> <horizon s> <step s> <repeats>
     @ sweep_serial <samples/s> <s>
     @ sweep_dask1 <samples/s> <s> <start s>
     @ sweep_dask2 <samples/s> <s> <start s>
-    @ sweep_scaling <dask2 rate / dask1 rate>
+    @ sweep_scaling <dask1 s / dask2 s>
     @ sweep_overhead <1 - serial s / dask1 s, percent>
-    @ sweep_identical <1 if the three tables are the same, else 0>
-The time of a run is from the first task handed out to the last row received. The one-time work
-before it is reported apart as the start: the cluster's start, the archive's scatter, and on each
-worker the imports and the unpacking of the archive (which the serial run also does before its
-clock starts). Each
-mode runs --repeats times, interleaved, and the fastest counts: on a shared machine the slower
-runs measure the neighbours.
+    @ sweep_chunk <chunk, 1 worker> <tasks, 1 worker> <chunk, 2 workers> <tasks, 2 workers> <ms per sample>
+    @ sweep_identical <1 if every table of every run is the serial one, else 0>
+    @ sweep_load <1-minute load average at the start> <at the end> <cores>
+The time of a run is from the first task handed out to the last row received; the one-time work
+before it is reported apart as the start: the cluster's start, the archive sent to each worker
+(once, in a worker plugin), and on each worker the imports and the unpacking of the archive
+(which the serial run also does before its clock starts). The Dask runs are the sweep's own
+engine (backlash_fmu.sweep.engine.run_dask): tasks of several samples, sized from the time of a
+sample measured on the workers (the chunk is the first size so chosen, the ms per sample that
+measure, from the median 2-worker run). Each mode runs --repeats times, interleaved, and the
+median counts (the scaling and the overhead are ratios of medians).
 
-    python benches/sweep_bench.py [--samples 40] [--repeats 2] [--seed 1] [--fmu PATH]
+    python benches/sweep_bench.py [--samples 240] [--repeats 3] [--seed 1] [--chunk N] [--fmu PATH]
 
 The sweep is the package's (backlash_fmu.sweep, its default config); the archive is
 BacklashShaft.fmu of $BACKLASH_FMU_DIR when that is set, else the package's own, unless --fmu
-names one.
+names one. Dask's workers import backlash_fmu: run with the package installed (or PYTHONPATH
+naming python/, which the LocalCluster's workers inherit).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 from pathlib import Path
 
@@ -40,11 +46,18 @@ def emit(key: str, *values: object) -> None:
     print("@", key, *values, flush=True)
 
 
+def median_run(runs: list[engine.Outcome]) -> engine.Outcome:
+    """The run of median time (the lower median of an even count)."""
+    ordered = sorted(runs, key=lambda r: r.elapsed)
+    return ordered[(len(ordered) - 1) // 2]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--samples", type=int, default=40)
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--samples", type=int, default=240)
+    ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--chunk", type=int, help="samples per task (default: the engine's, from a measured sample)")
     ap.add_argument("--fmu", type=Path, help="BacklashShaft.fmu (default: $BACKLASH_FMU_DIR's, else the package's)")
     args = ap.parse_args(argv)
 
@@ -53,25 +66,29 @@ def main(argv: list[str] | None = None) -> int:
     data = (default_archive() if args.fmu is None else args.fmu).read_bytes()
     n = args.samples
 
-    emit("sweep_config", n, settings["horizon"], settings["h"])
+    load_start = os.getloadavg()[0]
+    emit("sweep_config", n, settings["horizon"], settings["h"], args.repeats)
     # An untimed pass first: the first samples of a process run slower, and the serial figure
     # is the reference the overhead is measured against.
     engine.run_serial(data, draws[:4], settings, progress=False)
-    best = {}
+    runs: dict[int, list[engine.Outcome]] = {0: [], 1: [], 2: []}
     for _ in range(args.repeats):
-        runs = {0: engine.run_serial(data, draws, settings, progress=False)}
+        runs[0].append(engine.run_serial(data, draws, settings, progress=False))
         for workers in (1, 2):
-            runs[workers] = engine.run_dask(data, draws, settings, workers=workers, progress=False)
-        for mode, out in runs.items():
-            if mode not in best or out.elapsed < best[mode].elapsed:
-                best[mode] = out
-    serial, runs = best[0], best
+            runs[workers].append(engine.run_dask(data, draws, settings, workers=workers, progress=False,
+                                                 chunk=args.chunk))
+    med = {mode: median_run(out) for mode, out in runs.items()}
+    serial = med[0]
     emit("sweep_serial", n / serial.elapsed, serial.elapsed)
     for workers in (1, 2):
-        emit(f"sweep_dask{workers}", n / runs[workers].elapsed, runs[workers].elapsed, runs[workers].startup)
-    emit("sweep_scaling", runs[1].elapsed / runs[2].elapsed)
-    emit("sweep_overhead", (1 - serial.elapsed / runs[1].elapsed) * 100)
-    emit("sweep_identical", int(serial.rows == runs[1].rows == runs[2].rows))
+        emit(f"sweep_dask{workers}", n / med[workers].elapsed, med[workers].elapsed,
+             statistics.median(r.startup for r in runs[workers]))
+    emit("sweep_scaling", med[1].elapsed / med[2].elapsed)
+    emit("sweep_overhead", (1 - serial.elapsed / med[1].elapsed) * 100)
+    emit("sweep_chunk", med[1].chunk, med[1].tasks, med[2].chunk, med[2].tasks, med[2].sample_seconds * 1e3)
+    reference = serial.rows
+    emit("sweep_identical", int(all(r.rows == reference for out in runs.values() for r in out)))
+    emit("sweep_load", load_start, os.getloadavg()[0], os.cpu_count())
     return 0
 
 

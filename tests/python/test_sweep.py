@@ -1,12 +1,14 @@
 """The tolerance sweep (backlash_fmu.sweep, `python -m backlash_fmu.sweep`): the same table
-serially, on a LocalCluster, on a real `dask scheduler` with two `dask worker` processes, and after
-a worker is killed mid-run; bad configs and an unreachable scheduler refused in one line before
-any work, also by the check that runs with the standard library only; the defaults are the
-design answer's.
+serially, on a LocalCluster, on a real `dask scheduler` with two `dask worker` processes, after
+a worker is killed mid-run, and after the client itself is killed and the sweep resumed; a
+worker that joins mid-sweep gets tasks; bad configs, an unreachable scheduler and a table of
+another seed refused in one line before any work, also by the check that runs with the standard
+library only; the defaults are the design answer's; the pieces (the chunk sizes, the lazy draws,
+the table put in order) on their own.
 
-Every server binds to 127.0.0.1. The workers run from an empty directory without PYTHONPATH: they
-get the task code (backlash_fmu.twin and backlash_fmu.fmu, by value) and the FMU archive from the
-client.
+Every server binds to 127.0.0.1. The workers run from an empty directory: they import
+backlash_fmu as installed (the interpreter's, as on a worker host where it is pip-installed;
+PYTHONPATH passed on when set) and get the FMU archive from the client, once each.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import pytest
 from backlash_fmu import design, twin
 from backlash_fmu.fmu import fmu_path
 from backlash_fmu.sweep import config as sweep_config
-from backlash_fmu.sweep import engine, report
+from backlash_fmu.sweep import engine, report, table
 
 from archives import REPO
 
@@ -48,11 +50,16 @@ def config_file(tmp_path_factory) -> Path:
     return path
 
 
-def sweep(out: Path, config: Path, *extra: str, timeout: float = 120) -> subprocess.CompletedProcess:
+def sweep_args(out: Path, config: Path, *extra: str, samples: int = SAMPLES) -> list[str]:
+    return [sys.executable, "-m", "backlash_fmu.sweep", "--fmu", str(fmu_path("BacklashShaft")), "--samples",
+            str(samples), "--seed", str(SEED), "--config", str(config), "--out", str(out), "--no-progress", *extra]
+
+
+def sweep(out: Path, config: Path, *extra: str, timeout: float = 120, samples: int = SAMPLES
+          ) -> subprocess.CompletedProcess:
     """`python -m backlash_fmu.sweep` in a session of its own, so that a timeout also ends its
     LocalCluster."""
-    args = [sys.executable, "-m", "backlash_fmu.sweep", "--fmu", str(fmu_path("BacklashShaft")), "--samples",
-            str(SAMPLES), "--seed", str(SEED), "--config", str(config), "--out", str(out), "--no-progress", *extra]
+    args = sweep_args(out, config, *extra, samples=samples)
     with subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                           start_new_session=True) as proc:
         try:
@@ -84,25 +91,32 @@ def free_port() -> int:
 
 
 class Cluster:
-    """A `dask scheduler` and two `dask worker` processes (no nanny: a killed worker stays dead),
-    all on 127.0.0.1; every process is killed on teardown."""
+    """A `dask scheduler` and `workers` `dask worker` processes (no nanny: a killed worker stays
+    dead), all on 127.0.0.1; every process is killed on teardown."""
 
-    def __init__(self, workdir: Path):
+    def __init__(self, workdir: Path, workers: int = 2):
         self.address = f"tcp://127.0.0.1:{free_port()}"
         self.procs: list[subprocess.Popen] = []
         # TMPDIR: what the workers unpack stays under the test's directory, also when they are killed.
-        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-        env["TMPDIR"] = str(workdir)
-        common = dict(cwd=workdir, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        env = dict(os.environ, TMPDIR=str(workdir))
+        self.common = dict(cwd=workdir, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         port = self.address.rsplit(":", 1)[1]
         self.procs.append(subprocess.Popen(
             [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", port,
-             "--no-dashboard", "--dashboard-address", "127.0.0.1:0"], **common))
-        self.workers = [subprocess.Popen(
+             "--no-dashboard", "--dashboard-address", "127.0.0.1:0"], **self.common))
+        self.workers: list[subprocess.Popen] = []
+        for i in range(workers):
+            self.add_worker(f"w{i}")
+
+    def add_worker(self, name: str) -> subprocess.Popen:
+        """One more `dask worker` process, named `name`."""
+        worker = subprocess.Popen(
             [sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--host", "127.0.0.1",
              "--nthreads", "1", "--no-nanny", "--no-dashboard",
-             "--dashboard-address", "127.0.0.1:0", "--name", f"w{i}"], **common) for i in range(2)]
-        self.procs += self.workers
+             "--dashboard-address", "127.0.0.1:0", "--name", name], **self.common)
+        self.workers.append(worker)
+        self.procs.append(worker)
+        return worker
 
     def client(self):
         from distributed import Client
@@ -110,14 +124,14 @@ class Cluster:
         return Client(self.address, timeout=30)
 
     def wait_ready(self, timeout: float = 60.0) -> dict:
-        """The scheduler's view of its workers once both have joined."""
+        """The scheduler's view of its workers once all have joined."""
         from distributed import Client
 
         deadline = time.monotonic() + timeout
         while True:
             try:
                 with Client(self.address, timeout=5) as c:
-                    c.wait_for_workers(2, timeout=max(1.0, deadline - time.monotonic()))
+                    c.wait_for_workers(len(self.workers), timeout=max(1.0, deadline - time.monotonic()))
                     return c.scheduler_info(n_workers=-1)["workers"]
             except (OSError, TimeoutError):
                 if time.monotonic() > deadline:
@@ -125,15 +139,18 @@ class Cluster:
                 time.sleep(0.5)
 
     def close(self):
-        for p in self.procs:
-            if p.poll() is None:
-                p.terminate()
-        for p in self.procs:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(timeout=30)
+        # The workers first, while the scheduler is there to take their goodbye (a worker whose
+        # scheduler closes under it as it stops may linger for seconds), then the scheduler.
+        for group in (self.workers, self.procs[:1]):
+            for p in group:
+                if p.poll() is None:
+                    p.terminate()
+            for p in group:
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait(timeout=30)
 
 
 @pytest.fixture
@@ -162,12 +179,14 @@ def test_external_cluster_gives_the_serial_table_and_ran_the_tasks(tmp_path, con
     done = sweep(tmp_path / "out", config_file, "--scheduler", cluster.address, "--workers", "2")
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "out" / "samples.csv").read_bytes() == serial_table
-    # Both workers of this cluster ran samples, and the scheduler counted every sample's task.
-    ran = json.loads((tmp_path / "out" / "summary.json").read_text())["execution"]["tasks_per_worker"]
+    # Both workers of this cluster ran samples, and the scheduler counted every task.
+    execution = json.loads((tmp_path / "out" / "summary.json").read_text())["execution"]
+    ran, tasks = execution["samples_per_worker"], execution["tasks_per_worker"]
     assert set(ran) == set(workers) and all(n >= 1 for n in ran.values()) and sum(ran.values()) == SAMPLES
+    assert set(tasks) == set(workers) and sum(tasks.values()) < SAMPLES, tasks  # several samples a task
     with cluster.client() as c:
         counts = c.run_on_scheduler(lambda dask_scheduler: dict(dask_scheduler.task_prefixes["sweep"].state_counts))
-    assert sum(counts.values()) >= SAMPLES, counts
+    assert sum(counts.values()) >= sum(tasks.values()), counts
 
 
 def test_killed_worker_loses_no_sample(tmp_path, config_file, serial_table, cluster):
@@ -187,9 +206,9 @@ def test_killed_worker_loses_no_sample(tmp_path, config_file, serial_table, clus
     outcome = engine.run_dask(fmu_bytes, draws, cfg.settings(), scheduler=cluster.address, progress=False,
                               after_first=kill)
     assert killed and victim.poll() is not None
-    # Only the first row had arrived when the worker died: whatever else it had computed was lost
-    # with it and computed again by the survivor.
-    assert outcome.tasks_per_worker.get(victim_address, 0) <= 1, outcome.tasks_per_worker
+    # Only the first task's rows had arrived when the worker died: whatever else it had computed
+    # was lost with it and computed again by the survivor.
+    assert outcome.samples_per_worker.get(victim_address, 0) <= engine.PROBE, outcome.samples_per_worker
     assert [r["sample"] for r in outcome.rows] == list(range(SAMPLES))
     report.write_table(tmp_path / "samples.csv", outcome.rows)
     assert (tmp_path / "samples.csv").read_bytes() == serial_table
@@ -346,3 +365,179 @@ def test_the_defaults_are_the_design_answers_rig_gains_and_reference():
     assert abs(zeta - d["min_damping_ratio"]) <= 2 * pole_error / np.min(np.abs(poles)), (zeta, d["min_damping_ratio"])
     frequency = twin.reference_frequency([(p.real, p.imag) for p in poles])
     assert abs(cfg.frequency - frequency) <= pole_error / (2 * math.pi)
+
+
+# ------------------------------------------------------------------------------------------
+# Large sweeps: resuming after the client is killed, a worker joining mid-sweep, the pieces
+# ------------------------------------------------------------------------------------------
+
+# Enough samples of a short run that a sweep in tasks of 2 is still running when it is killed.
+RESUME_SAMPLES = 120
+SHORT_CONFIG = """\
+[run]
+horizon = 0.3
+"""
+# Enough samples that one worker is still busy when a second one has started and joined.
+LATE_SAMPLES = 300
+
+
+@pytest.fixture(scope="module")
+def short_config(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("sweep_short") / "short.toml"
+    path.write_text(SHORT_CONFIG)
+    return path
+
+
+def rows_in(path: Path) -> int:
+    """The complete rows of a table being written (its lines but the header and a torn last one)."""
+    try:
+        return max(0, path.read_bytes().count(b"\n") - 1)
+    except FileNotFoundError:
+        return 0
+
+
+def wait_for_rows(path: Path, proc: subprocess.Popen, rows: int, timeout: float = 120) -> None:
+    deadline = time.monotonic() + timeout
+    while rows_in(path) < rows:
+        assert proc.poll() is None, f"the sweep ended before it wrote {rows} rows: {proc.stderr.read()}"
+        assert time.monotonic() < deadline, f"no {rows} rows in {path} after {timeout} s"
+        time.sleep(0.02)
+
+
+def test_a_sweep_whose_client_is_killed_resumes_to_the_uninterrupted_table(tmp_path, short_config):
+    """The client (and its LocalCluster) killed with SIGKILL once some rows are written: the rows
+    are in samples.csv, and --resume runs only the others, to the very table of an
+    uninterrupted run of the same seed, byte for byte."""
+    import json
+
+    whole = tmp_path / "whole"
+    done = sweep(whole, short_config, "--serial", samples=RESUME_SAMPLES)
+    assert done.returncode == 0, done.stderr
+
+    out = tmp_path / "out"
+    args = sweep_args(out, short_config, "--workers", "2", "--chunk", "2", samples=RESUME_SAMPLES)
+    with subprocess.Popen(args, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          start_new_session=True) as proc:
+        try:
+            wait_for_rows(out / "samples.csv", proc, 10)
+        finally:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=30)
+    partial = rows_in(out / "samples.csv")
+    assert 10 <= partial < RESUME_SAMPLES, partial
+
+    resumed = sweep(out, short_config, "--workers", "2", "--resume", samples=RESUME_SAMPLES)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resumed: {partial} samples were in" in resumed.stdout, resumed.stdout
+    assert (out / "samples.csv").read_bytes() == (whole / "samples.csv").read_bytes()
+    execution = json.loads((out / "summary.json").read_text())["execution"]
+    assert (execution["samples_run"], execution["samples_resumed"]) == (RESUME_SAMPLES - partial, partial)
+
+
+def test_resume_refuses_a_table_of_another_seed_or_config_in_one_line(tmp_path, short_config):
+    out = tmp_path / "out"
+    assert sweep(out, short_config, "--serial", samples=3).returncode == 0
+    before = (out / "samples.csv").read_bytes()
+    other = tmp_path / "other.toml"
+    other.write_text("[run]\nhorizon = 0.2\n")
+    for extra, says in ((("--seed", "8"), f"holds samples of seed {SEED}, not 8"),
+                        (("--config", str(other)), "holds samples of another config file"),
+                        (("--accuracy", "0.03"), "holds samples of another config (")):
+        done = sweep(out, short_config, "--serial", "--resume", *extra, samples=3, timeout=60)
+        assert done.returncode == 2, done.stderr
+        lines = done.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: --resume: ") and says in lines[0], done.stderr
+        assert (out / "samples.csv").read_bytes() == before
+    # The pre-flight check (standard library only) refuses the seed as well.
+    checked = check("--samples", "3", "--seed", "8", "--config", str(short_config), "--out", str(out), "--resume")
+    assert checked.returncode == 2 and f"seed {SEED}, not 8" in checked.stderr, checked.stderr
+    # The same seed and config resume: nothing is left to run.
+    again = sweep(out, short_config, "--serial", "--resume", samples=3, timeout=60)
+    assert again.returncode == 0 and "resumed: 3 samples" in again.stdout, again.stderr
+    assert (out / "samples.csv").read_bytes() == before
+
+
+def test_a_worker_that_joins_mid_sweep_gets_tasks(tmp_path, config_file):
+    """A cluster of one worker; once the sweep's first rows are in, a second `dask worker` starts:
+    it gets the archive as it joins and runs samples."""
+    import json
+
+    workdir = tmp_path / "workers"
+    workdir.mkdir()
+    cluster = Cluster(workdir, workers=1)
+    try:
+        cluster.wait_ready()
+        out = tmp_path / "out"
+        args = sweep_args(out, config_file, "--scheduler", cluster.address, samples=LATE_SAMPLES)
+        with subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              start_new_session=True) as proc:
+            try:
+                wait_for_rows(out / "samples.csv", proc, 1)
+                cluster.add_worker("late")
+                stdout, stderr = proc.communicate(timeout=180)
+            finally:
+                if proc.poll() is None:
+                    os.killpg(proc.pid, signal.SIGKILL)
+        assert proc.returncode == 0, stderr
+        with cluster.client() as c:
+            workers = c.scheduler_info(n_workers=-1)["workers"]
+        late = next(address for address, w in workers.items() if w["name"] == "late")
+        ran = json.loads((out / "summary.json").read_text())["execution"]["samples_per_worker"]
+        assert ran.get(late, 0) >= 1 and sum(ran.values()) == LATE_SAMPLES, ran
+        assert [int(line.split(",", 1)[0]) for line in (out / "samples.csv").read_text().splitlines()[1:]] \
+            == list(range(LATE_SAMPLES))
+    finally:
+        cluster.close()
+
+
+def test_chunks_are_sized_from_the_measured_time_of_a_sample():
+    c = engine.Chunker()
+    assert c.size(10_000, 2) == engine.PROBE and c.first is None
+    c.record(4, 0.125)  # 31.25 ms a sample
+    # At most TASK_SECONDS (32 samples), at least MIN_TASK_SECONDS (7), else the samples left
+    # over TASKS_PER_WORKER tasks per worker thread; never more than are left.
+    assert (engine.TASK_SECONDS, engine.MIN_TASK_SECONDS, engine.TASKS_PER_WORKER) == (1.0, 0.2, 4)
+    assert c.size(10_000, 2) == 32 and c.first == 32
+    assert c.size(200, 2) == 25
+    assert c.size(40, 2) == 7
+    assert c.size(5, 2) == 5
+    assert c.largest == 32
+    fixed = engine.Chunker(7)
+    assert (fixed.size(100, 2), fixed.size(3, 2), fixed.first) == (7, 3, 7)
+
+
+@pytest.mark.parametrize("model", sweep_config.MODELS)
+def test_the_lazy_draws_are_config_draws_less_the_samples_done(model):
+    cfg = sweep_config.load(None, model=model)
+    whole = cfg.draw(50, SEED)
+    assert list(engine.draw(cfg, 50, SEED)) == list(enumerate(whole))
+    done = [(0, 3), (10, 20), (45, 50)]
+    assert list(engine.draw(cfg, 50, SEED, done)) == [
+        (i, params) for i, params in enumerate(whole) if not any(a <= i < b for a, b in done)]
+
+
+def test_the_table_is_put_in_order_from_its_runs_and_a_torn_line_is_cut(tmp_path):
+    rows = [{"sample": i, "x": i * 0.1, "meets": i % 2 == 0} for i in range(10)]
+    writer = table.Writer(tmp_path, {"format": table.FORMAT, "seed": 1})
+    for group in ([4, 5, 6], [0, 1], [7, 8, 9], [2, 3], [5]):  # the last one a task's rows received twice
+        writer.write([rows[i] for i in group])
+    writer.close()
+    with open(tmp_path / table.TABLE, "ab") as f:
+        f.write(b"3,0.30000")  # a write cut short
+    state = table.resume_state(tmp_path, {"seed": 1}, 10)
+    assert (state.done, state.torn, state.rows) == ([(0, 10)], True, 10)
+    with pytest.raises(table.TableError, match="seed 1, not 2"):
+        table.resume_state(tmp_path, {"seed": 2}, 10)
+    with pytest.raises(table.TableError, match="beyond --samples 9"):
+        table.resume_state(tmp_path, {"seed": 1}, 9)
+    table.finish(tmp_path, 10)
+    expected = tmp_path / "expected.csv"
+    table.write_table(expected, rows)
+    assert (tmp_path / table.TABLE).read_bytes() == expected.read_bytes()
+    assert list(table.Rows(tmp_path / table.TABLE)) == rows
+    gap = tmp_path / "gap"
+    writer = table.Writer(gap, {"format": table.FORMAT, "seed": 1})
+    writer.write([rows[i] for i in (0, 1, 3)])
+    writer.close()
+    with pytest.raises(table.TableError, match="sample 2 is missing"):
+        table.finish(gap, 4)

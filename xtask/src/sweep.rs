@@ -5,8 +5,8 @@
 //! nor the package need exist yet; the same as `python -m backlash_fmu.sweep --check`). Then it
 //! builds the FMUs, makes sure the Python environment exists, installs the package
 //! `backlash_fmu` into it, and runs `python -m backlash_fmu.sweep` from the repository root with
-//! the flags given here, on the installed package's BacklashShaft.fmu (`BACKLASH_FMU_DIR` is
-//! removed from its environment) and with its defaults (the design answer for the shaft).
+//! the flags given here, on the installed package's archive of the model (`BACKLASH_FMU_DIR` is
+//! removed from its environment) and with its defaults (the model's design answer).
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -15,42 +15,52 @@ use crate::util::{self, step};
 use crate::{fmu, python};
 
 const USAGE: &str = "\
-usage: cargo xtask sweep --samples N --seed S [--scheduler tcp://HOST:PORT] [--workers N]
-                         [--config FILE] [--out DIR] [--accuracy EPS] [--serial]
+usage: cargo xtask sweep --samples N --seed S [--model shaft|belt|web]
+                         [--scheduler tcp://HOST:PORT] [--workers N] [--chunk N]
+                         [--config FILE] [--out DIR] [--resume] [--accuracy EPS] [--serial]
 
-Tolerance sweep of the shaft drive: for each of N drives, Delta, k and J_L drawn from the
-config's distributions (default: the drive, the gains and the reversing reference's frequency of
-the design answer for the shaft at eps = 0.02, Delta uniform over a wear range, k +-10 %,
-J_L +-5 %), a twin closed-loop run through fmpy (with and without backlash) recording the max
-deviation, bound_sup and whether the accuracy is met.
-Runs on a Dask LocalCluster (one worker per core) or an existing cluster (--scheduler). Writes
-results/sweep/samples.csv, summary.json, histogram.png and deviation_vs_delta.png.
+Tolerance sweep of a drive (default: the shaft): for each of N drives, Delta, the stiffness and
+the load drawn from the config's distributions (default: the drive, the gains and the
+reversing reference's frequency of the model's design answer; for the shaft at eps = 0.02,
+Delta uniform over a wear range, k +-10 %, J_L +-5 %), a twin closed-loop run through fmpy
+(with and without backlash) recording the max deviation, bound_sup and whether the accuracy is
+met.
+Runs on a Dask LocalCluster (one worker per core) or an existing cluster (--scheduler), in tasks
+of several samples sized from the measured time of a sample. Writes results/sweep/samples.csv
+(row by row as they arrive, in sample order at the end), manifest.json, summary.json and the
+plots; --resume continues an interrupted sweep from the rows already written.
 
   --samples N       number of drives (required)
   --seed S          seed of the draws: the same seed gives the same table (required)
-  --scheduler ADDR  a running Dask scheduler (`dask scheduler`, `dask worker ADDR`)
+  --model M         shaft, belt or web (default: the config's, else shaft)
+  --scheduler ADDR  a running Dask scheduler (`dask scheduler`, `dask worker ADDR`; every
+                    worker needs the package: pip install it there)
   --workers N       LocalCluster worker processes (default: one per core); with
                     --scheduler, how many workers to wait for (default 1)
+  --chunk N         samples per task (default: about a second of work a task)
   --config FILE     TOML distributions and settings (format: README.md,
                     python/backlash_fmu/sweep/config.py)
   --out DIR         output directory (default: results/sweep)
-  --accuracy EPS    required load-speed accuracy [m/s] (default 0.02)
+  --resume          continue the sweep interrupted in --out (same seed, model and config)
+  --accuracy EPS    required load-speed accuracy (default: the config's)
   --serial          no Dask: every sample in one process
   --connect-timeout seconds to reach the scheduler (default 10)
   --no-progress     no progress bar";
 
 /// Flags forwarded to `python -m backlash_fmu.sweep` with their value, and those without one.
-const WITH_VALUE: [&str; 8] = [
+const WITH_VALUE: [&str; 10] = [
     "--samples",
     "--seed",
+    "--model",
     "--scheduler",
     "--workers",
+    "--chunk",
     "--config",
     "--out",
     "--accuracy",
     "--connect-timeout",
 ];
-const WITHOUT_VALUE: [&str; 2] = ["--serial", "--no-progress"];
+const WITHOUT_VALUE: [&str; 3] = ["--serial", "--no-progress", "--resume"];
 
 pub fn run(args: &[String]) -> Result<(), String> {
     let mut forwarded = Vec::new();

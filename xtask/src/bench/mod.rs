@@ -70,8 +70,9 @@ impl Plan {
             loop_seconds: 10.0,
             loop_repeats: 7,
             sweep: "RK45:1e-3,RK45:1e-6,RK45:1e-9,RK45:1e-12,DOP853:1e-3,DOP853:1e-8,DOP853:1e-12",
-            tolerance_samples: 40,
-            tolerance_repeats: 2,
+            // At least 200 samples, so that the tasks sized to the work are several per worker.
+            tolerance_samples: 240,
+            tolerance_repeats: 3,
         }
     }
 

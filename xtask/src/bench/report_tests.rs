@@ -56,12 +56,14 @@ const COMMON: &str = "\
 @ simulate_me_s 1.6812 1.6734 1.6845 10 3 35
 @ simulate_cs_s 0.3012 0.2987 0.3034 10 3 35
 @ simulate_me_cs_diff 0.00037 0.2281
-@ sweep_config 40 1.5 0.001
-@ sweep_serial 42.56 0.9398
-@ sweep_dask1 34.77 1.1504 0.4711
-@ sweep_dask2 40.66 0.9838 0.6632
-@ sweep_scaling 1.1693
-@ sweep_overhead 18.3
+@ sweep_config 240 1.5 0.001 3
+@ sweep_serial 42.56 5.639
+@ sweep_dask1 41.62 5.7665 0.8711
+@ sweep_dask2 79.88 3.0045 1.0632
+@ sweep_scaling 1.9193
+@ sweep_overhead 2.21
+@ sweep_chunk 43 12 30 20 23.4
+@ sweep_load 0.42 1.37 2
 ";
 
 /// The growth rows, the scipy sweep and the sweep's identity flag of a normal run.
