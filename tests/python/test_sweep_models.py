@@ -22,6 +22,7 @@ from backlash_fmu.sweep import config as sweep_config
 from backlash_fmu.sweep import report
 
 from archives import REPO, require
+from test_sweep import STDLIB_ONLY  # the standard-library guard the check runs under
 
 # Short runs keep the file at about ten seconds: the belt's 0.1 s default is short already; the
 # web line's 0.5 s default is cut to 0.2 s, which still holds its largest tension deviation
@@ -360,21 +361,6 @@ def test_the_model_comes_from_the_file_or_the_command_line(tmp_path):
     assert sweep_config.load(None).model == "shaft"
     with pytest.raises(sweep_config.ConfigError, match="choose one of shaft, belt, web"):
         sweep_config.load(None, model="gearbox")
-
-
-# Run by path under a guard that refuses every import outside the standard library (as
-# test_sweep.py runs the check).
-STDLIB_ONLY = """
-import runpy, sys
-class Guard:
-    def find_spec(self, name, path=None, target=None):
-        top = name.split(".")[0]
-        if top not in sys.stdlib_module_names and not top.startswith("_backlash_fmu_sweep_check"):
-            raise ImportError(f"not in the standard library: {name}")
-sys.meta_path.insert(0, Guard())
-sys.argv = sys.argv[1:]
-runpy.run_path(sys.argv[0], run_name="__main__")
-"""
 
 
 def test_the_check_by_path_takes_a_web_config_with_the_standard_library_only(tmp_path):
