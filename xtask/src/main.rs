@@ -18,17 +18,18 @@ usage: cargo xtask <command> [args]
 
 commands:
   fmu       build the cdylib (release) and write target/fmu/<model>.fmu for every model;
-            --all-platforms: also build win64 (packed) and aarch64-linux
+            --all-platforms: also build win64 (packed) and aarch64-linux; --out DIR: there
   test      run every check in order: Python venv, cargo test --workspace, fmu, ABI check,
-            importer test (fmi crate), pytest, the README's fmpy example, and the
-            cross-platform test when the cross tools are present (--cross: required,
-            --no-cross: skipped); stops at the first failure
+            importer test (fmi crate), the Python package installed into .venv, pytest, the
+            README's Python examples, and the cross-platform test when the cross tools are
+            present (--cross: required, --no-cross: skipped); stops at the first failure
   abi       check the cdylib's C ABI against the official FMI 2.0 headers and list its exports
             (--all-platforms: every platform's library)
   cross-test
             build every platform, then run the win64 DLL under Wine and the aarch64-linux
             library under qemu against linux64
-  pytest    the Python part alone: .venv, pytest on target/fmu/*.fmu, the README's fmpy example
+  pytest    the Python part alone: .venv, the package installed, pytest on its archives, the
+            README's Python examples
   demo      the main demonstration (see `cargo xtask demo --help`)
   design    the design study: `backlash design` of the design crate (see `cargo xtask design --help`)
   sweep     tolerance sweep on Dask: many drives drawn from tolerances (see `cargo xtask sweep --help`)
