@@ -9,7 +9,7 @@ and sampled at every communication point (step h, zero-order hold on the motor t
   trims its reference (docs/model.md §8):
       e_T,n = T_ref - T(t_n),  w_ref,n = w_ref0(t_n) + Kp_T e_T,n + Ki_T x_T,n,  x_T,n+1 = x_T,n + h e_T,n
       e_n = w_ref,n - omega_m(t_n),  tau_m = Kp e_n + Ki x_c,n,  x_c,n+1 = x_c,n + h e_n;
-- `sample_row`, `sample_rows`, `prepare`, `archive_from_bytes`: one sample (or a
+- `sample_row`, `sample_rows`, `prepare`, `archive_from_bytes`, `unpacked`: one sample (or a
   chunk of samples) of a tolerance sweep (backlash_fmu.sweep) of any of the three models, on an
   archive sent as bytes and unpacked once per process.
 
@@ -24,7 +24,12 @@ both measure the same thing; every instance is driven through backlash_fmu.fmu.
 
 from __future__ import annotations
 
+import atexit
+import hashlib
 import math
+import shutil
+import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -359,30 +364,22 @@ def sample_rows(archive: fmu.Archive, samples: list[tuple[int, dict[str, float]]
     return [sample_row(archive, index, params, settings) for index, params in samples]
 
 
-def _process_cache() -> Any:
-    """Per-process store of unpacked archives, kept in sys.modules: one store per process even if
-    this module is loaded more than once."""
-    import sys
-    import threading
-    import types
+# The archives this process has unpacked, by the SHA-256 of their bytes (archive_from_bytes).
+_UNPACKED: dict[str, fmu.Archive] = {}
+_UNPACKING = threading.Lock()
 
-    store = types.ModuleType("_backlash_sweep_archives")
-    store.archives, store.lock = {}, threading.Lock()
-    return sys.modules.setdefault(store.__name__, store)
+
+def archive_digest(data: bytes) -> str:
+    """The name of an archive given as bytes: the SHA-256 of its bytes, in hexadecimal."""
+    return hashlib.sha256(data).hexdigest()
 
 
 def archive_from_bytes(data: bytes) -> fmu.Archive:
-    """The archive given as bytes, written and unpacked once per process (keyed by its hash);
-    both copies are deleted when the process exits."""
-    import atexit
-    import hashlib
-    import shutil
-    import tempfile
-
-    store = _process_cache()
-    digest = hashlib.sha256(data).hexdigest()
-    with store.lock:
-        archive = store.archives.get(digest)
+    """The archive given as bytes, written and unpacked once per process (keyed by its
+    digest); both copies are deleted when the process exits."""
+    digest = archive_digest(data)
+    with _UNPACKING:
+        archive = _UNPACKED.get(digest)
         if archive is None:
             folder = tempfile.mkdtemp(prefix="backlash-sweep-")
             path = Path(folder) / "model.fmu"  # any model's archive: the name is not read
@@ -390,8 +387,14 @@ def archive_from_bytes(data: bytes) -> fmu.Archive:
             archive = fmu.Archive(path)
             atexit.register(shutil.rmtree, folder, True)
             atexit.register(archive.remove)
-            store.archives[digest] = archive
+            _UNPACKED[digest] = archive
     return archive
+
+
+def unpacked(digest: str) -> fmu.Archive | None:
+    """The archive this process unpacked from bytes of this digest, if any."""
+    with _UNPACKING:
+        return _UNPACKED.get(digest)
 
 
 def prepare(fmu_bytes: bytes) -> None:

@@ -200,10 +200,6 @@ def run_serial(fmu_bytes: bytes, draws: Sequence[dict] | Iterable[Sample], setti
 # What runs on the workers
 # ------------------------------------------------------------------------------------------
 
-# The archives this worker process holds, by the SHA-256 of their bytes (ArchivePlugin).
-_ARCHIVES: dict[str, fmu.Archive] = {}
-
-
 # The archives' shared libraries, held open once per process (_hold_library).
 _LIBRARIES: dict[str, Any] = {}
 
@@ -230,8 +226,7 @@ def _hold_library(archive: fmu.Archive) -> None:
                 continue  # another platform's binary
 
 
-def archive_digest(fmu_bytes: bytes) -> str:
-    return hashlib.sha256(fmu_bytes).hexdigest()
+archive_digest = twin.archive_digest
 
 
 class ArchivePlugin(WorkerPlugin):
@@ -248,16 +243,14 @@ class ArchivePlugin(WorkerPlugin):
         return f"backlash-sweep-archive-{self.digest[:20]}"
 
     def setup(self, worker: Any = None) -> None:
-        archive = twin.archive_from_bytes(self.fmu_bytes)
-        _hold_library(archive)
+        _hold_library(twin.archive_from_bytes(self.fmu_bytes))
         twin.prepare(self.fmu_bytes)
-        _ARCHIVES[self.digest] = archive
 
 
 def run_chunk(digest: str, samples: list[Sample], settings: dict) -> tuple[list[dict], str, float]:
     """One task: the rows of `samples` on the archive of this digest (sent by ArchivePlugin),
     the address of the worker that ran them, and their compute time [s]."""
-    archive = _ARCHIVES.get(digest)
+    archive = twin.unpacked(digest)
     if archive is None:
         raise RuntimeError(f"the archive {digest[:20]} was not sent to this worker (its ArchivePlugin did not run)")
     started = time.perf_counter()
