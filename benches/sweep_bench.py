@@ -8,6 +8,7 @@ Prints `@ <key> <value> ...` lines, collected by xtask/src/bench/run.rs:
     @ sweep_dask2 <samples/s> <s> <start s>
     @ sweep_scaling <dask1 s / dask2 s>
     @ sweep_overhead <1 - serial s / dask1 s, percent>
+    @ sweep_paired <worker/serial compute of the same blocks> <blocks> <samples a block> <idle %> <overhead %>
     @ sweep_chunk <chunk, 1 worker> <tasks, 1 worker> <chunk, 2 workers> <tasks, 2 workers> <ms per sample>
     @ sweep_identical <1 if every table of every run is the serial one, else 0>
     @ sweep_load <1-minute load average at the start> <at the end> <cores>
@@ -20,7 +21,18 @@ sample measured on the workers (the chunk is the first size so chosen, the ms pe
 measure, from the median 2-worker run). Each mode runs --repeats times, interleaved, and the
 median counts (the scaling and the overhead are ratios of medians).
 
-    python benches/sweep_bench.py [--samples 240] [--repeats 3] [--seed 1] [--chunk N] [--fmu PATH]
+The machine's speed drifts by tens of percent from one 15-second window to the next, so the
+ratio of a serial run and a Dask run timed minutes apart measures the drift as much as Dask.
+The paired figure takes the two parts of Dask's overhead apart, each within one window:
+- idle: the share of the median 1-worker run's wall time in which the worker was not computing
+  samples (scheduling, transfers, waiting), 1 - sum of the tasks' compute times / wall time;
+- compute: the same blocks of samples computed in this process and in a 1-worker cluster's
+  worker (the sweep's own task, run_chunk), alternating which goes first, block after block;
+  the ratio of the two sums says whether a sample computes slower in a worker.
+Then the 1-worker time per sample is the serial one times compute / (1 - idle), and the paired
+overhead is 1 - (1 - idle) / compute.
+
+    python benches/sweep_bench.py [--samples 240] [--repeats 3] [--seed 1] [--block 8] [--chunk N] [--fmu PATH]
 
 The sweep is the package's (backlash_fmu.sweep, its default config); the archive is
 BacklashShaft.fmu of $BACKLASH_FMU_DIR when that is set, else the package's own, unless --fmu
@@ -39,6 +51,9 @@ from pathlib import Path
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import time  # noqa: E402
+
+from backlash_fmu import twin  # noqa: E402
 from backlash_fmu.sweep import config, default_archive, engine  # noqa: E402
 
 
@@ -52,11 +67,49 @@ def median_run(runs: list[engine.Outcome]) -> engine.Outcome:
     return ordered[(len(ordered) - 1) // 2]
 
 
+def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -> tuple[float, int]:
+    """Worker compute time / this process's compute time of the same blocks of `block` samples
+    (the module's docstring), and the number of blocks."""
+    archive = twin.archive_from_bytes(data)
+    engine._hold_library(archive)
+    twin.prepare(data)
+    client, cluster = engine.connect(None, 1, 10.0)
+    try:
+        plugin = engine.ArchivePlugin(data)
+        client.register_plugin(plugin, name=plugin.name)
+
+        def here(batch: list) -> float:
+            started = time.perf_counter()
+            engine.compute_rows(archive, batch, settings)
+            return time.perf_counter() - started
+
+        def there(batch: list) -> float:
+            return client.submit(engine.run_chunk, plugin.digest, batch, settings, pure=False).result()[2]
+
+        samples = list(enumerate(draws))
+        here(samples[:2])
+        there(samples[:2])
+        local = worker = 0.0
+        blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
+        for i, batch in enumerate(blocks):
+            if i % 2 == 0:
+                local += here(batch)
+                worker += there(batch)
+            else:
+                worker += there(batch)
+                local += here(batch)
+        return worker / local, len(blocks)
+    finally:
+        client.close()
+        cluster.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", type=int, default=240)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--block", type=int, default=8, help="samples a block of the paired compute measure")
     ap.add_argument("--chunk", type=int, help="samples per task (default: the engine's, from a measured sample)")
     ap.add_argument("--fmu", type=Path, help="BacklashShaft.fmu (default: $BACKLASH_FMU_DIR's, else the package's)")
     args = ap.parse_args(argv)
@@ -85,6 +138,9 @@ def main(argv: list[str] | None = None) -> int:
              statistics.median(r.startup for r in runs[workers]))
     emit("sweep_scaling", med[1].elapsed / med[2].elapsed)
     emit("sweep_overhead", (1 - serial.elapsed / med[1].elapsed) * 100)
+    idle = statistics.median(1 - r.sample_seconds * r.samples / r.elapsed for r in runs[1])
+    compute, blocks = paired_compute(data, draws, settings, args.block)
+    emit("sweep_paired", compute, blocks, args.block, idle * 100, (1 - (1 - idle) / compute) * 100)
     emit("sweep_chunk", med[1].chunk, med[1].tasks, med[2].chunk, med[2].tasks, med[2].sample_seconds * 1e3)
     reference = serial.rows
     emit("sweep_identical", int(all(r.rows == reference for out in runs.values() for r in out)))

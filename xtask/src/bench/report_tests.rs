@@ -62,6 +62,7 @@ const COMMON: &str = "\
 @ sweep_dask2 79.88 3.0045 1.0632
 @ sweep_scaling 1.9193
 @ sweep_overhead 2.21
+@ sweep_paired 1.012 30 8 0.45 1.64
 @ sweep_chunk 43 12 30 20 23.4
 @ sweep_load 0.42 1.37 2
 ";
