@@ -60,6 +60,7 @@ pub fn default_params(form: Form) -> Result<PlantParams, DesignError> {
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
         Form::Belt => described_params("BacklashBelt")?,
         Form::Web => PlantParams {
+            damping: backlash_physics::Damping::NONE,
             web: None,
             ..described_params("BacklashWeb")?
         },

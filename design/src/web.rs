@@ -11,7 +11,7 @@
 
 use serde_json::{json, Value};
 
-use backlash_physics::{PiGains, Plant, PlantParams, WebSpeedBound, WebTensionBound};
+use backlash_physics::{Damping, PiGains, Plant, PlantParams, WebSpeedBound, WebTensionBound};
 
 use crate::study::{self, DesignError, StiffnessScan, StiffnessStudy};
 
@@ -40,6 +40,7 @@ pub struct Sups {
 /// [`WebSpeedBound`]); `DesignError::Unbounded` when the loop is not asymptotically stable.
 pub fn sups(drive: &PlantParams, web: &Web, speed: PiGains, tension: PiGains) -> Result<Sups, DesignError> {
     let plant = Plant::new(PlantParams {
+        damping: Damping::NONE,
         web: Some(*web),
         ..*drive
     })?;

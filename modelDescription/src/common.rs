@@ -66,11 +66,12 @@ pub(crate) fn write_type_attributes(x: &mut String, v: &Var, state_reference: im
     if !v.unit.is_empty() {
         let _ = write!(x, " unit=\"{}\"", v.unit);
     }
-    if v.range == Range::NonNegative {
-        x.push_str(" min=\"0.0\"");
-    }
-    if v.name == "contact" {
-        x.push_str(" min=\"-1\" max=\"1\"");
+    match v.range {
+        Range::NonNegative => x.push_str(" min=\"0.0\""),
+        Range::Integers { min, max } => {
+            let _ = write!(x, " min=\"{min}\" max=\"{max}\"");
+        }
+        Range::Finite | Range::Positive => {}
     }
     if let Some(nominal) = v.nominal {
         let _ = write!(x, " nominal=\"{nominal:?}\"");
@@ -142,8 +143,9 @@ pub(crate) fn write_units_categories_and_experiment(x: &mut String, model: &Mode
     );
 }
 
-/// The states an output depends on in Continuous-Time Mode (no output depends on an input:
-/// docs/model.md §1); the bounds depend on time alone ([`depends_on_time`]).
+/// The states an output other than `psi` depends on in Continuous-Time Mode (no output depends
+/// on an input: docs/model.md §1); the bounds depend on time alone ([`depends_on_time`]). `psi`'s
+/// are computed from the plant (`crate::structure::output_dependencies`).
 pub(crate) fn output_dependencies(name: &str) -> &'static [&'static str] {
     match name {
         // A state output is the state itself.
@@ -152,11 +154,11 @@ pub(crate) fn output_dependencies(name: &str) -> &'static [&'static str] {
         "theta_L" => &["theta_L"],
         "omega_L" => &["omega_L"],
         "T" => &["T"],
-        "psi" => &["theta_m", "theta_L"],
-        // The mode exactly on +-g depends on the sign of u' as well.
+        // The mode exactly on +-g depends on the sign of u' as well, and with a damper its
+        // force, the sign of psi, on u'.
         "contact" => &["theta_m", "omega_m", "theta_L", "omega_L"],
         "bound" | "bound_paper" | "bound_T" => &[],
-        other => panic!("{other} is not an output"),
+        other => panic!("{other} is not an output whose dependencies are listed"),
     }
 }
 
@@ -167,18 +169,17 @@ pub(crate) fn depends_on_time(name: &str) -> bool {
     matches!(name, "bound" | "bound_paper" | "bound_T")
 }
 
-/// The states an event indicator depends on in Continuous-Time Mode: u ∓ g with
-/// u = r_m θ_m − r_L θ_L (docs/model.md §6).
-pub(crate) fn event_indicator_dependencies(name: &str) -> &'static [&'static str] {
-    match name {
-        "u_minus_g" | "u_plus_g" => &["theta_m", "theta_L"],
-        other => panic!("{other} is not an event indicator"),
-    }
-}
-
-/// The event indicators of every model, in the order of the description (value references 28
-/// and 29; FMI 2.0 counts them in `numberOfEventIndicators`, FMI 3.0 lists them).
-pub(crate) const EVENT_INDICATORS: [&str; 2] = ["u_minus_g", "u_plus_g"];
+/// The event indicators of every model, in the order the physics computes them
+/// (`Plant::event_indicators`, docs/model.md §6) and of the description (value references 28,
+/// 29 and 44–47; FMI 2.0 counts them in `numberOfEventIndicators`, FMI 3.0 lists them).
+pub(crate) const EVENT_INDICATORS: [&str; backlash_physics::vector_field::EVENT_INDICATORS] = [
+    "u_minus_g",
+    "u_plus_g",
+    "force_upper",
+    "force_lower",
+    "cap_upper",
+    "cap_lower",
+];
 
 /// Whether `v` is an unknown of Initialization Mode as FMI 2.0 §2.2.8 and FMI 3.0 §2.4.8 define
 /// the list: outputs and state derivatives with initial = calculated (the states themselves are

@@ -62,7 +62,9 @@ pub enum Initial {
 }
 
 /// Admissible values, checked when a value is set (FMI's min is inclusive, so `Positive` is
-/// stated in the description only).
+/// stated in the description only). An Integer's value is held as an f64 (the library's value
+/// store); `Integers` admits the whole numbers from `min` to `max`, both written into the
+/// description as its `min` and `max`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Range {
     /// Any finite value.
@@ -71,6 +73,8 @@ pub enum Range {
     NonNegative,
     /// Finite and > 0.
     Positive,
+    /// A whole number from `min` to `max`.
+    Integers { min: i32, max: i32 },
 }
 
 impl Range {
@@ -80,14 +84,18 @@ impl Range {
                 Range::Finite => true,
                 Range::NonNegative => value >= 0.0,
                 Range::Positive => value > 0.0,
+                Range::Integers { min, max } => value.trunc() == value && min as f64 <= value && value <= max as f64,
             }
     }
 
-    pub fn describe(self) -> &'static str {
+    /// The admissible values in words, for the reason of a refusal.
+    pub fn describe(self) -> std::borrow::Cow<'static, str> {
         match self {
-            Range::Finite => "finite",
-            Range::NonNegative => "finite and >= 0",
-            Range::Positive => "finite and > 0",
+            Range::Finite => "finite".into(),
+            Range::NonNegative => "finite and >= 0".into(),
+            Range::Positive => "finite and > 0".into(),
+            Range::Integers { min, max } if max == min + 1 => format!("{min} or {max}").into(),
+            Range::Integers { min, max } => format!("an integer from {min} to {max}").into(),
         }
     }
 }
@@ -168,6 +176,7 @@ pub(crate) const UNITS: &[UnitRow] = &[
     ("m", [0, 1, 0, 0], &[("mm", 1000.0)]),
     ("kg.m2", [1, 2, 0, 0], &[]),
     ("N.m.s/rad", [1, 2, -1, -1], &[]),
+    ("N.s/m", [1, 0, -1, 0], &[]),
     ("N.m/rad", [1, 2, -2, -1], &[]),
     ("N/m", [1, 0, -2, 0], &[]),
     ("m/s", [0, 1, -1, 0], &[]),

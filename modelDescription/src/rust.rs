@@ -47,11 +47,12 @@ fn input_lines(models: &[Model]) -> Vec<&'static str> {
     lines
 }
 
-/// Each symbol's source, as the library's `Source` in Rust: a parameter is stored; an input
-/// stored in its slot; a continuous state is the plant state's entry of its symbol (and its
-/// derivative that entry's rate); the one Integer variable, the contact mode (docs/model.md §4),
-/// is the mode; every other variable is calculated from the physics, by the `Calculated` of its
-/// symbol (a new one without such a variant does not compile).
+/// Each symbol's source, as the library's `Source` in Rust: a parameter (Real or Integer, as
+/// `contact_law`) is stored; an input stored in its slot; a continuous state is the plant
+/// state's entry of its symbol (and its derivative that entry's rate); the one other Integer
+/// variable, the `contact` output (docs/model.md §4), is the sign of ψ in the mode in force;
+/// every other variable is calculated from the physics, by the `Calculated` of its symbol (a new
+/// one without such a variant does not compile).
 fn sources(models: &[Model]) -> Vec<(&'static str, String)> {
     let lines = input_lines(models);
     let mut out: Vec<(&'static str, String)> = Vec::new();

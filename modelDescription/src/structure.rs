@@ -1,19 +1,24 @@
 //! The dependencies of the model structure, computed from each model's plant (its physics
 //! mapping, [`crate::Model::plant_params`]) rather than listed: the states and inputs a state
-//! derivative depends on are the non-zero entries of the plant's Jacobian in contact, and the
-//! parameters an initial unknown depends on are those whose change changes it.
+//! derivative depends on are the non-zero entries of the plant's Jacobian in contact, the states
+//! ψ and the event indicators depend on are those whose change changes them, and the parameters
+//! an initial unknown depends on are those whose change changes it.
 //!
-//! Both are read at a generic point: the default parameters (a parameter whose default is 0
-//! taken as 1, so that no product vanishes by a zero factor), a state on the positive flank with
-//! every entry non-zero, and non-zero inputs. A quantity that does not read a parameter is
-//! computed by the same operations on the same numbers whatever that parameter's value, so a
-//! dependency shows as a changed value and independence as an identical one.
+//! All are read at generic points: the default parameters (a parameter whose default is 0 taken
+//! as 1, so that no product vanishes by a zero factor and the damper is in place), a state on the
+//! positive flank with every entry non-zero, the same state moving so fast that law 1 caps the
+//! damper's force (a quantity may read a parameter or a state in one mode only: ψ reads
+//! `contact_law` only under the cap, the speeds only outside it), and non-zero inputs. A
+//! dependency is one at any of the points. A quantity that does not read a parameter is computed
+//! by the same operations on the same numbers whatever that parameter's value, so a dependency
+//! shows as a changed value and independence as an identical one. A Real is changed by half its
+//! value; an Integer (`contact_law`) to another admissible value.
 
 use backlash_physics::{Plant, PlantState};
 
-use crate::common::{depends_on_time, output_dependencies, vr_of};
+use crate::common::{depends_on_time, vr_of, EVENT_INDICATORS};
 use crate::models::{parameters, plant_of};
-use crate::{Causality, Model, Var};
+use crate::{Causality, Model, Range, Type, Var};
 
 /// The plant's input lines, in the order of the model's inputs by value reference: τ_m, τ_L,
 /// and on a web line v_in, T_in (docs/model.md §1, §8).
@@ -27,11 +32,42 @@ fn generic_values(model: &Model) -> Vec<(&'static str, f64)> {
         .collect()
 }
 
-/// The generic state z = [θ_m, ω_m, θ_L, ω_L, T] of `plant`: on the positive flank (u = 2.4 g),
-/// every entry non-zero, in the units of the state nominals.
-fn generic_state(plant: &Plant) -> [f64; 5] {
+/// `values` with the parameter at `i` changed: a Real by half its value, an Integer to the next
+/// value its range admits (the one before at the top of the range), so that it stays admissible.
+fn perturbed(model: &Model, values: &[(&'static str, f64)], i: usize) -> Vec<(&'static str, f64)> {
+    let (name, x) = values[i];
+    let v = model
+        .variables
+        .iter()
+        .find(|v| v.name == name)
+        .expect("a parameter is a variable");
+    let changed = match (v.ty, v.range) {
+        (Type::Real, _) => x * 1.5,
+        (Type::Integer, Range::Integers { max, .. }) if x < max as f64 => x + 1.0,
+        (Type::Integer, Range::Integers { min, .. }) if x > min as f64 => x - 1.0,
+        (Type::Integer, _) => panic!(
+            "{}: Integer parameter {name} has no other admissible value to change to",
+            model.identifier
+        ),
+    };
+    let mut values = values.to_vec();
+    values[i].1 = changed;
+    values
+}
+
+/// The generic states z = [θ_m, ω_m, θ_L, ω_L, T] of `plant`, in the units of the state
+/// nominals, each entry non-zero: one on the positive flank (u = 2.4 g), and where the plant has
+/// a damper the same angles with the speeds scaled so that the damper's force is four times the
+/// spring's, D u′ = 4 K (u − g) (where law 1 caps it).
+fn generic_states(plant: &Plant) -> Vec<[f64; 5]> {
     let n = plant.state_nominals();
-    [3.1 * n[0], 1.3 * n[1], 0.7 * n[2], -0.6 * n[3], 0.8 * n[4]]
+    let z = [3.1 * n[0], 1.3 * n[1], 0.7 * n[2], -0.6 * n[3], 0.8 * n[4]];
+    if plant.damping() == 0.0 {
+        return vec![z];
+    }
+    let state = state_of(plant, &z);
+    let scale = 4.0 * plant.stiffness() * (state.u - plant.half_gap()) / (plant.damping() * state.du);
+    vec![z, [z[0], scale * z[1], z[2], scale * z[3], z[4]]]
 }
 
 fn state_of(plant: &Plant, z: &[f64; 5]) -> PlantState {
@@ -46,10 +82,13 @@ const GENERIC_INPUTS: [f64; INPUT_LINES] = [0.37, -0.23, 0.41, 1.9];
 enum Quantity {
     /// The time derivative of the state entry (docs/model.md §1, §8).
     Rate(usize),
-    /// ψ = K dz(u, g).
+    /// ψ, with a damper clipped by the contact law (docs/model.md §1).
     Force,
-    /// The event indicators u ∓ g.
-    Indicators,
+    /// The event indicator of that index (docs/model.md §6).
+    Indicator(usize),
+    /// The surfaces that decide the sign of ψ, the `contact` output: the event indicators u ∓ g
+    /// and those of the damped force (not the cap, which changes ψ's size, not its sign).
+    ContactSurfaces,
 }
 
 impl Quantity {
@@ -65,8 +104,9 @@ impl Quantity {
                     .copied()
                     .unwrap_or_else(|| plant.tension_rate(&state, span))]
             }
-            Quantity::Force => vec![plant.force(state.u)],
-            Quantity::Indicators => plant.event_indicators(&state).to_vec(),
+            Quantity::Force => vec![plant.force(state.u, state.du)],
+            Quantity::Indicator(i) => vec![plant.event_indicators(&state)[i]],
+            Quantity::ContactSurfaces => plant.event_indicators(&state)[..4].to_vec(),
         }
     }
 }
@@ -78,23 +118,62 @@ fn in_vr_order(model: &Model, keep: impl Fn(&Var) -> bool) -> Vec<&Var> {
     vars
 }
 
-/// The names of the parameters of `model` whose change changes `quantity` at the generic point.
+/// The names of the parameters of `model` whose change changes `quantity` at a generic point.
 fn parameter_dependencies(model: &Model, quantity: Quantity) -> Vec<&'static str> {
     let values = generic_values(model);
     let plant = plant_of(model, &values);
-    let z = generic_state(&plant);
-    let at_generic = quantity.of(&plant, &z);
+    let states = generic_states(&plant);
+    let changed: Vec<Plant> = (0..values.len())
+        .map(|i| plant_of(model, &perturbed(model, &values, i)))
+        .collect();
     values
         .iter()
-        .enumerate()
-        .filter(|&(i, _)| {
-            let mut changed = values.clone();
-            changed[i].1 *= 1.5;
+        .zip(&changed)
+        .filter(|(_, other)| {
             // Exact: an independent quantity is the same arithmetic on the same numbers.
-            quantity.of(&plant_of(model, &changed), &z) != at_generic
+            states.iter().any(|z| quantity.of(other, z) != quantity.of(&plant, z))
         })
-        .map(|(_, (name, _))| *name)
+        .map(|((name, _), _)| *name)
         .collect()
+}
+
+/// The names of the continuous states whose change changes `quantity` at a generic point.
+fn state_dependencies(model: &Model, quantity: Quantity) -> Vec<&'static str> {
+    let plant = plant_of(model, &generic_values(model));
+    let states = generic_states(&plant);
+    in_vr_order(model, Var::is_continuous_state)
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| {
+            states.iter().any(|z| {
+                let mut moved = *z;
+                moved[j] *= 1.5;
+                quantity.of(&plant, &moved) != quantity.of(&plant, z)
+            })
+        })
+        .map(|(_, v)| v.name)
+        .collect()
+}
+
+/// The states the output `v` depends on in Continuous-Time Mode (no output depends on an
+/// input: docs/model.md §1): ψ's computed from the plant, the others' as listed
+/// ([`crate::common::output_dependencies`]).
+pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
+    match v.name {
+        "psi" => state_dependencies(model, Quantity::Force),
+        name => crate::common::output_dependencies(name).to_vec(),
+    }
+}
+
+/// The states the event indicator `name` (one of [`EVENT_INDICATORS`]) depends on in
+/// Continuous-Time Mode: u ∓ g on the angles, the damped force's and the cap's on the angles and
+/// the speeds (u and u′; docs/model.md §6).
+pub(crate) fn event_indicator_dependencies(model: &Model, name: &str) -> Vec<&'static str> {
+    let i = EVENT_INDICATORS
+        .iter()
+        .position(|n| *n == name)
+        .unwrap_or_else(|| panic!("{name} is not an event indicator"));
+    state_dependencies(model, Quantity::Indicator(i))
 }
 
 /// The index in z of the state `der` is the derivative of: the continuous states in
@@ -115,17 +194,10 @@ fn state_index(model: &Model, der: &Var) -> usize {
 /// v_in and T_in.
 pub(crate) fn derivative_dependencies(model: &Model, der: &Var) -> Vec<&'static str> {
     let plant = plant_of(model, &generic_values(model));
-    let (dz, dinputs) = plant.jacobian(&state_of(&plant, &generic_state(&plant)));
     let i = state_index(model, der);
     let (dv_in, dt_in) = plant
         .web()
         .map_or((0.0, 0.0), |w| (w.forcing(1.0, 0.0), w.forcing(0.0, 1.0)));
-    let by_line = [
-        dinputs[i][0],
-        dinputs[i][1],
-        dinputs[i][2] * dv_in,
-        dinputs[i][2] * dt_in,
-    ];
     let states = in_vr_order(model, Var::is_continuous_state);
     let inputs = in_vr_order(model, |v| v.causality == Causality::Input);
     assert!(
@@ -133,8 +205,22 @@ pub(crate) fn derivative_dependencies(model: &Model, der: &Var) -> Vec<&'static 
         "{}: more inputs than the plant has",
         model.identifier
     );
-    let states = states.iter().zip(dz[i]).filter(|(_, d)| *d != 0.0);
-    let inputs = inputs.iter().zip(by_line).filter(|(_, d)| *d != 0.0);
+    // The entries non-zero at any generic state (in any mode).
+    let mut by_state = vec![false; states.len()];
+    let mut by_input = vec![false; inputs.len()];
+    for z in generic_states(&plant) {
+        let (dz, dinputs) = plant.jacobian(&state_of(&plant, &z));
+        let by_line = [
+            dinputs[i][0],
+            dinputs[i][1],
+            dinputs[i][2] * dv_in,
+            dinputs[i][2] * dt_in,
+        ];
+        by_state.iter_mut().zip(dz[i]).for_each(|(b, d)| *b |= d != 0.0);
+        by_input.iter_mut().zip(by_line).for_each(|(b, d)| *b |= d != 0.0);
+    }
+    let states = states.iter().zip(by_state).filter(|(_, b)| *b);
+    let inputs = inputs.iter().zip(by_input).filter(|(_, b)| *b);
     states.chain(inputs).map(|(v, _)| v.name).collect()
 }
 
@@ -143,9 +229,10 @@ pub(crate) fn derivative_dependencies(model: &Model, der: &Var) -> Vec<&'static 
 /// means "all knowns".
 ///
 /// A state derivative: its states and inputs, and the parameters of its equation. ψ and the
-/// contact mode: their states, and the parameters of ψ and of u ∓ g. The bounds: none (they are
-/// 0 at the start time, docs/model.md §4). A calculated parameter (the suprema of the bounds):
-/// every parameter, as they define the loop of docs/model.md §3 (§8).
+/// contact mode: their states, and the parameters of ψ and of the surfaces that decide its sign.
+/// The bounds: none (they are 0 at the start time, docs/model.md §4). A calculated parameter
+/// (the suprema of the bounds): every parameter, as they define the loop of docs/model.md §3
+/// (§8).
 pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
     let names: Vec<&str> = if v.derivative_of.is_some() {
         let rate = Quantity::Rate(state_index(model, v));
@@ -160,10 +247,10 @@ pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
         let of = match v.name {
             "psi" => Quantity::Force,
             // The mode exactly on ±g depends on the sign of u' as well (its states say so).
-            "contact" => Quantity::Indicators,
+            "contact" => Quantity::ContactSurfaces,
             _ => return None,
         };
-        let mut names = output_dependencies(v.name).to_vec();
+        let mut names = output_dependencies(model, v);
         names.extend(parameter_dependencies(model, of));
         names
     };
@@ -176,68 +263,141 @@ pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
 mod tests {
     use super::*;
     use crate::{model, model_identifiers};
+    use backlash_physics::ContactMode;
 
     #[test]
-    fn the_generic_state_is_in_contact_with_every_entry_non_zero() {
+    fn the_generic_states_are_in_contact_with_and_without_the_cap_every_entry_non_zero() {
         for id in model_identifiers() {
             let m = model(id);
             let plant = plant_of(&m, &generic_values(&m));
-            let z = generic_state(&plant);
-            let state = state_of(&plant, &z);
-            assert_eq!(state.mode, backlash_physics::ContactMode::Positive, "{id}");
-            assert!(z.iter().all(|x| *x != 0.0), "{id}: {z:?}");
+            assert!(plant.damping() > 0.0, "{id}: the generic point has a damper");
+            let modes: Vec<ContactMode> = generic_states(&plant)
+                .iter()
+                .map(|z| state_of(&plant, z).mode)
+                .collect();
+            assert_eq!(modes, [ContactMode::Positive, ContactMode::CappedPositive], "{id}");
+            for z in generic_states(&plant) {
+                assert!(z.iter().all(|x| *x != 0.0), "{id}: {z:?}");
+            }
         }
+    }
+
+    /// contact_law moves between 1 and 2 only; a Real by half its value.
+    #[test]
+    fn an_integer_parameter_is_changed_within_its_range() {
+        let m = model("BacklashShaft");
+        let values = generic_values(&m);
+        let at = |values: &[(&str, f64)], name: &str| values.iter().find(|(n, _)| *n == name).unwrap().1;
+        let law = values.iter().position(|(n, _)| *n == "contact_law").unwrap();
+        assert_eq!(at(&values, "contact_law"), 1.0);
+        let once = perturbed(&m, &values, law);
+        assert_eq!(at(&once, "contact_law"), 2.0);
+        assert_eq!(at(&perturbed(&m, &once, law), "contact_law"), 1.0);
+        let d = values.iter().position(|(n, _)| *n == "d").unwrap();
+        assert_eq!(at(&values, "d"), 1.0);
+        assert_eq!(at(&perturbed(&m, &values, d), "d"), 1.5);
     }
 
     /// The derived structure against the equations of docs/model.md §1 and §8, written out.
     #[test]
     fn the_derived_dependencies_are_those_of_the_equations() {
+        let sorted = |mut names: Vec<&'static str>| {
+            names.sort_unstable();
+            names
+        };
         let deps = |id: &str, name: &str| {
             let m = model(id);
             let v = *m.variables.iter().find(|v| v.name == name).unwrap();
-            let mut d = derivative_dependencies(&m, &v);
-            d.sort_unstable();
-            d
+            sorted(derivative_dependencies(&m, &v))
         };
+        // ψ reads u′ through the damper: each acceleration depends on both speeds.
         for id in ["BacklashShaft", "BacklashBelt", "BacklashWeb"] {
             assert_eq!(deps(id, "der(theta_m)"), ["omega_m"], "{id}");
             assert_eq!(deps(id, "der(theta_L)"), ["omega_L"], "{id}");
             assert_eq!(
                 deps(id, "der(omega_m)"),
-                ["omega_m", "tau_m", "theta_L", "theta_m"],
+                ["omega_L", "omega_m", "tau_m", "theta_L", "theta_m"],
                 "{id}"
             );
         }
         assert_eq!(
             deps("BacklashBelt", "der(omega_L)"),
-            ["omega_L", "tau_L", "theta_L", "theta_m"]
+            ["omega_L", "omega_m", "tau_L", "theta_L", "theta_m"]
         );
         assert_eq!(
             deps("BacklashWeb", "der(omega_L)"),
-            ["T", "omega_L", "tau_L", "theta_L", "theta_m"]
+            ["T", "omega_L", "omega_m", "tau_L", "theta_L", "theta_m"]
         );
         assert_eq!(deps("BacklashWeb", "der(T)"), ["T", "T_in", "omega_L", "v_in"]);
 
-        let params = |id: &str, q: Quantity| {
-            let mut p = parameter_dependencies(&model(id), q);
-            p.sort_unstable();
-            p
-        };
-        // J_m ω_m' = τ_m − b_m ω_m − r_m K dz(u, g): the motor's inertia and friction, and the
-        // transmission's stiffness, lever arms and gap.
-        assert_eq!(params("BacklashShaft", Quantity::Rate(1)), ["Delta", "J_m", "b_m", "k"]);
+        let params = |id: &str, q: Quantity| sorted(parameter_dependencies(&model(id), q));
+        // J_m ω_m' = τ_m − b_m ω_m − r_m ψ(u, u′): the motor's inertia and friction, and the
+        // transmission's stiffness, damping, contact law, lever arms and gap.
+        assert_eq!(
+            params("BacklashShaft", Quantity::Rate(1)),
+            ["Delta", "J_m", "b_m", "contact_law", "d", "k"]
+        );
         assert_eq!(
             params("BacklashBelt", Quantity::Rate(1)),
-            ["Delta", "J_m", "K_b", "R_1", "R_2", "R_g1", "R_g2", "b_m"]
+            [
+                "D_b",
+                "Delta",
+                "J_m",
+                "K_b",
+                "R_1",
+                "R_2",
+                "R_g1",
+                "R_g2",
+                "b_m",
+                "contact_law"
+            ]
         );
         // The web pulls the load with R_w T; L_w T' = EA R_w ω_L − v_ref T + v_ref T_in − EA v_in.
         assert_eq!(
             params("BacklashWeb", Quantity::Rate(3)),
-            ["Delta", "J_L", "K_b", "R_1", "R_2", "R_g1", "R_g2", "R_w", "b_L"]
+            [
+                "D_b",
+                "Delta",
+                "J_L",
+                "K_b",
+                "R_1",
+                "R_2",
+                "R_g1",
+                "R_g2",
+                "R_w",
+                "b_L",
+                "contact_law"
+            ]
         );
         assert_eq!(params("BacklashWeb", Quantity::Rate(4)), ["EA", "L_w", "R_w", "v_ref"]);
-        // u ∓ g with u = r_m θ_m − r_L θ_L: the lever arms and the gap, not the stiffness.
-        assert_eq!(params("BacklashShaft", Quantity::Indicators), ["Delta"]);
-        assert_eq!(params("BacklashShaft", Quantity::Force), ["Delta", "k"]);
+        // u ∓ g with u = r_m θ_m − r_L θ_L: the lever arms and the gap, not the stiffness; the
+        // damped force's surfaces K (u ∓ g) + D u′ also K and D; the cap's also the law (it is
+        // 1 under law 2); ψ all of them; its sign not the law.
+        assert_eq!(params("BacklashShaft", Quantity::Indicator(0)), ["Delta"]);
+        assert_eq!(params("BacklashShaft", Quantity::Indicator(3)), ["Delta", "d", "k"]);
+        assert_eq!(
+            params("BacklashShaft", Quantity::Indicator(4)),
+            ["Delta", "contact_law", "d", "k"]
+        );
+        assert_eq!(params("BacklashShaft", Quantity::ContactSurfaces), ["Delta", "d", "k"]);
+        assert_eq!(
+            params("BacklashShaft", Quantity::Force),
+            ["Delta", "contact_law", "d", "k"]
+        );
+
+        // The states: ψ and the damped surfaces read u and u′, u ∓ g the angles alone.
+        for id in model_identifiers() {
+            let m = model(id);
+            let psi = m.variables.iter().find(|v| v.name == "psi").unwrap();
+            let all = ["omega_L", "omega_m", "theta_L", "theta_m"];
+            assert_eq!(sorted(output_dependencies(&m, psi)), all, "{id}");
+            for name in EVENT_INDICATORS {
+                let expected: &[&str] = match name {
+                    "u_minus_g" | "u_plus_g" => &["theta_L", "theta_m"],
+                    _ => &all,
+                };
+                assert_eq!(sorted(event_indicator_dependencies(&m, name)), expected, "{id} {name}");
+            }
+        }
     }
 }

@@ -3,10 +3,10 @@
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, hash_name, initial_attribute, output_dependencies, variability_name, vr_of, write_type_attributes,
+    causality_name, hash_name, initial_attribute, variability_name, vr_of, write_type_attributes,
     write_units_categories_and_experiment, EVENT_INDICATORS,
 };
-use crate::structure::{derivative_dependencies, initial_dependencies};
+use crate::structure::{derivative_dependencies, initial_dependencies, output_dependencies};
 use crate::{model, Causality, Model, Type};
 
 /// `text` as XML (or HTML) attribute value or text (shared with the FMI 3.0 description).
@@ -36,8 +36,8 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
         escape(model.description),
         EVENT_INDICATORS.len()
     );
-    // Event indicators u - g and u + g; no event needs an iteration, so completed integrator
-    // steps need not be reported.
+    // Event indicators: the contact surfaces of docs/model.md §6; no event needs an iteration,
+    // so completed integrator steps need not be reported.
     let _ = writeln!(
         x,
         "  <ModelExchange modelIdentifier=\"{}\" needsExecutionTool=\"false\" completedIntegratorStepNotNeeded=\"true\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" providesDirectionalDerivative=\"true\"/>",
@@ -102,7 +102,7 @@ fn write_model_structure(x: &mut String, model: &Model) {
     for (i, v) in model.variables.iter().enumerate() {
         if v.causality == Causality::Output {
             // No direct feedthrough: every output is a function of the state (docs/model.md §1).
-            let deps = index_list(output_dependencies(v.name));
+            let deps = index_list(&output_dependencies(model, v));
             let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"{deps}\"/>", i + 1);
         }
     }

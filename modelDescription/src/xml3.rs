@@ -4,19 +4,21 @@
 //!
 //! What FMI 3.0 changes: `<Float64>` and `<Int32>` in place of `<ScalarVariable>` with `<Real>`
 //! or `<Integer>`; `derivative` and the model structure name variables by value reference, not
-//! by index; the event indicators are the variables `u_minus_g` and `u_plus_g`, listed as
-//! `<EventIndicator>`s; and a description has exactly one variable of causality `independent`
+//! by index; the event indicators are variables (`u_minus_g`, `u_plus_g`, `force_upper`,
+//! `force_lower`, `cap_upper`, `cap_lower`), listed as `<EventIndicator>`s in the order
+//! `fmi3GetEventIndicators` returns them; and a description has exactly one variable of causality `independent`
 //! (FMI 3.0 §2.4.7.4), here `time` with value reference 0, which no table row uses, and without
 //! unit (implicitly s).
 
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, depends_on_time, escape, event_indicator_dependencies, hash_name, initial_attribute,
-    is_initial_unknown, output_dependencies, variability_name, vr_of, write_type_attributes,
-    write_units_categories_and_experiment, EVENT_INDICATORS,
+    causality_name, depends_on_time, escape, hash_name, initial_attribute, is_initial_unknown, variability_name, vr_of,
+    write_type_attributes, write_units_categories_and_experiment, EVENT_INDICATORS,
 };
-use crate::structure::{derivative_dependencies, initial_dependencies};
+use crate::structure::{
+    derivative_dependencies, event_indicator_dependencies, initial_dependencies, output_dependencies,
+};
 use crate::{model, Causality, Model, Type};
 
 /// The name and value reference of the independent variable (time), which only the FMI 3.0
@@ -112,7 +114,7 @@ fn write_model_structure(x: &mut String, model: &Model) {
         if v.causality == Causality::Output {
             // No direct feedthrough: every output is a function of the state (docs/model.md §1),
             // and the bounds of the time since the start time.
-            let mut deps = name_list(output_dependencies(v.name));
+            let mut deps = name_list(&output_dependencies(model, v));
             if depends_on_time(v.name) {
                 deps.push(TIME.1);
             }
@@ -151,7 +153,7 @@ fn write_model_structure(x: &mut String, model: &Model) {
         }
     }
     for name in EVENT_INDICATORS {
-        let mut deps = name_list(event_indicator_dependencies(name));
+        let mut deps = name_list(&event_indicator_dependencies(model, name));
         let _ = writeln!(
             x,
             "    <EventIndicator valueReference=\"{}\" dependencies=\"{}\"/>",

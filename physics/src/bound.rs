@@ -35,6 +35,12 @@ pub struct BoundState<const N: usize = CL> {
     pub integral: [f64; N],
     /// ∫_0^elapsed |h(s)| ds.
     pub l1: f64,
+    /// With a damper in the compliant member: an upper bound on max |h| over [0, elapsed]
+    /// (docs/model.md §3, "With a damper"); 0 without one.
+    pub peak: f64,
+    /// With a damper: an upper bound on ∫_0^elapsed |h′(s)| ds, the total variation of h; 0
+    /// without one.
+    pub variation: f64,
 }
 
 impl<const N: usize> Default for BoundState<N> {
@@ -44,6 +50,8 @@ impl<const N: usize> Default for BoundState<N> {
             response: [0.0; N],
             integral: [0.0; N],
             l1: 0.0,
+            peak: 0.0,
+            variation: 0.0,
         }
     }
 }
@@ -171,6 +179,37 @@ pub struct LoopBound<const N: usize, const BA: usize, const KO: usize, const R: 
     drift_peak: f64,
     /// Up to this `reach`, `bound_paper` cannot overflow.
     reach_limit: f64,
+    /// D of the compliant member: > 0 tracks `BoundState::peak` and `variation` for the
+    /// damper's terms.
+    damping: f64,
+    /// K, to recover g from `scale` = K g.
+    stiffness: f64,
+}
+
+/// An upper bound on max |h| over [0, w] from h, h′, h″ at 0 (`d`) and |h‴| ≤ `c3` on [0, w]:
+/// the largest |h₀ + h₁σ + h₂σ²/2| (at an end or at the vertex) plus c3 w³/6.
+fn peak_bound(d: [f64; 3], c3: f64, w: f64) -> f64 {
+    let quad = |x: f64| (d[0] + x * (d[1] + 0.5 * x * d[2])).abs();
+    let mut top = quad(0.0).max(quad(w));
+    if d[2] != 0.0 {
+        let vertex = -d[1] / d[2];
+        if vertex > 0.0 && vertex < w {
+            top = top.max(quad(vertex));
+        }
+    }
+    top + c3 * w * w * w / 6.0
+}
+
+/// An upper bound on ∫_0^w |h′| from h′, h″ at 0 (`d[1]`, `d[2]`), |h‴| ≤ `c3` on [0, w] and
+/// the net change `dh` of h over [0, w]: |dh| where h′ provably keeps its sign (h′(σ) ≥ h′(0) +
+/// h″(0) σ − c3 σ²/2 for its sign), else ∫ (|h′(0)| + |h″(0)| σ + c3 σ²/2) dσ.
+fn variation_bound(d: [f64; 3], c3: f64, w: f64, dh: f64) -> f64 {
+    let sign = if d[1] != 0.0 { d[1].signum() } else { d[2].signum() };
+    if d[1] != 0.0 && roots::cubic_clear(sign * d[1], sign * d[2], -c3, 0.0, w, 0.0) {
+        dh.abs()
+    } else {
+        w * (d[1].abs() + w * (0.5 * d[2].abs() + w * c3 / 6.0))
+    }
 }
 
 /// Refuses gains that are not finite or not in scale.
@@ -244,6 +283,8 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
             // Then the squares in ‖integral‖₂ stay finite, and K g ‖integral‖₂ ≤ K g √N reach
             // is below f64::MAX.
             reach_limit: (f64::MAX / (4.0 * scale)).min(1e150),
+            damping: plant.damping(),
+            stiffness: plant.stiffness(),
         };
         bound.tail = reduced.tail_bound().ok();
         bound.reset();
@@ -353,6 +394,13 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
             let mut y = BoundVector::<BA>::zeros();
             y.as_mut_slice()[..N].copy_from_slice(&response);
             let mut whole_piece = Some(cache.kernel.apply(&response, OUT));
+            let piece_start = if self.damping != 0.0 {
+                let piece = whole_piece.as_ref().expect("just computed");
+                self.state.peak = self.state.peak.max(peak_bound(piece.d, piece.c3, cache.len));
+                Some((piece.d, piece.c3))
+            } else {
+                None
+            };
             let mut done = 0.0;
             // A piece is shorter than a half period of the loop: it holds few sign changes.
             // Past `MAX_CROSSINGS`, or where the search cannot decide (h within round-off of 0
@@ -408,6 +456,9 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
             for (total, piece) in self.state.integral.iter_mut().zip(&y.as_slice()[N..]) {
                 *total += piece;
             }
+            if let Some((d, c3)) = piece_start {
+                self.state.variation += variation_bound(d, c3, cache.len, y[OUT] - response[OUT]);
+            }
             response.copy_from_slice(&y.as_slice()[..N]);
         }
         self.state.response = response;
@@ -453,9 +504,40 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
         roots::first_exit(&poly, side, span, budget)
     }
 
-    /// K g ∫_0^t |h(s)| ds: a true bound on |ω_L^b − ω_L^0| [rad/s].
+    /// K g ∫_0^t |h(s)| ds: a true bound on |ω_L^b − ω_L^0| [rad/s] without a damper in the
+    /// compliant member; with one, the part of [`Self::damped_bound`] that the gap causes.
     pub fn bound(&self) -> f64 {
         self.scale * self.state.l1
+    }
+
+    /// The bound with a damper D in the compliant member (docs/model.md §3, "With a damper"):
+    /// K g ∫_0^t |h| + D max_{[0,t]} |h| V, where V = `variation` is ∫|u′| over the time the
+    /// trajectory spent free, slack or capped ([`super::PlantState::variation`]). Without a
+    /// damper, [`Self::bound`].
+    pub fn damped_bound(&self, variation: f64) -> f64 {
+        if self.damping == 0.0 {
+            return self.bound();
+        }
+        self.bound() + self.damping * self.state.peak * variation
+    }
+
+    /// The bound with a damper D in Model Exchange (docs/model.md §3, "With a damper"), where the
+    /// trajectory is known at the events the importer locates only: K g ∫_0^t |h| +
+    /// D (max|h| (`monotone` + 2 g `gaps`) + g ∫_0^t |h′|), `monotone` being Σ|Δu| over the slack
+    /// and capped phases (u is monotone in each) and `gaps` the number of phases in the gap.
+    /// Without a damper, [`Self::bound`].
+    pub fn damped_bound_at_events(&self, monotone: f64, gaps: f64) -> f64 {
+        if self.damping == 0.0 {
+            return self.bound();
+        }
+        let g = self.scale / self.stiffness;
+        let peak = self.state.peak;
+        self.bound() + self.damping * (peak * (monotone + 2.0 * g * gaps) + g * self.state.variation)
+    }
+
+    /// max |h| over [0, elapsed], bounded from above; 0 without a damper (not tracked).
+    pub fn peak(&self) -> f64 {
+        self.state.peak
     }
 
     /// ∫ e^{As}D_1 after `h` more in the settled regime: bound is final, and what remains of
@@ -530,7 +612,13 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
             .iter()
             .chain(state.integral.iter())
             .all(|x| x.is_finite());
-        if !(finite && state.elapsed.is_finite() && state.elapsed >= 0.0 && state.l1.is_finite() && state.l1 >= 0.0) {
+        let non_negative = |x: f64| x.is_finite() && x >= 0.0;
+        if !(finite
+            && non_negative(state.elapsed)
+            && non_negative(state.l1)
+            && non_negative(state.peak)
+            && non_negative(state.variation))
+        {
             return Err(BoundError::BadState);
         }
         self.state = *state;

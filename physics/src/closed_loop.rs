@@ -23,7 +23,8 @@ pub const CL: usize = 5;
 /// ω_L in the closed-loop state.
 pub const OMEGA_L: usize = 3;
 
-/// A_cl of docs/model.md §3 (A_p with the PI loop on ω_m) in θ coordinates: the loop of
+/// A_cl of docs/model.md §3 (A_p with the PI loop on ω_m; with a damper in the compliant member,
+/// the backlash-free twin's spring-damper K u + D u′) in θ coordinates: the loop of
 /// [`reduced_loop_matrix`] with the angles kept apart. Its entries are written out rather than
 /// derived from the 4×4 one: k r_m² / J_m is rounded as one product, not as (k r_m / J_m) r_m.
 /// With Kp = Ki = 0 the x_c row and column are zero, so x_c stays 0 and the 5-vector norms
@@ -44,6 +45,14 @@ pub fn closed_loop(plant: &Plant, gains: PiGains) -> SMatrix<f64, CL, CL> {
     if gains.kp != 0.0 || gains.ki != 0.0 {
         a[(4, 1)] = -1.0;
     }
+    let d = plant.damping();
+    if d != 0.0 {
+        // The twin's spring-damper: ψ⁰ = K u + D u′, u′ = r_m ω_m − r_L ω_L.
+        a[(1, 1)] -= d * r_m * r_m / p.j_m;
+        a[(1, 3)] = d * r_m * r_l / p.j_m;
+        a[(3, 1)] = d * r_m * r_l / p.j_l;
+        a[(3, 3)] -= d * r_l * r_l / p.j_l;
+    }
     a
 }
 
@@ -59,6 +68,16 @@ pub fn reduced_loop_matrix(plant: &Plant, gains: PiGains) -> Matrix4<f64> {
         k * r_l / p.j_l,  0.0,                     -p.b_l / p.j_l, 0.0,
         0.0,              -1.0,                    0.0,           0.0,
     );
+    let d = plant.damping();
+    if d == 0.0 {
+        return a;
+    }
+    // The twin's damper D u′ with u′ = r_m ω_m − r_L ω_L.
+    let mut a = a;
+    a[(1, 1)] -= d * r_m * r_m / p.j_m;
+    a[(1, 2)] = d * r_m * r_l / p.j_m;
+    a[(2, 1)] = d * r_l * r_m / p.j_l;
+    a[(2, 2)] -= d * r_l * r_l / p.j_l;
     a
 }
 

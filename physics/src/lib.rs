@@ -18,8 +18,8 @@ pub mod taylor;
 pub mod vector_field;
 
 pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded, WebSpeedBound, WebTensionBound};
-pub use mode::{contact_indicator, mode_at, ContactMode, PlantState};
-pub use params::{dead_zone, Geometry, ParamError, Plant, PlantParams, WebSpan};
+pub use mode::{contact_indicator, damped_mode_at, mode_at, ContactMode, PlantState};
+pub use params::{dead_zone, ContactLaw, Damping, Geometry, ParamError, Plant, PlantParams, WebSpan};
 pub use stepper::{max_step, Inputs, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP};
 
 /// `x.is_finite()` as one floating-point comparison, for the tests that run on every step:

@@ -39,7 +39,8 @@ pub const TENSION: usize = 10;
 pub const SPAN: usize = 11;
 pub const DSPAN: usize = 12;
 
-/// M for `mode`: ψ = K (u ∓ g) on a flank, 0 when free. N is `AUG`, or `WEB_AUG` for a plant
+/// M for `mode`: ψ = K (u ∓ g) + D u′ on a flank (2 K (u ∓ g) where law 1 caps the damper), 0
+/// when free or slack. N is `AUG`, or `WEB_AUG` for a plant
 /// with a web span.
 pub fn mode_matrix<const N: usize>(plant: &Plant, mode: ContactMode) -> AugMatrix<N> {
     assert!(
@@ -48,11 +49,15 @@ pub fn mode_matrix<const N: usize>(plant: &Plant, mode: ContactMode) -> AugMatri
     );
     let p = plant.params();
     let (r_m, r_l, k, g) = (plant.r_m(), plant.r_l(), plant.stiffness(), plant.half_gap());
-    // ψ = ks·u + kc·1
-    let (ks, kc) = match mode {
-        ContactMode::Free => (0.0, 0.0),
-        ContactMode::Positive => (k, -k * g),
-        ContactMode::Negative => (k, k * g),
+    // ψ = ks·u + kd·v + kc·1: ks (u ∓ g) + kd u′ on a flank (kd = D, or 2K and no damper where
+    // law 1 caps it), 0 when free or slack.
+    let (ks, kd) = mode.force_slopes(k, plant.damping());
+    let kc = if mode.side() > 0.0 {
+        -ks * g
+    } else if mode.side() < 0.0 {
+        ks * g
+    } else {
+        0.0
     };
     let (jm, jl) = (p.j_m, p.j_l);
     // Compliance seen by u: κ = r_m²/J_m + r_L²/J_L.
@@ -71,6 +76,10 @@ pub fn mode_matrix<const N: usize>(plant: &Plant, mode: ContactMode) -> AugMatri
     m[(OMEGA_L, TAU_L)] = 1.0 / jl;
     m[(OMEGA_L, U)] = r_l * ks / jl;
     m[(OMEGA_L, ONE)] = r_l * kc / jl;
+    if kd != 0.0 {
+        m[(V, V)] -= kappa * kd;
+        m[(OMEGA_L, V)] = r_l * kd / jl;
+    }
     m[(DTHETA_M, V)] = 1.0 / r_m;
     m[(DTHETA_M, OMEGA_L)] = r_l / r_m;
     m[(DTHETA_L, OMEGA_L)] = 1.0;
@@ -89,15 +98,24 @@ pub fn mode_matrix<const N: usize>(plant: &Plant, mode: ContactMode) -> AugMatri
     m
 }
 
-/// The fastest rate of the plant [1/s]: the contact natural frequency or a damping rate; with a
+/// The fastest rate of the plant [1/s]: the contact natural frequency (of the capped contact,
+/// stiffness 2K, with law 1 and a damper) or a damping rate (the member's damper's D κ among
+/// them); with a
 /// web span, the frequency of both springs together, sqrt(ω₀² + EA R_w²/(L_w J_L)), or the
 /// span's relaxation rate v_ref/L_w.
 /// Steps are cut into pieces of at most `PIECE_RATE / rate` so that Taylor expansions over a
 /// piece converge fast and the remainder bounds of `roots` stay tight.
 pub fn fastest_rate(plant: &Plant) -> f64 {
     let p = plant.params();
-    let omega0 = plant.contact_frequency();
-    let rate = omega0.max(p.b_m / p.j_m).max(p.b_l / p.j_l);
+    let mut omega0 = plant.contact_frequency();
+    let mut rate = omega0.max(p.b_m / p.j_m).max(p.b_l / p.j_l);
+    if plant.damping() > 0.0 {
+        let kappa = plant.r_m() * plant.r_m() / p.j_m + plant.r_l() * plant.r_l() / p.j_l;
+        if plant.contact_law() == super::params::ContactLaw::ElastoBacklash {
+            omega0 *= std::f64::consts::SQRT_2;
+        }
+        rate = rate.max(omega0).max(plant.damping() * kappa);
+    }
     match plant.web() {
         None => rate,
         Some(w) => {

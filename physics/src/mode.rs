@@ -1,41 +1,102 @@
 //! Contact modes and the plant state.
 
-use super::params::Plant;
+use super::params::{ContactLaw, Plant};
 
-/// The mode in force: which side of the gap the gear teeth touch (docs/model.md §4 `contact`).
+/// The mode in force: which side of the gap the gear teeth touch, and with a damper in the
+/// compliant member how its force is clipped (docs/model.md §1 and §4 `contact`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ContactMode {
-    /// u ≤ −g: contact on the negative flank.
+    /// u ≤ −g: contact on the negative flank, ψ = K (u + g) + D u′ < 0.
     Negative,
     /// |u| < g: contact lost, the load coasts.
     Free,
-    /// u ≥ g: contact on the positive flank.
+    /// u ≥ g: contact on the positive flank, ψ = K (u − g) + D u′ > 0.
     Positive,
+    /// Past −g with a damper, but K (u + g) + D u′ ≥ 0: the force would pull, so it is 0 and the
+    /// bodies separate (u moves back towards the gap).
+    SlackNegative,
+    /// Past +g with a damper, but K (u − g) + D u′ ≤ 0: ψ = 0, the bodies separate.
+    SlackPositive,
+    /// Past −g, law 1 (`ElastoBacklash`) with D u′ ≤ K (u + g): the damper's force is capped by
+    /// the spring's, ψ = 2 K (u + g).
+    CappedNegative,
+    /// Past +g, law 1 with D u′ ≥ K (u − g): ψ = 2 K (u − g).
+    CappedPositive,
 }
 
 impl ContactMode {
-    pub const ALL: [ContactMode; 3] = [ContactMode::Negative, ContactMode::Free, ContactMode::Positive];
+    /// Every mode, in the order of [`ContactMode::index`].
+    pub const ALL: [ContactMode; 7] = [
+        ContactMode::Negative,
+        ContactMode::Free,
+        ContactMode::Positive,
+        ContactMode::SlackNegative,
+        ContactMode::SlackPositive,
+        ContactMode::CappedNegative,
+        ContactMode::CappedPositive,
+    ];
 
-    /// −1, 0, +1 as the FMU's `contact` output reports it.
+    /// −1, 0, +1 as the FMU's `contact` output reports it: the sign of ψ in this mode.
     pub fn as_i32(self) -> i32 {
         match self {
-            ContactMode::Negative => -1,
-            ContactMode::Free => 0,
-            ContactMode::Positive => 1,
+            ContactMode::Negative | ContactMode::CappedNegative => -1,
+            ContactMode::Free | ContactMode::SlackNegative | ContactMode::SlackPositive => 0,
+            ContactMode::Positive | ContactMode::CappedPositive => 1,
         }
     }
 
-    pub fn from_i32(value: i32) -> Option<ContactMode> {
-        match value {
-            -1 => Some(ContactMode::Negative),
-            0 => Some(ContactMode::Free),
-            1 => Some(ContactMode::Positive),
-            _ => None,
+    /// A number for each mode, for FMU states: −1, 0, +1 for the modes of a plant without a
+    /// damper (its `contact`), ±2 for the slack and ±3 for the capped modes.
+    pub fn code(self) -> i32 {
+        match self {
+            ContactMode::SlackNegative => -2,
+            ContactMode::SlackPositive => 2,
+            ContactMode::CappedNegative => -3,
+            ContactMode::CappedPositive => 3,
+            other => other.as_i32(),
         }
+    }
+
+    /// The mode of a [`ContactMode::code`].
+    pub fn from_code(value: i32) -> Option<ContactMode> {
+        ContactMode::ALL.into_iter().find(|m| m.code() == value)
+    }
+
+    /// +1 past +g, −1 past −g, 0 inside the gap.
+    pub fn side(self) -> f64 {
+        match self {
+            ContactMode::Free => 0.0,
+            ContactMode::Positive | ContactMode::SlackPositive | ContactMode::CappedPositive => 1.0,
+            ContactMode::Negative | ContactMode::SlackNegative | ContactMode::CappedNegative => -1.0,
+        }
+    }
+
+    /// (∂ψ/∂u, ∂ψ/∂u′) in this mode, for stiffness `k` and damping `d`: ψ = ks (u ∓ g) + kd u′.
+    #[inline]
+    pub fn force_slopes(self, k: f64, d: f64) -> (f64, f64) {
+        match self {
+            ContactMode::Free | ContactMode::SlackNegative | ContactMode::SlackPositive => (0.0, 0.0),
+            ContactMode::Positive | ContactMode::Negative => (k, d),
+            ContactMode::CappedPositive | ContactMode::CappedNegative => (2.0 * k, 0.0),
+        }
+    }
+
+    /// Ordinary contact (ψ = K (u ∓ g) + D u′): the modes in which the bound's V does not grow.
+    #[inline]
+    pub fn in_contact(self) -> bool {
+        matches!(self, ContactMode::Positive | ContactMode::Negative)
     }
 
     pub(crate) fn index(self) -> usize {
-        (self.as_i32() + 1) as usize
+        match self {
+            ContactMode::Negative => 0,
+            ContactMode::Free => 1,
+            ContactMode::Positive => 2,
+            ContactMode::SlackNegative => 3,
+            ContactMode::SlackPositive => 4,
+            ContactMode::CappedNegative => 5,
+            ContactMode::CappedPositive => 6,
+        }
     }
 }
 
@@ -60,6 +121,10 @@ pub struct PlantState {
     pub mode: ContactMode,
     /// Tension T of the web span [N]; 0 when the load pulls no web.
     pub tension: f64,
+    /// With a damper in the compliant member: an upper bound on ∫|u′| over the time spent
+    /// free, slack or capped since the start (exact where u is monotone), which the bounds
+    /// of docs/model.md §3 multiply; 0 without a damper.
+    pub variation: f64,
 }
 
 impl PlantState {
@@ -75,8 +140,9 @@ impl PlantState {
             omega_l,
             u,
             du,
-            mode: mode_at(u, du, plant.half_gap()),
+            mode: plant.mode_at(u, du),
             tension: 0.0,
+            variation: 0.0,
         }
     }
 
@@ -118,9 +184,34 @@ pub fn mode_at(u: f64, du: f64, g: f64) -> ContactMode {
     }
 }
 
-/// The FMU's `contact` output (docs/model.md §4): the mode in force, and with g = 0 the sign of u.
-pub fn contact_indicator(state: &PlantState, half_gap: f64) -> i32 {
-    if half_gap == 0.0 {
+/// The mode of a damped member (D = `d` > 0, stiffness `k`, half gap `g`, `law`) at u moving
+/// at u′ = `du`: where ψ's formula of docs/model.md §1 puts the state, and on a switching surface
+/// the mode being entered as far as u′ tells it (on τ_c + τ_d = 0 or τ_c = τ_d, the mode whose
+/// force is the formula's value there; the stepper leaves it at once if the motion says so).
+pub fn damped_mode_at(u: f64, du: f64, g: f64, k: f64, d: f64, law: ContactLaw) -> ContactMode {
+    let positive = u > g || (u == g && (du > 0.0 || (g == 0.0 && du == 0.0)));
+    let negative = u < -g || (u == -g && du < 0.0);
+    if !(positive || negative) {
+        return ContactMode::Free;
+    }
+    let side = if positive { 1.0 } else { -1.0 };
+    let tc = k * (u - side * g);
+    let td = d * du;
+    let capped = law == ContactLaw::ElastoBacklash && side * td > side * tc;
+    match (positive, side * (tc + td) > 0.0, capped) {
+        (true, false, _) => ContactMode::SlackPositive,
+        (false, false, _) => ContactMode::SlackNegative,
+        (true, true, false) => ContactMode::Positive,
+        (false, true, false) => ContactMode::Negative,
+        (true, true, true) => ContactMode::CappedPositive,
+        (false, true, true) => ContactMode::CappedNegative,
+    }
+}
+
+/// The FMU's `contact` output (docs/model.md §4): the sign of ψ in the mode in force, and for a
+/// plant without gap or damper (where both flanks are one spring) the sign of u.
+pub fn contact_indicator(state: &PlantState, plant: &Plant) -> i32 {
+    if plant.half_gap() == 0.0 && plant.damping() == 0.0 {
         if state.u > 0.0 {
             1
         } else if state.u < 0.0 {

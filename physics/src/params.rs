@@ -63,6 +63,53 @@ impl WebSpan {
     }
 }
 
+/// Which of the Modelica Standard Library's laws clips the damped force of the compliant member
+/// (docs/model.md §1, "Damping in the compliant member"); the FMUs' Integer `contact_law`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ContactLaw {
+    /// 1, `ElastoBacklash`: the damper's force is capped by the spring's, ψ = τ_c + min(τ_c, τ_d).
+    #[default]
+    ElastoBacklash,
+    /// 2, `ElastoBacklash2`: ψ = τ_c + τ_d, which jumps by D u′ when a contact begins.
+    ElastoBacklash2,
+}
+
+impl ContactLaw {
+    /// The law of the FMUs' `contact_law` value (1 or 2).
+    pub fn from_code(code: i32) -> Option<ContactLaw> {
+        match code {
+            1 => Some(ContactLaw::ElastoBacklash),
+            2 => Some(ContactLaw::ElastoBacklash2),
+            _ => None,
+        }
+    }
+
+    /// `contact_law`: 1 or 2.
+    pub fn code(self) -> i32 {
+        match self {
+            ContactLaw::ElastoBacklash => 1,
+            ContactLaw::ElastoBacklash2 => 2,
+        }
+    }
+}
+
+/// The damper in parallel with the compliant member's spring, and the law that clips their force
+/// so that it never pulls (docs/model.md §1).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Damping {
+    /// D in the transmission coordinate: the shaft's `d` [N·m·s/rad], the belt's `D_b` [N·s/m].
+    pub d: f64,
+    pub law: ContactLaw,
+}
+
+impl Damping {
+    /// No damper (D = 0): the plant of the paper, whichever law.
+    pub const NONE: Damping = Damping {
+        d: 0.0,
+        law: ContactLaw::ElastoBacklash,
+    };
+}
+
 /// Parameters as a user gives them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlantParams {
@@ -75,6 +122,8 @@ pub struct PlantParams {
     /// Load viscous friction b_L [N·m·s/rad].
     pub b_l: f64,
     pub geometry: Geometry,
+    /// The damper in the compliant member (D = 0: none).
+    pub damping: Damping,
     /// The web span the load pulls, if any (docs/model.md §8); None: the load is an inertia.
     pub web: Option<WebSpan>,
 }
@@ -89,8 +138,8 @@ impl PlantParams {
     }
 
     /// The drive train's parameters by their names (docs/model.md §4): J_m, J_L, b_m, b_L, then
-    /// the geometry's (k, Delta or K_b, R_1, R_2, R_g1, R_g2, Delta); the web span's are
-    /// [`WebSpan::named`].
+    /// the geometry's (k, Delta or K_b, R_1, R_2, R_g1, R_g2, Delta), then with a damper `d` or
+    /// `D_b` and `contact_law`; the web span's are [`WebSpan::named`].
     pub fn named_drive_train(&self) -> Vec<(&'static str, f64)> {
         let mut named = vec![
             ("J_m", self.j_m),
@@ -116,6 +165,14 @@ impl PlantParams {
                 ("Delta", delta),
             ]),
         }
+        // The damper, when there is one: `d` or `D_b`, and `contact_law`.
+        if self.damping.d > 0.0 {
+            let name = match self.geometry {
+                Geometry::Shaft { .. } => "d",
+                Geometry::Belt { .. } => "D_b",
+            };
+            named.extend([(name, self.damping.d), ("contact_law", self.damping.law.code() as f64)]);
+        }
         named
     }
 
@@ -127,6 +184,7 @@ impl PlantParams {
             b_m: 0.05,
             b_l: 0.05,
             geometry: Geometry::Shaft { k: 200.0, delta },
+            damping: Damping::NONE,
             web: None,
         }
     }
@@ -197,6 +255,8 @@ pub struct Plant {
     stiffness: f64,
     /// Half gap g in the transmission coordinate u.
     half_gap: f64,
+    /// Damping D of the compliant member in u (0: none).
+    damping: f64,
 }
 
 impl Plant {
@@ -227,6 +287,11 @@ impl Plant {
                 (r_1, r_2 * r_g2 / r_g1, k_b, r_2 / r_g1 * delta)
             }
         };
+        let damping_name = match params.geometry {
+            Geometry::Shaft { .. } => "d",
+            Geometry::Belt { .. } => "D_b",
+        };
+        let damping = non_negative(damping_name, params.damping.d)?;
         for (name, value) in params.web.iter().flat_map(WebSpan::named) {
             positive(name, value)?;
         }
@@ -236,6 +301,7 @@ impl Plant {
             r_l,
             stiffness,
             half_gap,
+            damping,
         };
         // The rates and forces the integration works with, all from parameters in scale: a
         // square rate K·r²/J, a damping rate b/J, an input acceleration r/J, the gap force K·g
@@ -251,6 +317,10 @@ impl Plant {
             ("K*g", stiffness * half_gap),
             ("g", half_gap),
             ("r_L/r_m", r_l / r_m),
+            // The damper's rate D (r_m²/J_m + r_L²/J_L), and its ratio to the stiffness.
+            ("D*r_m^2/J_m", damping * r_m * r_m / p.j_m),
+            ("D*r_L^2/J_L", damping * r_l * r_l / p.j_l),
+            ("D/K", damping / stiffness),
         ];
         // The span's rates: its stiffness against the load inertia, EA R_w²/(L_w J_L), its
         // relaxation v_ref/L_w, the pull's lever R_w/J_L and the speed gain EA R_w/L_w.
@@ -295,6 +365,30 @@ impl Plant {
     pub fn half_gap(&self) -> f64 {
         self.half_gap
     }
+    /// Damping D of the compliant member in u [N·m·s/rad (shaft) or N·s/m (belt)]; 0: none.
+    pub fn damping(&self) -> f64 {
+        self.damping
+    }
+    /// The law that clips the damped force (it matters only when D > 0).
+    pub fn contact_law(&self) -> ContactLaw {
+        self.params.damping.law
+    }
+    /// The mode at u moving at u′ = `du` ([`super::mode_at`]; with a damper
+    /// [`super::mode::damped_mode_at`]).
+    pub fn mode_at(&self, u: f64, du: f64) -> ContactMode {
+        if self.damping == 0.0 {
+            super::mode::mode_at(u, du, self.half_gap)
+        } else {
+            super::mode::damped_mode_at(
+                u,
+                du,
+                self.half_gap,
+                self.stiffness,
+                self.damping,
+                self.params.damping.law,
+            )
+        }
+    }
     /// Transmission coordinate u = r_m θ_m − r_L θ_L.
     pub fn transmission(&self, theta_m: f64, theta_l: f64) -> f64 {
         self.r_m * theta_m - self.r_l * theta_l
@@ -305,18 +399,64 @@ impl Plant {
         let p = &self.params;
         (self.stiffness * (self.r_m * self.r_m / p.j_m + self.r_l * self.r_l / p.j_l)).sqrt()
     }
-    /// dψ/dt = K u' in contact and 0 in the gap (docs/model.md §1), from the angle rates θ_m' and θ_L'
-    /// in the mode in force (at a switch: the mode entered).
-    pub fn force_rate(&self, mode: ContactMode, theta_m_rate: f64, theta_l_rate: f64) -> f64 {
-        match mode {
-            ContactMode::Free => 0.0,
-            _ => self.stiffness * self.transmission(theta_m_rate, theta_l_rate),
+    /// dψ/dt in the mode in force (at a switch: the mode entered), from the rates of the angles
+    /// and of the speeds: ∂ψ/∂u u′ + ∂ψ/∂u′ u″ (docs/model.md §1); K u′ in contact without a
+    /// damper, 0 when the force is 0.
+    pub fn force_rate(&self, mode: ContactMode, angle_rates: [f64; 2], speed_rates: [f64; 2]) -> f64 {
+        let (ks, kd) = mode.force_slopes(self.stiffness, self.damping);
+        if ks == 0.0 && kd == 0.0 {
+            return 0.0;
+        }
+        let du = self.transmission(angle_rates[0], angle_rates[1]);
+        if kd == 0.0 {
+            ks * du
+        } else {
+            ks * du + kd * self.transmission(speed_rates[0], speed_rates[1])
         }
     }
-    /// Force in the compliant member ψ = K·dz(u, g) (docs/model.md §1).
-    pub fn force(&self, u: f64) -> f64 {
-        self.stiffness * dead_zone(u, self.half_gap)
+    /// Force in the compliant member ψ at transmission coordinate u moving at u′ (docs/model.md
+    /// §1): K·dz(u, g) without a damper; with one, the spring's and the damper's force clipped
+    /// by the contact law so that it never pulls.
+    #[inline]
+    pub fn force(&self, u: f64, du: f64) -> f64 {
+        if self.damping == 0.0 {
+            return self.stiffness * dead_zone(u, self.half_gap);
+        }
+        damped_force(
+            self.stiffness,
+            self.damping,
+            self.half_gap,
+            self.params.damping.law,
+            u,
+            du,
+        )
     }
+}
+
+/// ψ of a damped member (docs/model.md §1): past +g, with τ_c = K (u − g) and τ_d = D u′, law 2
+/// gives τ_c + τ_d and law 1 τ_c + min(τ_c, τ_d) while τ_c + τ_d > 0, else 0; mirrored past −g;
+/// 0 inside the gap.
+#[inline(never)]
+fn damped_force(k: f64, d: f64, g: f64, law: ContactLaw, u: f64, du: f64) -> f64 {
+    let td = d * du;
+    if u >= g {
+        let tc = k * (u - g);
+        if tc + td > 0.0 {
+            return match law {
+                ContactLaw::ElastoBacklash2 => tc + td,
+                ContactLaw::ElastoBacklash => tc + tc.min(td),
+            };
+        }
+    } else if u <= -g {
+        let tc = k * (u + g);
+        if tc + td < 0.0 {
+            return match law {
+                ContactLaw::ElastoBacklash2 => tc + td,
+                ContactLaw::ElastoBacklash => tc + tc.max(td),
+            };
+        }
+    }
+    0.0
 }
 
 /// dz(u, g) of docs/model.md §1: zero inside the gap, shifted identity outside.
@@ -333,7 +473,7 @@ pub fn dead_zone(u: f64, g: f64) -> f64 {
 /// Plants for the crate's own tests.
 #[cfg(test)]
 pub(crate) mod test_plants {
-    use super::{Geometry, PlantParams, WebSpan};
+    use super::{Damping, Geometry, PlantParams, WebSpan};
 
     /// A small servo belt drive with a gap (r_m = 0.02 m, r_L = 0.12 m, g = 0.133 mm), pulling
     /// `web` if given.
@@ -352,6 +492,7 @@ pub(crate) mod test_plants {
             b_m: 1e-4,
             b_l: 1e-3,
             geometry,
+            damping: Damping::NONE,
             web,
         }
     }

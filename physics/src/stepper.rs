@@ -3,7 +3,7 @@
 use super::kernel::KernelColumn;
 use super::linear::{self, AugMatrix, AugVector, AUG, WEB_AUG};
 use super::mode::{ContactMode, PlantState};
-use super::params::Plant;
+use super::params::{ContactLaw, Plant};
 use super::roots::{self, Side, SignalRows};
 use super::taylor::{exp_series, Sparse, TaylorModel};
 use thiserror::Error;
@@ -225,7 +225,9 @@ struct StepCache<const N: usize, const KO: usize> {
     h: f64,
     pieces: usize,
     len: f64,
-    kernel: [PieceKernel<N, KO>; 3],
+    /// By [`ContactMode::index`]; a mode the plant never enters (the damper's, without one)
+    /// holds a copy of the free mode's.
+    kernel: [PieceKernel<N, KO>; 7],
 }
 
 /// The exact stepper of a plant with an augmented state of `N` entries (`linear::AUG`, or
@@ -233,7 +235,12 @@ struct StepCache<const N: usize, const KO: usize> {
 #[derive(Clone, Debug)]
 pub struct Exact<const N: usize, const KO: usize> {
     plant: Plant,
-    modes: [ModeDynamics<N>; 3],
+    /// D of the compliant member: 0 for the paper's plant, whose three modes switch on u = ±g
+    /// alone; > 0 adds the slack and (law 1) capped modes and their surfaces (`DampedSurface`).
+    damping: f64,
+    /// Law 1 (`ElastoBacklash`) with a damper: the cap's surfaces too.
+    law1: bool,
+    modes: [ModeDynamics<N>; 7],
     /// Longest piece [s]: PIECE_RATE over the fastest rate of the plant.
     len_ref: f64,
     /// Longest step: `MAX_PIECES` pieces.
@@ -348,8 +355,10 @@ struct StepEnd {
 struct Exit {
     offset: f64,
     to: ContactMode,
-    /// u on the crossed threshold (±g), exactly.
-    u: f64,
+    /// u on the crossed threshold (±g), exactly, when the surface is one; else None.
+    u: Option<f64>,
+    /// With a damper, on a surface of the force (τ_c + τ_d = 0, τ_c = τ_d): u′ there, from u.
+    du: Option<f64>,
 }
 
 impl<const N: usize, const KO: usize> Exact<N, KO> {
@@ -372,6 +381,8 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         });
         Exact {
             plant,
+            damping: plant.damping(),
+            law1: plant.damping() > 0.0 && plant.contact_law() == ContactLaw::ElastoBacklash,
             modes,
             len_ref,
             max_h: MAX_PIECES as f64 * len_ref,
@@ -399,9 +410,16 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             1.0
         };
         let len = h / pieces;
-        let kernel = [0, 1, 2].map(|i| {
+        let kernel_of = |i: usize| {
             let ModeDynamics { m, sparse, u_rows } = &self.modes[i];
             PieceKernel::new(&exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
+        };
+        let paper = [0, 1, 2].map(kernel_of);
+        let free = ContactMode::Free.index();
+        let kernel = std::array::from_fn(|i| match (i < 3, self.damping > 0.0) {
+            (true, _) => paper[i].clone(),
+            (false, true) => kernel_of(i),
+            (false, false) => paper[free].clone(),
         });
         self.cache = Some(StepCache {
             h,
@@ -468,6 +486,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             if !self.clear(next.mode, y[linear::U], y[linear::V], d2, c3, cache.len) {
                 return self.step_from(piece, next, state, inputs, h, on_switch, stop_at_switch);
             }
+            if self.damping != 0.0 && !next.mode.in_contact() {
+                next.variation += self.variation(next.mode, &y, d2, c3, cache.len, whole[linear::U]);
+            }
             self.finish_piece(&mut next, &whole);
         }
         if !next.is_finite() {
@@ -492,6 +513,10 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             return None;
         }
         let mut next = *state;
+        if self.damping != 0.0 && !state.mode.in_contact() {
+            let y = augmented(state, inputs, 0.0);
+            next.variation += self.variation(state.mode, &y, d2, c3, cache.len, whole[linear::U]);
+        }
         self.finish_piece(&mut next, &whole);
         // Finite when the sum of its fields is (a NaN or ∞ field makes the sum NaN or ∞);
         // the sum of finite fields that overflows leaves the step to `step`.
@@ -555,6 +580,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             let (whole, d2, c3) = cache.kernel[next.mode.index()].apply(&y);
             if self.clear(next.mode, y[linear::U], y[linear::V], d2, c3, len) {
                 // No switch in this piece: one fused pass did all the work.
+                if self.damping != 0.0 {
+                    next.variation += self.variation(next.mode, &y, d2, c3, len, whole[linear::U]);
+                }
                 self.finish_piece(&mut next, &whole);
                 continue;
             }
@@ -565,9 +593,14 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                 let span = len - (t - start);
                 let mode = next.mode.index();
                 let mut model = None;
+                let start_y = y;
+                let probed = probe;
                 match self.exit(&y, next.mode, span, probe.take(), &mut model, &mut budget) {
                     None if !switched => {
                         set_piece_end(&mut y, &whole);
+                        if self.damping != 0.0 {
+                            next.variation += self.sub_variation(next.mode, &start_y, probed, span, y[linear::U]);
+                        }
                         break;
                     }
                     None => {
@@ -576,6 +609,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                             Some(model) => model.at(span),
                             None => TaylorModel::new(sparse, &y, span).at(span),
                         };
+                        if self.damping != 0.0 {
+                            next.variation += self.sub_variation(next.mode, &start_y, None, span, y[linear::U]);
+                        }
                         break;
                     }
                     Some(exit) => {
@@ -583,7 +619,17 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                             .as_ref()
                             .expect("exits are found on the Taylor model")
                             .at(exit.offset);
-                        y[linear::U] = exit.u;
+                        if self.damping != 0.0 {
+                            let end_u = exit.u.unwrap_or(y[linear::U]);
+                            let probed = if exit.offset == span { probed } else { None };
+                            next.variation += self.sub_variation(next.mode, &start_y, probed, exit.offset, end_u);
+                        }
+                        if let Some(u) = exit.u {
+                            y[linear::U] = u;
+                        }
+                        if let Some(du) = exit.du {
+                            y[linear::V] = du;
+                        }
                         t += exit.offset;
                         switched = true;
                         // Inputs are functions of time: re-evaluate rather than carry round-off.
@@ -636,6 +682,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn clear(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
+        if self.damping != 0.0 {
+            return self.clear_damped(mode, u, du, d2, c3, span);
+        }
         let g = self.plant.half_gap();
         if g == 0.0 {
             return true;
@@ -648,6 +697,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             ContactMode::Free => (g - u - drop > -tol) & (g + u - drop > -tol),
             ContactMode::Positive => u - g - drop > -tol,
             ContactMode::Negative => -u - g - drop > -tol,
+            _ => unreachable!("the damper's modes need a damper"),
         };
         clear || self.clear_exactly(mode, u, du, d2, c3, span, tol)
     }
@@ -663,6 +713,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             ContactMode::Free => side_clear(g - u, -1.0) && side_clear(g + u, 1.0),
             ContactMode::Positive => side_clear(u - g, 1.0),
             ContactMode::Negative => side_clear(-u - g, -1.0),
+            _ => unreachable!("the damper's modes need a damper"),
         }
     }
 
@@ -678,6 +729,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         model: &mut Option<TaylorModel<N>>,
         budget: &mut usize,
     ) -> Option<Exit> {
+        if self.damping != 0.0 {
+            return self.exit_damped(y, mode, span, probe, model, budget);
+        }
         let g = self.plant.half_gap();
         if g == 0.0 {
             // No free region: both flanks carry ψ = K u, the plant is linear.
@@ -731,6 +785,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                 )),
                 None,
             ],
+            _ => unreachable!("the damper's modes need a damper"),
         };
         let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, span)));
         let d = [u, rows.derivative(1, y), d2];
@@ -754,10 +809,220 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             // Undecided: u stays within round-off of the threshold over much of the span, so
             // no switch is distinguishable from none; the mode in force is kept.
             if let Ok(Some(offset)) = roots::first_exit(p, side, limit, budget) {
-                best = Some(Exit { offset, to, u: u_cross });
+                best = Some(Exit {
+                    offset,
+                    to,
+                    u: Some(u_cross),
+                    du: None,
+                });
             }
         }
         best
+    }
+
+    /// The growth of [`PlantState::variation`] over a piece of length `w` in `mode` that starts
+    /// at `y` (u″ = `d2` there, |u‴| ≤ `c3` over the piece) and ends with u = `u_end`: ∫|u′|
+    /// over it, 0 in ordinary contact. Slack and capped, u is monotone (u′ has the sign that
+    /// opens the flank: slack, D u′ ≤ −K (u ∓ g); capped, D u′ ≥ K (u ∓ g) on the positive flank),
+    /// so it is |Δu|; free, |Δu| where u′ provably keeps its sign (u′(σ) ≥ u′(0) + u″(0) σ − c3 σ²/2
+    /// for its sign), else the bound ∫ (|u′(0)| + |u″(0)| σ + c3 σ²/2) dσ.
+    #[inline(never)]
+    fn variation(&self, mode: ContactMode, y: &AugVector<N>, d2: f64, c3: f64, w: f64, u_end: f64) -> f64 {
+        let (u, v) = (y[linear::U], y[linear::V]);
+        match mode {
+            ContactMode::Positive | ContactMode::Negative => 0.0,
+            ContactMode::Free => {
+                let sign = if v != 0.0 { v.signum() } else { d2.signum() };
+                if v != 0.0 && roots::cubic_clear(sign * v, sign * d2, -c3, 0.0, w, 0.0) {
+                    (u_end - u).abs()
+                } else {
+                    w * (v.abs() + w * (0.5 * d2.abs() + w * c3 / 6.0))
+                }
+            }
+            _ => (u_end - u).abs(),
+        }
+    }
+
+    /// `variation` over the first `w` of a piece from `y` (`probe`: u″ and the bound on |u‴|
+    /// when the kernel computed them for this span).
+    fn sub_variation(&self, mode: ContactMode, y: &AugVector<N>, probe: Option<(f64, f64)>, w: f64, u_end: f64) -> f64 {
+        let rows = &self.modes[mode.index()].u_rows;
+        let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, w)));
+        self.variation(mode, y, d2, c3, w, u_end)
+    }
+
+    /// The surfaces that end `mode` of a damped plant, with the sign that keeps the state in it
+    /// (sign · signal ≥ 0) and the mode entered across each (docs/model.md §2, "With a damper").
+    fn damped_exits(&self, mode: ContactMode) -> [Option<(DampedSurface, f64, ContactMode)>; 2] {
+        use ContactMode::*;
+        use DampedSurface::*;
+        let law1 = self.law1;
+        let gap = self.plant.half_gap() > 0.0;
+        // The mode a contact on flank `side` begins in: the damper pushes at once (law 2), or
+        // its force is capped by the spring's, 0 at the flank (law 1).
+        let entry = |side: f64| match (side > 0.0, law1) {
+            (true, false) => Positive,
+            (true, true) => CappedPositive,
+            (false, false) => Negative,
+            (false, true) => CappedNegative,
+        };
+        // Leaving a slack flank towards the other side: into the gap, or without one straight
+        // onto the other flank.
+        let past = |side: f64| if gap { Free } else { entry(-side) };
+        match mode {
+            Free => [Some((Gap(1.0), -1.0, entry(1.0))), Some((Gap(-1.0), 1.0, entry(-1.0)))],
+            Positive => [
+                Some((Force(1.0), 1.0, SlackPositive)),
+                law1.then_some((Cap(1.0), -1.0, CappedPositive)),
+            ],
+            Negative => [
+                Some((Force(-1.0), -1.0, SlackNegative)),
+                law1.then_some((Cap(-1.0), 1.0, CappedNegative)),
+            ],
+            SlackPositive => [Some((Gap(1.0), 1.0, past(1.0))), Some((Force(1.0), -1.0, Positive))],
+            SlackNegative => [Some((Gap(-1.0), -1.0, past(-1.0))), Some((Force(-1.0), 1.0, Negative))],
+            CappedPositive => [Some((Cap(1.0), 1.0, Positive)), None],
+            CappedNegative => [Some((Cap(-1.0), -1.0, Negative)), None],
+        }
+    }
+
+    /// A surface's signal as a row on the augmented state, and its round-off floor at `y`.
+    fn damped_signal(&self, surface: DampedSurface, y: &AugVector<N>) -> (AugVector<N>, f64) {
+        let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
+        let mut c = AugVector::<N>::zeros();
+        let (u, v) = (y[linear::U], y[linear::V]);
+        let tol = match surface {
+            DampedSurface::Gap(side) => {
+                c[linear::U] = 1.0;
+                c[linear::ONE] = -side * g;
+                8.0 * f64::EPSILON * (u.abs() + g)
+            }
+            DampedSurface::Force(side) | DampedSurface::Cap(side) => {
+                // τ_c + τ_d = K (u ∓ g) + D u′, or τ_d − τ_c = D u′ − K (u ∓ g).
+                let spring = if matches!(surface, DampedSurface::Force(_)) {
+                    k
+                } else {
+                    -k
+                };
+                c[linear::U] = spring;
+                c[linear::V] = d;
+                c[linear::ONE] = -spring * side * g;
+                8.0 * f64::EPSILON * (k * (u.abs() + g) + d * v.abs())
+            }
+        };
+        (c, tol)
+    }
+
+    /// `clear` with a damper: every surface of `mode` certified out of reach within `span`.
+    /// u's surfaces by the cubic of `roots`; the force's, whose third derivative involves u⁗,
+    /// by the quadratic lower bound s₀ + s₁σ − C σ²/2 with C ≥ sup |s″| = sup |K u″ + D u‴|
+    /// ≤ K (|u″(0)| + span c3) + D c3.
+    #[inline(always)]
+    fn clear_damped(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
+        // The common case inline: a contact well inside its region, by the cheap test of
+        // `roots::cubic_clear` on each of its surfaces (the largest fall of the quadratic).
+        if let ContactMode::Positive | ContactMode::Negative = mode {
+            let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
+            let side = mode.side();
+            let spring = k * (u - side * g);
+            let curvature = k * (d2.abs() + span * c3) + d * c3;
+            let tol = 8.0 * f64::EPSILON * (k * (u.abs() + g) + d * du.abs());
+            let fall = |s1: f64| span * (s1.abs() + 0.5 * span * curvature);
+            let force = side * (spring + d * du) - fall(k * du + d * d2) > -tol;
+            let cap = !self.law1 || -side * (d * du - spring) - fall(d * d2 - k * du) > -tol;
+            if force & cap {
+                return true;
+            }
+        }
+        self.clear_surfaces(&self.damped_exits(mode), u, du, d2, c3, span)
+    }
+
+    /// `exit` with a damper: the first surface of `mode` crossed within `span`, searched on the
+    /// piece's Taylor model like u = ±g without one. On u = ±g the exit sets u exactly there; on
+    /// a surface of the force it sets u′ from u so that the state lies on it to round-off.
+    #[cold]
+    #[inline(never)]
+    fn exit_damped(
+        &self,
+        y: &AugVector<N>,
+        mode: ContactMode,
+        span: f64,
+        probe: Option<(f64, f64)>,
+        model: &mut Option<TaylorModel<N>>,
+        budget: &mut usize,
+    ) -> Option<Exit> {
+        let rows = &self.modes[mode.index()].u_rows;
+        let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, span)));
+        let (u, du) = (y[linear::U], y[linear::V]);
+        let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
+        let mut best: Option<Exit> = None;
+        for (surface, sign, to) in self.damped_exits(mode).into_iter().flatten() {
+            if self.clear_surfaces(&[Some((surface, sign, to)), None], u, du, d2, c3, span) {
+                continue;
+            }
+            let (c, tol) = self.damped_signal(surface, y);
+            let sparse = &self.modes[mode.index()].sparse;
+            let p = model
+                .get_or_insert_with(|| TaylorModel::new(sparse, y, span))
+                .signal(&c);
+            let limit = best.map_or(span, |b| b.offset);
+            let side = Side { offset: 0.0, sign, tol };
+            if let Ok(Some(offset)) = roots::first_exit(&p, side, limit, budget) {
+                let (u_at, du_at) = match surface {
+                    DampedSurface::Gap(side) => (Some(side * g), None),
+                    DampedSurface::Force(_) | DampedSurface::Cap(_) => {
+                        let at = model.as_ref().expect("filled above").at(offset);
+                        let side = mode_side(mode, to);
+                        let stretch = k * (at[linear::U] - side * g);
+                        // τ_c + τ_d = 0: D u′ = −K (u ∓ g); τ_d = τ_c: D u′ = K (u ∓ g).
+                        let sign = if matches!(surface, DampedSurface::Force(_)) {
+                            -1.0
+                        } else {
+                            1.0
+                        };
+                        (None, Some(sign * stretch / d))
+                    }
+                };
+                best = Some(Exit {
+                    offset,
+                    to,
+                    u: u_at,
+                    du: du_at,
+                });
+            }
+        }
+        best
+    }
+
+    /// True when none of `surfaces` can be reached within `span` ([`Self::clear_damped`]).
+    fn clear_surfaces(
+        &self,
+        surfaces: &[Option<(DampedSurface, f64, ContactMode)>; 2],
+        u: f64,
+        du: f64,
+        d2: f64,
+        c3: f64,
+        span: f64,
+    ) -> bool {
+        let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
+        surfaces.iter().flatten().all(|&(surface, sign, _)| match surface {
+            DampedSurface::Gap(side) => {
+                let tol = 8.0 * f64::EPSILON * (u.abs() + g);
+                roots::cubic_clear(sign * (u - side * g), sign * du, sign * d2, c3, span, tol)
+            }
+            DampedSurface::Force(side) | DampedSurface::Cap(side) => {
+                let spring = if matches!(surface, DampedSurface::Force(_)) {
+                    k
+                } else {
+                    -k
+                };
+                let s0 = spring * (u - side * g) + d * du;
+                let s1 = spring * du + d * d2;
+                let curvature = k * (d2.abs() + span * c3) + d * c3;
+                let tol = 8.0 * f64::EPSILON * (k * (u.abs() + g) + d * du.abs());
+                roots::cubic_clear(sign * s0, sign * s1, -curvature, 0.0, span, tol)
+            }
+        })
     }
 
     /// The `order`-th time derivative (order ≥ 1) of [θ_m, ω_m, θ_L, ω_L, T] at `state` under the
@@ -794,6 +1059,27 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
     /// ω_m = (v + r_L ω_L)/r_m, and likewise for any time derivative of the three.
     fn motor_speed(&self, v: f64, omega_l: f64) -> f64 {
         (v + self.plant.r_l() * omega_l) / self.plant.r_m()
+    }
+}
+
+/// A switching surface of a damped plant (docs/model.md §2), on the flank `side` (±1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum DampedSurface {
+    /// u = side·g.
+    Gap(f64),
+    /// τ_c + τ_d = K (u − side·g) + D u′ = 0: the force reaches 0 past the flank.
+    Force(f64),
+    /// τ_d − τ_c = D u′ − K (u − side·g) = 0: law 1's cap begins or ends.
+    Cap(f64),
+}
+
+/// The flank of a switch on a surface of the force between `from` and `to` (one of them is past
+/// it).
+fn mode_side(from: ContactMode, to: ContactMode) -> f64 {
+    if from.side() != 0.0 {
+        from.side()
+    } else {
+        to.side()
     }
 }
 

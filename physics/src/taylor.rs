@@ -80,6 +80,18 @@ impl<const N: usize> TaylorModel<N> {
         }
     }
 
+    /// The polynomial of the linear signal c·y.
+    pub fn signal(&self, c: &SVector<f64, N>) -> Poly {
+        let mut coef = [0.0; TERMS];
+        for (k, v) in self.v[..self.terms].iter().enumerate() {
+            coef[k] = c.dot(v);
+        }
+        Poly {
+            coef,
+            deg: self.terms - 1,
+        }
+    }
+
     /// The state at σ into the piece.
     pub fn at(&self, s: f64) -> SVector<f64, N> {
         let mut acc = self.v[self.terms - 1];

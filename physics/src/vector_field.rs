@@ -6,8 +6,8 @@
 //! the angles, so a solver that oversteps a contact switch is inaccurate there, never
 //! inconsistent.
 
-use super::mode::{ContactMode, PlantState};
-use super::params::Plant;
+use super::mode::PlantState;
+use super::params::{ContactLaw, Plant};
 
 /// Scale of an angle state when there is no gap to measure it by [rad] (the default of the
 /// Modelica Standard Library's ElastoBacklash).
@@ -15,7 +15,7 @@ const ANGLE_SCALE_WITHOUT_GAP: f64 = 1e-4;
 
 /// How many event indicators every plant has ([`Plant::event_indicators`]); the descriptions
 /// declare as many (a test of `fmu` ties them).
-pub const EVENT_INDICATORS: usize = 2;
+pub const EVENT_INDICATORS: usize = 6;
 
 impl Plant {
     /// z' = d/dt [θ_m, ω_m, θ_L, ω_L] at `state` with torques τ_m, τ_L (docs/model.md §1):
@@ -24,7 +24,7 @@ impl Plant {
     #[inline]
     pub fn rates(&self, state: &PlantState, tau_m: f64, tau_l: f64) -> [f64; 4] {
         let p = self.params();
-        let psi = self.force(state.u);
+        let psi = self.force(state.u, state.du);
         [
             state.omega_m,
             (tau_m - p.b_m * state.omega_m - self.r_m() * psi) / p.j_m,
@@ -50,24 +50,28 @@ impl Plant {
     pub fn jacobian(&self, state: &PlantState) -> ([[f64; 5]; 5], [[f64; 3]; 5]) {
         let p = self.params();
         let (r_m, r_l) = (self.r_m(), self.r_l());
-        // ∂ψ/∂u: K on a flank, 0 in the gap.
-        let k = match state.mode {
-            ContactMode::Free => 0.0,
-            ContactMode::Positive | ContactMode::Negative => self.stiffness(),
-        };
+        // ∂ψ/∂u and ∂ψ/∂u′ in the mode in force: K and D on a flank (2K and 0 where law 1 caps
+        // the damper), 0 in the gap or slack; u′ = r_m ω_m − r_L ω_L.
+        let (k, d) = state.mode.force_slopes(self.stiffness(), self.damping());
         // L_w T' = EA R_w ω_L − v_ref T + L_w w.
         let (pull, stretch, relax, forced) = self.web().map_or((0.0, 0.0, 0.0, 0.0), |w| {
             (w.r_w / p.j_l, w.ea * w.r_w / w.l_w, w.v_ref / w.l_w, 1.0)
         });
         let dz = [
             [0.0, 1.0, 0.0, 0.0, 0.0],
-            [-r_m * k * r_m / p.j_m, -p.b_m / p.j_m, r_m * k * r_l / p.j_m, 0.0, 0.0],
+            [
+                -r_m * k * r_m / p.j_m,
+                -p.b_m / p.j_m - r_m * d * r_m / p.j_m,
+                r_m * k * r_l / p.j_m,
+                r_m * d * r_l / p.j_m,
+                0.0,
+            ],
             [0.0, 0.0, 0.0, 1.0, 0.0],
             [
                 r_l * k * r_m / p.j_l,
-                0.0,
+                r_l * d * r_m / p.j_l,
                 -r_l * k * r_l / p.j_l,
-                -p.b_l / p.j_l,
+                -p.b_l / p.j_l - r_l * d * r_l / p.j_l,
                 -pull,
             ],
             [0.0, 0.0, 0.0, stretch, -relax],
@@ -82,11 +86,56 @@ impl Plant {
         (dz, dinputs)
     }
 
-    /// The event indicators [u − g, u + g]: a contact switch is a sign change of one of them.
+    /// The event indicators (docs/model.md §6): u − g and u + g, then the surfaces of a damped
+    /// member's force, K (u − g) + D u′ and K (u + g) + D u′ (τ_c + τ_d on either flank), and of
+    /// law 1's cap, D u′ − K (u − g) and D u′ − K (u + g) (τ_d − τ_c). A surface the plant does
+    /// not have (the force's without a damper, where they are u = ±g; the cap's under law 2)
+    /// reads 1, which never changes sign; so does, with a damper and no gap, each lower surface,
+    /// which is then its upper one. A contact switch is a sign change of one of them while the
+    /// state is on that surface's flank; elsewhere a sign change switches nothing.
     #[inline]
     pub fn event_indicators(&self, state: &PlantState) -> [f64; EVENT_INDICATORS] {
         let g = self.half_gap();
-        [state.u - g, state.u + g]
+        let (k, d) = (self.stiffness(), self.damping());
+        if d == 0.0 {
+            return [state.u - g, state.u + g, 1.0, 1.0, 1.0, 1.0];
+        }
+        let damper = d * state.du;
+        let (upper, lower) = (k * (state.u - g), k * (state.u + g));
+        let (cap_upper, cap_lower) = match self.contact_law() {
+            ContactLaw::ElastoBacklash => (damper - upper, damper - lower),
+            ContactLaw::ElastoBacklash2 => (1.0, 1.0),
+        };
+        if g == 0.0 {
+            // Without a gap each lower surface is its upper one: declared once, so that an
+            // importer sees one crossing, not two at the same instant.
+            return [state.u, 1.0, upper + damper, 1.0, cap_upper, 1.0];
+        }
+        [
+            state.u - g,
+            state.u + g,
+            upper + damper,
+            lower + damper,
+            cap_upper,
+            cap_lower,
+        ]
+    }
+
+    /// The rate of each event indicator, from the rates of u and u′.
+    pub fn event_indicator_rates(&self, du: f64, ddu: f64) -> [f64; EVENT_INDICATORS] {
+        let (k, d) = (self.stiffness(), self.damping());
+        if d == 0.0 {
+            return [du, du, 0.0, 0.0, 0.0, 0.0];
+        }
+        let force = k * du + d * ddu;
+        let cap = match self.contact_law() {
+            ContactLaw::ElastoBacklash => d * ddu - k * du,
+            ContactLaw::ElastoBacklash2 => 0.0,
+        };
+        if self.half_gap() == 0.0 {
+            return [du, 0.0, force, 0.0, cap, 0.0];
+        }
+        [du, du, force, force, cap, cap]
     }
 
     /// The scale each state moves on (docs/model.md §6): each angle at the gap it must resolve,

@@ -30,8 +30,10 @@ from fmpy.fmi1 import FMICallException
 # The drive train's continuous states in their order (a web line has its span's tension T as a
 # fifth); also the outputs that carry them.
 STATES = ("theta_m", "omega_m", "theta_L", "omega_L")
-# Its two event indicators: u - g and u + g (docs/model.md §6).
-EVENT_INDICATORS = 2
+# Its six event indicators (docs/model.md §6): u - g, u + g, then the damped force's surfaces
+# K*(u - g) + D*u' and K*(u + g) + D*u', and the cap's D*u' - K*(u - g) and D*u' - K*(u + g) (each
+# 1 where the plant has no such surface: without a damper, or the cap's with contact_law = 2).
+EVENT_INDICATORS = 6
 # The status every refusal is answered with: fmi2Error and fmi3Error are both 3.
 ERROR = 3
 
@@ -181,6 +183,7 @@ class Instance:
             self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(0)
             self.fmu.instantiate(callbacks=self.callbacks)
             self._set_real, self._get_real, self._get_int = self.fmu.setReal, self.fmu.getReal, self.fmu.getInteger
+            self._set_int = self.fmu.setInteger
         else:
 
             def log3(env, status, category, message):
@@ -193,7 +196,9 @@ class Instance:
             if not everything:
                 self.fmu.setDebugLogging(False, ["logContactEvents", "logCalls"])
             self._set_real, self._get_real, self._get_int = self.fmu.setFloat64, self.fmu.getFloat64, self.fmu.getInt32
+            self._set_int = self.fmu.setInt32
         self.c = self.fmu.component
+        self._integers = frozenset(n for n, v in archive.variables.items() if v.type in ("Integer", "Int32"))
         inputs = [n for n, v in archive.variables.items() if v.causality == "input"]
         self.input_names = tuple(inputs)
 
@@ -208,9 +213,19 @@ class Instance:
         return found
 
     def set(self, values: dict[str, float]) -> None:
-        """Real (FMI 3.0: Float64) values by name."""
-        if values:
-            self._set_real(self.refs(values), [float(v) for v in values.values()])
+        """Values by name: Real (FMI 3.0: Float64) ones in one call, Integer (Int32) ones such as
+        `contact_law` in another. An Integer's value must be a whole number (ValueError)."""
+        if not values:
+            return
+        integers = {n: v for n, v in values.items() if n in self._integers}
+        reals = {n: v for n, v in values.items() if n not in integers}
+        if reals:
+            self._set_real(self.refs(reals), [float(v) for v in reals.values()])
+        if integers:
+            for name, v in integers.items():
+                if not float(v).is_integer():
+                    raise ValueError(f"{name} is an Integer: {v!r} is not a whole number")
+            self._set_int(self.refs(integers), [int(v) for v in integers.values()])
 
     def get(self, *names: str) -> list[float]:
         """Real (FMI 3.0: Float64) values by name, in one call."""
@@ -382,7 +397,7 @@ class ModelExchange(Instance):
         return np.array(self._dx[: len(STATES)])
 
     def indicators(self, t: float, x: Any) -> np.ndarray:
-        """The event indicators u - g and u + g at (t, x[:4])."""
+        """The event indicators at (t, x[:4]): u - g, u + g and the damper's four (EVENT_INDICATORS)."""
         self.set_state(t, x)
         self._get_indicators(self.c, self._z, EVENT_INDICATORS)
         return np.array(self._z)

@@ -108,7 +108,7 @@ pub unsafe extern "C" fn fmi2SetInteger(
         // SAFETY: as in fmi2SetReal.
         let vrs = unsafe { input_array(vr, nvr, "vr") }?;
         let values = unsafe { input_array(value, nvr, "value") }?;
-        inst.set_untyped_body(vrs, values.len(), "Integer")
+        inst.set_integer_body(vrs, values)
     })
 }
 

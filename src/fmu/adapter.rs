@@ -9,9 +9,12 @@
 
 use super::simulation::Simulation;
 use super::variables::{ModelInfo, Symbol, MODELS};
+use crate::physics::vector_field::EVENT_INDICATORS;
 use crate::physics::{Inputs, PiGains, Plant, PlantParams, PlantState};
 
-/// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`].
+/// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`]. An
+/// Integer parameter (`contact_law`) is held as its f64, admitted by its range when it is set or
+/// restored (so the physics mapping reads only 1.0 or 2.0).
 pub type Values = [f64; Symbol::COUNT];
 
 /// Where a variable's value comes from.
@@ -29,7 +32,7 @@ pub enum Source {
     /// The time derivative of a state entry: the vector field of docs/model.md §1 (Model
     /// Exchange's `der(...)`).
     Derivative(StateEntry),
-    /// The contact mode (Integer; docs/model.md §4).
+    /// The `contact` output: the sign of ψ in the mode in force (Integer; docs/model.md §4).
     Contact,
 }
 
@@ -57,9 +60,16 @@ pub const MAX_INPUTS: usize = 4;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Calculated {
     Psi,
-    /// The event indicators u − g and u + g (docs/model.md §6).
+    /// The event indicators (docs/model.md §6), in the order of `Plant::event_indicators`:
+    /// u − g and u + g,
     UMinusG,
     UPlusG,
+    /// K (u − g) + D u′ and K (u + g) + D u′, the damped force on either flank,
+    ForceUpper,
+    ForceLower,
+    /// D u′ − K (u − g) and D u′ − K (u + g), law 1's cap on either flank.
+    CapUpper,
+    CapLower,
     Bound,
     BoundPaper,
     BoundSup,
@@ -114,17 +124,40 @@ impl StateEntry {
 }
 
 impl Calculated {
+    /// The event indicators, in the order of `Plant::event_indicators` (and of the
+    /// descriptions' `<EventIndicator>`s).
+    pub const INDICATORS: [Calculated; EVENT_INDICATORS] = [
+        Calculated::UMinusG,
+        Calculated::UPlusG,
+        Calculated::ForceUpper,
+        Calculated::ForceLower,
+        Calculated::CapUpper,
+        Calculated::CapLower,
+    ];
+
+    /// Its index among the event indicators, None for the other quantities.
+    pub fn indicator(self) -> Option<usize> {
+        Calculated::INDICATORS.iter().position(|c| *c == self)
+    }
+
     /// Its value in the physics in force; `bound_sup` is +∞ when the loop is unstable.
     #[inline]
     pub fn of(self, sim: &Simulation) -> f64 {
         match self {
-            Calculated::Psi => sim.plant().force(sim.state.u),
-            Calculated::UMinusG => sim.plant().event_indicators(&sim.state)[0],
-            Calculated::UPlusG => sim.plant().event_indicators(&sim.state)[1],
-            Calculated::Bound => sim.bound.bound(),
+            Calculated::Psi => sim.plant().force(sim.state.u, sim.state.du),
+            Calculated::UMinusG
+            | Calculated::UPlusG
+            | Calculated::ForceUpper
+            | Calculated::ForceLower
+            | Calculated::CapUpper
+            | Calculated::CapLower => {
+                let i = self.indicator().expect("an event indicator");
+                sim.plant().event_indicators(&sim.state)[i]
+            }
+            Calculated::Bound => sim.bound_value(),
             Calculated::BoundPaper => sim.bound.bound_paper(),
             Calculated::BoundSup => sim.bound_sup_value(),
-            Calculated::BoundT => sim.bound.bound_t(),
+            Calculated::BoundT => sim.bound_t_value(),
             Calculated::BoundTSup => sim.bound_t_sup_value(),
         }
     }
@@ -133,14 +166,32 @@ impl Calculated {
     /// for the suprema, parameters.
     pub fn rate(self, sim: &Simulation, z_dot: &StateVector) -> Option<f64> {
         match self {
-            Calculated::Psi => Some(sim.plant().force_rate(sim.state.mode, z_dot[0], z_dot[2])),
-            Calculated::UMinusG | Calculated::UPlusG => Some(sim.plant().transmission(z_dot[0], z_dot[2])),
+            Calculated::Psi => Some(
+                sim.plant()
+                    .force_rate(sim.state.mode, [z_dot[0], z_dot[2]], [z_dot[1], z_dot[3]]),
+            ),
+            Calculated::UMinusG
+            | Calculated::UPlusG
+            | Calculated::ForceUpper
+            | Calculated::ForceLower
+            | Calculated::CapUpper
+            | Calculated::CapLower => {
+                let i = self.indicator().expect("an event indicator");
+                Some(indicator_rates(sim.plant(), z_dot)[i])
+            }
             Calculated::Bound => Some(sim.bound.bound_rate()),
             Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
             Calculated::BoundT => Some(sim.bound.bound_t_rate()),
             Calculated::BoundSup | Calculated::BoundTSup => None,
         }
     }
+}
+
+/// The rates of the event indicators (or their directional derivatives) for z' (or a change of
+/// z) `dz`: from u′ = r_m θ_m′ − r_L θ_L′ and u″ = r_m ω_m′ − r_L ω_L′ (docs/model.md §6).
+#[inline]
+pub fn indicator_rates(plant: &Plant, dz: &StateVector) -> [f64; EVENT_INDICATORS] {
+    plant.event_indicator_rates(plant.transmission(dz[0], dz[2]), plant.transmission(dz[1], dz[3]))
 }
 
 /// The value store right after instantiation: every start value of the description.

@@ -26,7 +26,7 @@ pub struct WebBounds {
 
 /// The words of one saved loop-bound state: elapsed, response, integral, l1.
 const fn words<const N: usize>() -> usize {
-    2 * N + 2
+    2 * N + 4
 }
 
 fn put<const N: usize>(out: &mut Vec<f64>, s: &BoundState<N>) {
@@ -34,12 +34,16 @@ fn put<const N: usize>(out: &mut Vec<f64>, s: &BoundState<N>) {
     out.extend_from_slice(&s.response);
     out.extend_from_slice(&s.integral);
     out.push(s.l1);
+    out.push(s.peak);
+    out.push(s.variation);
 }
 
 fn take<const N: usize>(words: &[f64]) -> BoundState<N> {
     let mut s = BoundState::<N> {
         elapsed: words[0],
         l1: words[2 * N + 1],
+        peak: words[2 * N + 2],
+        variation: words[2 * N + 3],
         ..BoundState::default()
     };
     s.response.copy_from_slice(&words[1..=N]);
@@ -109,10 +113,12 @@ impl Bounds {
         }
     }
 
-    pub fn bound(&self) -> f64 {
+    /// `bound` on the trajectory whose [`crate::physics::PlantState::variation`] is `variation`
+    /// (it matters only with a damper in the compliant member).
+    pub fn bound(&self, variation: f64) -> f64 {
         match self {
-            Bounds::Speed(b) => b.bound(),
-            Bounds::Web(w) => w.speed.bound(),
+            Bounds::Speed(b) => b.damped_bound(variation),
+            Bounds::Web(w) => w.speed.damped_bound(variation),
         }
     }
 
@@ -138,10 +144,27 @@ impl Bounds {
     }
 
     /// `bound_T` (0 without a web span, which has no such variable).
-    pub fn bound_t(&self) -> f64 {
+    /// `bound` in Model Exchange, from the trajectory's terms gathered at events
+    /// ([`crate::physics::SpeedErrorBound::damped_bound_at_events`]).
+    pub fn bound_at_events(&self, monotone: f64, gaps: f64) -> f64 {
+        match self {
+            Bounds::Speed(b) => b.damped_bound_at_events(monotone, gaps),
+            Bounds::Web(w) => w.speed.damped_bound_at_events(monotone, gaps),
+        }
+    }
+
+    /// `bound_T` in Model Exchange, as [`Bounds::bound_at_events`].
+    pub fn bound_t_at_events(&self, monotone: f64, gaps: f64) -> f64 {
         match self {
             Bounds::Speed(_) => 0.0,
-            Bounds::Web(w) => w.tension.bound(),
+            Bounds::Web(w) => w.tension.damped_bound_at_events(monotone, gaps),
+        }
+    }
+
+    pub fn bound_t(&self, variation: f64) -> f64 {
+        match self {
+            Bounds::Speed(_) => 0.0,
+            Bounds::Web(w) => w.tension.damped_bound(variation),
         }
     }
 

@@ -72,7 +72,7 @@ pub enum FmuError {
     ValueRefused {
         name: &'static str,
         value: f64,
-        range: &'static str,
+        range: std::borrow::Cow<'static, str>,
     },
     #[error("invalid parameter: {0}")]
     Parameter(#[from] ParamError),

@@ -5,7 +5,7 @@ use super::adapter::{self, StateVector, Values};
 use super::bounds::Bounds;
 use super::error::FmuError;
 use super::variables::{Causality, ModelInfo};
-use crate::physics::{finite, max_step, BoundError, Inputs, Plant, PlantState, Stepper};
+use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, PlantState, Stepper};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
@@ -24,6 +24,110 @@ pub struct Simulation {
     /// The last attempt to bring the bounds up to date failed (they overflow): steps no longer
     /// try, reads do (and report it).
     bounds_refused: bool,
+    /// Model Exchange with a damper: the trajectory's terms of the bound, gathered at the
+    /// importer's events and completed steps.
+    pub events: EventTerms,
+}
+
+/// The trajectory's terms of the damped bound in Model Exchange (docs/model.md §3, "With a
+/// damper"), where the FMU sees the trajectory only at the points the importer sets: the phase
+/// in progress (its mode and u where it began), Σ|Δu| over the finished slack and capped phases
+/// (u is monotone in each) and the number of phases in the gap. A phase ends where the mode of the
+/// state changes, which the importer locates as an event (the event indicators of §6); a change
+/// it does not locate is taken where it is first seen, which only lengthens the phase before.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EventTerms {
+    /// False in Co-Simulation, where the stepper follows the whole trajectory
+    /// ([`PlantState::variation`]).
+    pub tracked: bool,
+    pub phase: ContactMode,
+    pub phase_u: f64,
+    pub monotone: f64,
+    pub gaps: f64,
+}
+
+impl EventTerms {
+    pub const UNTRACKED: EventTerms = EventTerms {
+        tracked: false,
+        phase: ContactMode::Free,
+        phase_u: 0.0,
+        monotone: 0.0,
+        gaps: 0.0,
+    };
+
+    /// Tracking from `state`, the first phase's start.
+    pub fn start(state: &PlantState) -> EventTerms {
+        EventTerms {
+            tracked: true,
+            phase: state.mode,
+            phase_u: state.u,
+            monotone: 0.0,
+            gaps: if state.mode == ContactMode::Free { 1.0 } else { 0.0 },
+        }
+    }
+
+    /// Slack and capped phases, in which u is monotone.
+    fn monotone_in(mode: ContactMode) -> bool {
+        !matches!(mode, ContactMode::Free | ContactMode::Positive | ContactMode::Negative)
+    }
+
+    /// The importer's trajectory is at `state` (an event, or a completed integrator step).
+    pub fn roll(&mut self, state: &PlantState) {
+        if !self.tracked || state.mode == self.phase {
+            return;
+        }
+        if Self::monotone_in(self.phase) {
+            self.monotone += (state.u - self.phase_u).abs();
+        }
+        if state.mode == ContactMode::Free {
+            self.gaps += 1.0;
+        }
+        self.phase = state.mode;
+        self.phase_u = state.u;
+    }
+
+    /// (Σ|Δu| over the slack and capped phases, phases in the gap) up to `state`, the phase in
+    /// progress included.
+    pub fn now(&self, state: &PlantState) -> (f64, f64) {
+        let mut monotone = self.monotone;
+        if Self::monotone_in(self.phase) {
+            monotone += (state.u - self.phase_u).abs();
+        }
+        let opened = state.mode == ContactMode::Free && self.phase != ContactMode::Free;
+        (monotone, self.gaps + if opened { 1.0 } else { 0.0 })
+    }
+
+    /// As numbers, for FMU states: tracked (0 or 1), the phase's mode code, phase_u, monotone,
+    /// gaps.
+    pub fn words(&self) -> [f64; 5] {
+        [
+            if self.tracked { 1.0 } else { 0.0 },
+            self.phase.code() as f64,
+            self.phase_u,
+            self.monotone,
+            self.gaps,
+        ]
+    }
+
+    /// From [`EventTerms::words`], refused unless they could be such words.
+    pub fn from_words(w: &[f64; 5]) -> Result<EventTerms, String> {
+        let phase = ContactMode::from_code(w[1] as i32)
+            .filter(|m| m.code() as f64 == w[1])
+            .ok_or_else(|| format!("unknown contact mode {}", w[1]))?;
+        if !(w[0] == 0.0 || w[0] == 1.0) {
+            return Err(format!("tracking flag {} is neither 0 nor 1", w[0]));
+        }
+        if !(w.iter().all(|x| x.is_finite()) && w[3] >= 0.0 && w[4] >= 0.0 && w[4].fract() == 0.0) {
+            return Err(format!("the trajectory's terms {w:?} are not finite, >= 0 counts"));
+        }
+        Ok(EventTerms {
+            tracked: w[0] == 1.0,
+            phase,
+            phase_u: w[2],
+            monotone: w[3],
+            gaps: w[4],
+        })
+    }
 }
 
 impl Simulation {
@@ -40,13 +144,13 @@ impl Simulation {
     /// speeds or parameters must not turn into ∞/NaN outputs. Runs on every fmi2DoStep.
     #[inline]
     pub fn state_ok(&self, state: &PlantState) -> bool {
-        state.is_finite() & self.plant().force(state.u).is_finite()
+        state.is_finite() & self.plant().force(state.u, state.du).is_finite()
     }
 
     /// The refusal of a state that is not `state_ok`, saying `what` overflows.
     #[cold]
     pub fn overflow(&self, state: &PlantState, what: std::fmt::Arguments<'_>) -> FmuError {
-        let psi = self.plant().force(state.u);
+        let psi = self.plant().force(state.u, state.du);
         let tension = match self.plant().web() {
             Some(_) => format!(", T = {:e}", state.tension),
             None => String::new(),
@@ -96,7 +200,7 @@ impl Simulation {
             return false;
         };
         // `next` is finite: its force is what is left of `state_ok`.
-        if !finite(self.plant().force(next.u)) {
+        if !finite(self.plant().force(next.u, next.du)) {
             return false;
         }
         self.state = next;
@@ -164,6 +268,7 @@ impl Simulation {
         state: PlantState,
         bound: &[f64],
         bounds_behind: f64,
+        events: EventTerms,
     ) -> Result<Simulation, FmuError> {
         let mut sim = Simulation::build(model, v)?;
         if !state.is_finite() {
@@ -178,6 +283,7 @@ impl Simulation {
             )));
         }
         sim.bounds_behind = bounds_behind;
+        sim.events = events;
         Ok(sim)
     }
 
@@ -217,6 +323,27 @@ impl Simulation {
 
     pub fn plant(&self) -> &Plant {
         self.stepper.plant()
+    }
+
+    /// `bound` (docs/model.md §3): with a damper, its trajectory's term from the stepper's
+    /// variation (Co-Simulation) or from the importer's events (Model Exchange).
+    pub fn bound_value(&self) -> f64 {
+        if self.events.tracked {
+            let (monotone, gaps) = self.events.now(&self.state);
+            self.bound.bound_at_events(monotone, gaps)
+        } else {
+            self.bound.bound(self.state.variation)
+        }
+    }
+
+    /// `bound_T` of a web line (docs/model.md §8), as [`Simulation::bound_value`].
+    pub fn bound_t_value(&self) -> f64 {
+        if self.events.tracked {
+            let (monotone, gaps) = self.events.now(&self.state);
+            self.bound.bound_t_at_events(monotone, gaps)
+        } else {
+            self.bound.bound_t(self.state.variation)
+        }
     }
 
     /// bound_sup, +∞ when unbounded (docs/model.md §3).
@@ -295,6 +422,7 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         bounds_behind: 0.0,
         lag_limit,
         bounds_refused: false,
+        events: EventTerms::UNTRACKED,
     };
     let mut cache = lock();
     if cache.len() == TEMPLATE_CACHE {

@@ -1,38 +1,41 @@
 //! FMU states (fmi2GetFMUstate) and their pointer-free serialized form.
 //!
-//! Byte format, version 3, all numbers little-endian, f64 as IEEE-754 bits:
+//! Byte format, version 4, all numbers little-endian, f64 as IEEE-754 bits:
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `BKLSHFMU` |
-//! | 8 | 2 | format version (3) |
+//! | 8 | 2 | format version (4) |
 //! | 10 | 2 | length n of the guid |
 //! | 12 | n | guid of the model description (ASCII) |
 //! | 12+n | 1 | state-machine phase (0 Instantiated … 5 Error, 6 EventMode, 7 ContinuousTimeMode) |
 //! | +1 | 1 | flags: bit 0 stop time defined, bit 1 tolerance defined, bit 2 physics present, bit 3 Model Exchange instance, bit 4 FMI 3.0 instance |
 //! | +2 | 2 | number m of stored values (one per symbol of all models) |
 //! | +4 | 8·4 | time, startTime, stopTime, tolerance |
-//! | | 8·m | values by symbol: inputs, parameters, start values |
+//! | | 8·m | values by symbol: inputs, parameters (an Integer's as its f64), start values |
 //! | | 8·4 | the input lines' slopes dτ_m/dt, dτ_L/dt, dv_in/dt, dT_in/dt |
-//! | | 8·7 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', mode (signed byte −1/0/+1) |
-//! | | 8·b | bounds: elapsed, response[n], integral[n], l1 of each loop bound; b = 12 for the drive trains (one bound, n = 5), 32 for the web line (speed and tension, n = 7) |
+//! | | 8·8 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', V (∫|u'| off ordinary contact, with a damper), mode (signed byte: −1/0/+1 negative flank, free, positive flank; ±2 slack, ±3 capped) |
+//! | | 8·b | bounds: elapsed, response[n], integral[n], l1, peak, variation of each loop bound; b = 14 for the drive trains (one bound, n = 5), 36 for the web line (speed and tension, n = 7) |
 //! | | 8 | how far the bounds lag behind the plant [s] (Co-Simulation: the steps since they were last read) |
+//! | | 8·5 | the damped bound's terms gathered at events (Model Exchange): tracked (0/1), the phase's mode code, u at its start, Σ|Δu| over slack and capped phases, phases in the gap |
 //! | | 8·3 | how far back the time may be set (Model Exchange): the times of the second-last and the last completed integrator step, and of the last event |
 //! | end−8 | 8 | FNV-1a-64 checksum of all bytes before it |
 //!
 //! Loading checks, in order: length, magic, version, guid (a state of the other model is
-//! refused), exact length, checksum, then every field (phase, finiteness, parameter ranges).
+//! refused), exact length, checksum, then every field (phase, finiteness, parameter ranges:
+//! `contact_law` 1 or 2).
 
 use super::adapter::{input_name, InputSlopes, Values, MAX_INPUTS};
 use super::bounds::Bounds;
 use super::error::FmuError;
 use super::instance::{Experiment, TimeMarks};
+use super::simulation::EventTerms;
 use super::state_machine::{Flavour, Interface, Phase, Standard};
 use super::variables::{ModelInfo, Symbol};
 use crate::physics::{ContactMode, PlantState};
 
 pub const MAGIC: &[u8; 8] = b"BKLSHFMU";
-pub const FORMAT_VERSION: u16 = 3;
+pub const FORMAT_VERSION: u16 = 4;
 
 /// The plant and bound state of an initialized instance.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,6 +45,8 @@ pub struct PhysicsSnapshot {
     pub bound: Vec<f64>,
     /// How far the bounds lag behind the plant ([`super::simulation::Simulation::bounds_behind`]).
     pub bounds_behind: f64,
+    /// The damped bound's terms gathered at events (Model Exchange).
+    pub events: EventTerms,
 }
 
 /// Everything needed to continue an instance bit-identically; derived objects (plant
@@ -70,7 +75,7 @@ const FLAG_FMI3: u8 = 16;
 /// plant, bounds, their lag, the time marks, checksum.
 fn body_len(model: &ModelInfo) -> usize {
     let bounds = Bounds::word_count(model.web);
-    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 7 + 1) + 8 * bounds + 8 + 8 * 3 + 8
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 8 + 1) + 8 * bounds + 8 + 8 * 5 + 8 * 3 + 8
 }
 
 fn fnv1a_64(bytes: &[u8]) -> u64 {
@@ -121,15 +126,30 @@ impl Snapshot {
         self.input_slopes.iter().for_each(|x| put(*x));
         let plant = self.physics.as_ref().map(|p| p.plant);
         let z = plant
-            .map(|s| [s.theta_m, s.omega_m, s.theta_l, s.omega_l, s.tension, s.u, s.du])
-            .unwrap_or([0.0; 7]);
+            .map(|s| {
+                [
+                    s.theta_m,
+                    s.omega_m,
+                    s.theta_l,
+                    s.omega_l,
+                    s.tension,
+                    s.u,
+                    s.du,
+                    s.variation,
+                ]
+            })
+            .unwrap_or([0.0; 8]);
         z.iter().for_each(|x| put(*x));
-        b.push(plant.map(|s| s.mode.as_i32() as i8).unwrap_or(0) as u8);
+        b.push(plant.map(|s| s.mode.code() as i8).unwrap_or(0) as u8);
         let no_bounds = vec![0.0; Bounds::word_count(self.model.web)];
         let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
         let behind = self.physics.as_ref().map_or(0.0, |p| p.bounds_behind);
         b.extend_from_slice(&behind.to_le_bytes());
+        let events = self.physics.as_ref().map_or(EventTerms::UNTRACKED, |p| p.events);
+        for x in events.words() {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
         let marks = self.time_marks;
         for x in [marks.completed_steps[0], marks.completed_steps[1], marks.event] {
             b.extend_from_slice(&x.to_le_bytes());
@@ -157,6 +177,11 @@ impl Snapshot {
         if bounds_behind < 0.0 {
             return refuse(format!("the bounds' lag {bounds_behind} s is negative"));
         }
+        let mut words = [0.0; 5];
+        for x in words.iter_mut() {
+            *x = r.finite("the bound's terms of the trajectory")?;
+        }
+        let events = EventTerms::from_words(&words).map_err(FmuError::StateRefused)?;
         let time_marks = r.time_marks(experiment.start_time)?;
         debug_assert_eq!(r.at, payload.len());
 
@@ -177,6 +202,7 @@ impl Snapshot {
             plant,
             bound,
             bounds_behind,
+            events,
         });
         Ok(Snapshot {
             model,
@@ -194,6 +220,18 @@ impl Snapshot {
 
 fn refuse<T>(why: String) -> Result<T, FmuError> {
     Err(FmuError::StateRefused(why))
+}
+
+/// Every settable value of `model` (those with a start value) in its range, as a set would have
+/// admitted it (`contact_law` 1 or 2): what a state brings must be what the instance could hold.
+pub(crate) fn check_values(model: &ModelInfo, values: &Values) -> Result<(), FmuError> {
+    for v in model.variables {
+        let x = values[v.symbol.index()];
+        if v.start.is_some() && !v.range.admits(x) {
+            return refuse(format!("{} = {x} is not {}", v.name, v.range.describe()));
+        }
+    }
+    Ok(())
 }
 
 /// The bytes before the checksum, once length, magic, version, guid and checksum are right for
@@ -325,12 +363,7 @@ impl Reader<'_> {
         for slot in values.iter_mut() {
             *slot = self.finite("a variable value")?;
         }
-        for v in model.variables {
-            let x = values[v.symbol.index()];
-            if v.start.is_some() && !v.range.admits(x) {
-                return refuse(format!("{} = {x} is not {}", v.name, v.range.describe()));
-            }
-        }
+        check_values(model, &values)?;
         let mut input_slopes = [0.0; MAX_INPUTS];
         for (slot, slope) in input_slopes.iter_mut().enumerate() {
             *slope = self.finite(&format!("d{}/dt", input_name(slot)))?;
@@ -340,15 +373,18 @@ impl Reader<'_> {
 
     /// The plant state: z, T, u, u' and the contact mode.
     fn plant(&mut self) -> Result<PlantState, FmuError> {
-        let mut z = [0.0; 7];
+        let mut z = [0.0; 8];
         for (x, name) in z
             .iter_mut()
-            .zip(["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt"])
+            .zip(["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt", "V"])
         {
             *x = self.finite(name)?;
         }
+        if z[7] < 0.0 {
+            return refuse(format!("V = {} must be >= 0", z[7]));
+        }
         let mode_code = self.u8() as i8 as i32;
-        let mode = ContactMode::from_i32(mode_code)
+        let mode = ContactMode::from_code(mode_code)
             .ok_or_else(|| FmuError::StateRefused(format!("unknown contact mode {mode_code}")))?;
         Ok(PlantState {
             theta_m: z[0],
@@ -358,6 +394,7 @@ impl Reader<'_> {
             tension: z[4],
             u: z[5],
             du: z[6],
+            variation: z[7],
             mode,
         })
     }

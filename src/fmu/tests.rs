@@ -393,3 +393,397 @@ fn input_slots_are_the_symbols_order() {
     let names: Vec<&str> = (0..INPUT_SYMBOLS.len()).map(input_name).collect();
     assert_eq!(names, ["tau_m", "tau_L", "v_in", "T_in"]);
 }
+
+// ---- the damper in the compliant member: d / D_b and the Integer parameter contact_law ----
+
+/// A fresh instance of `model` of `standard` (Co-Simulation), with its log (on: FMI 3.0 logs
+/// nothing otherwise).
+fn instance_of(model: usize, standard: Standard) -> (Instance, Collected) {
+    let log = Collected::default();
+    let flavour = Flavour {
+        standard,
+        interface: Interface::CoSimulation,
+    };
+    let inst = Instance::with(
+        &MODELS[model],
+        flavour,
+        CoSimulationOptions::default(),
+        Some(Box::new(log.clone())),
+        true,
+    );
+    (inst, log)
+}
+
+fn read_integer(inst: &mut Instance, name: &str) -> i32 {
+    let mut out = [0];
+    inst.get_integer(&[vr(inst, name)], &mut out).unwrap();
+    out[0]
+}
+
+/// The damping parameter of each model: the shaft's `d`, a belt's `D_b` (the web line's too).
+const DAMPING: [(&str, &str, &str); 3] = [
+    ("d", "N.m.s/rad", "RotationalDampingConstant"),
+    ("D_b", "N.s/m", "TranslationalDampingConstant"),
+    ("D_b", "N.s/m", "TranslationalDampingConstant"),
+];
+
+#[test]
+fn the_descriptions_list_the_damper_contact_law_and_six_event_indicators() {
+    use crate::fmu::variables::{Causality, Initial, Range, VarType, Variability};
+    for (model, (damping, unit, quantity)) in MODELS.iter().zip(DAMPING) {
+        let id = model.identifier;
+        let d = model
+            .by_name(damping)
+            .unwrap_or_else(|| panic!("{id} has no {damping}"));
+        assert_eq!(
+            (d.vr, d.ty, d.causality, d.variability, d.initial),
+            (
+                42,
+                VarType::Real,
+                Causality::Parameter,
+                Variability::Fixed,
+                Initial::Exact
+            ),
+            "{id}"
+        );
+        assert_eq!(
+            (d.start, d.range, d.unit, d.quantity),
+            (Some(0.0), Range::NonNegative, unit, quantity),
+            "{id}"
+        );
+        let law = model.by_name("contact_law").unwrap();
+        assert_eq!(
+            (law.vr, law.ty, law.causality, law.variability, law.initial, law.start),
+            (
+                43,
+                VarType::Integer,
+                Causality::Parameter,
+                Variability::Fixed,
+                Initial::Exact,
+                Some(1.0)
+            ),
+            "{id}"
+        );
+        assert_eq!(law.range, Range::Integers { min: 1, max: 2 }, "{id}");
+        assert!(
+            law.description.contains("1: Modelica ElastoBacklash") && law.description.contains("2: ElastoBacklash2")
+        );
+        for (vr, name) in [
+            (44, "force_upper"),
+            (45, "force_lower"),
+            (46, "cap_upper"),
+            (47, "cap_lower"),
+        ] {
+            let v = model.by_name(name).unwrap();
+            assert_eq!(
+                (v.vr, v.ty, v.causality, v.variability),
+                (vr, VarType::Real, Causality::Local, Variability::Continuous),
+                "{id} {name}"
+            );
+        }
+
+        // As the FMI 2.0 and 3.0 descriptions write them.
+        let text2 = model_description::xml::model_description(id);
+        let doc = roxmltree::Document::parse(&text2).unwrap();
+        assert_eq!(
+            doc.root_element().attribute("numberOfEventIndicators"),
+            Some("6"),
+            "{id}"
+        );
+        let scalar = |name: &str| {
+            let v = doc
+                .descendants()
+                .find(|n| n.has_tag_name("ScalarVariable") && n.attribute("name") == Some(name))
+                .unwrap_or_else(|| panic!("{id}: no {name}"));
+            v.children().find(|n| n.is_element()).unwrap()
+        };
+        let typed = scalar("contact_law");
+        assert_eq!(typed.tag_name().name(), "Integer");
+        fn attributes<'a>(n: roxmltree::Node<'a, '_>) -> [Option<&'a str>; 3] {
+            [n.attribute("min"), n.attribute("max"), n.attribute("start")]
+        }
+        assert_eq!(attributes(typed), [Some("1"), Some("2"), Some("1")], "{id}");
+        let typed = scalar(damping);
+        assert_eq!(typed.tag_name().name(), "Real");
+        assert_eq!(attributes(typed), [Some("0.0"), None, Some("0.0")], "{id}");
+        assert_eq!(typed.attribute("unit"), Some(unit));
+        assert_eq!(attributes(scalar("contact"))[..2], [Some("-1"), Some("1")], "{id}");
+
+        let text3 = model_description::xml3::model_description(id);
+        let doc3 = roxmltree::Document::parse(&text3).unwrap();
+        let law = doc3
+            .descendants()
+            .find(|n| n.attribute("name") == Some("contact_law"))
+            .unwrap();
+        assert_eq!(law.tag_name().name(), "Int32");
+        assert_eq!(
+            [
+                law.attribute("causality"),
+                law.attribute("variability"),
+                law.attribute("start")
+            ],
+            [Some("parameter"), Some("fixed"), Some("1")]
+        );
+        assert_eq!([law.attribute("min"), law.attribute("max")], [Some("1"), Some("2")]);
+        let indicators: Vec<&str> = doc3
+            .descendants()
+            .filter(|n| n.has_tag_name("EventIndicator"))
+            .map(|n| n.attribute("valueReference").unwrap())
+            .collect();
+        assert_eq!(indicators, ["28", "29", "44", "45", "46", "47"], "{id}");
+    }
+}
+
+#[test]
+fn contact_law_admits_1_and_2_only_in_both_standards() {
+    for standard in [Standard::Fmi2, Standard::Fmi3] {
+        for model in 0..MODELS.len() {
+            for bad in [3, 0, -1] {
+                let (mut inst, log) = instance_of(model, standard);
+                let law = vr(&inst, "contact_law");
+                // All or nothing: the admissible value before it is not stored either.
+                let err = inst.set_integer(&[law, law], &[2, bad]).unwrap_err();
+                assert_eq!(err.status(), Status::Error);
+                let reason = err.to_string();
+                assert!(
+                    reason.contains("contact_law")
+                        && reason.contains(&format!("value {bad} "))
+                        && reason.contains("1 or 2"),
+                    "{reason}"
+                );
+                assert!(
+                    messages(&log).iter().any(|m| m.contains(&reason)),
+                    "{:?}",
+                    messages(&log)
+                );
+                assert_eq!(inst.phase(), Phase::Error);
+                // Gets are legal in Error: the start value is still there.
+                assert_eq!(read_integer(&mut inst, "contact_law"), 1);
+            }
+            let (mut inst, _) = instance_of(model, standard);
+            let law = vr(&inst, "contact_law");
+            inst.set_integer(&[law], &[2]).unwrap();
+            inst.enter_initialization_mode().unwrap();
+            assert_eq!(read_integer(&mut inst, "contact_law"), 2);
+            inst.set_integer(&[law], &[1]).unwrap();
+            assert_eq!(read_integer(&mut inst, "contact_law"), 1);
+        }
+    }
+}
+
+/// contact_law follows the rules of the fixed Real parameters, and the Real get and set refuse
+/// it by its type (and the Integer ones a Real).
+#[test]
+fn contact_law_is_a_fixed_integer_parameter() {
+    for standard in [Standard::Fmi2, Standard::Fmi3] {
+        let (mut inst, _) = instance_of(0, standard);
+        let (law, d, contact) = (vr(&inst, "contact_law"), vr(&inst, "d"), vr(&inst, "contact"));
+        inst.enter_initialization_mode().unwrap();
+        inst.set_integer(&[law], &[2]).unwrap();
+        inst.exit_initialization_mode().unwrap();
+        assert_eq!(read_integer(&mut inst, "contact_law"), 2);
+        let err = inst.set_integer(&[law], &[1]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FmuError::NotSettable {
+                    name: "contact_law",
+                    phase: Phase::StepComplete,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert!(err.to_string().contains("fixed parameter"), "{err}");
+
+        let (mut inst, _) = instance_of(0, standard);
+        let err = inst.set_real(&[law], &[2.0]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FmuError::WrongType {
+                    name: "contact_law",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let (mut inst, _) = instance_of(0, standard);
+        inst.enter_initialization_mode().unwrap();
+        assert!(matches!(
+            inst.get_real(&[law], &mut [0.0]).unwrap_err(),
+            FmuError::WrongType {
+                name: "contact_law",
+                ..
+            }
+        ));
+        let (mut inst, _) = instance_of(0, standard);
+        assert!(matches!(
+            inst.set_integer(&[d], &[1]).unwrap_err(),
+            FmuError::WrongType { name: "d", .. }
+        ));
+        let (mut inst, _) = instance_of(0, standard);
+        assert!(matches!(
+            inst.set_integer(&[contact], &[1]).unwrap_err(),
+            FmuError::NotSettable { name: "contact", .. }
+        ));
+        let (mut inst, _) = instance_of(0, standard);
+        assert!(matches!(
+            inst.set_integer(&[law], &[]).unwrap_err(),
+            FmuError::LengthMismatch { .. }
+        ));
+    }
+}
+
+/// A negative or non-finite damping is refused when it is set, naming the parameter; the plant
+/// refuses it by name too, should one reach it.
+#[test]
+fn a_negative_or_nan_damping_is_refused_by_its_name() {
+    for (model, (damping, _, _)) in DAMPING.iter().enumerate() {
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let (mut inst, log) = instance_of(model, Standard::Fmi2);
+            let err = inst.set_real(&[vr(&inst, damping)], &[bad]).unwrap_err();
+            assert!(
+                matches!(err, FmuError::ValueRefused { name, .. } if name == *damping),
+                "{err}"
+            );
+            assert!(err.to_string().contains(">= 0"), "{err}");
+            assert!(messages(&log)
+                .iter()
+                .any(|m| m.contains(&format!("refused for {damping}"))));
+        }
+        let mut values = crate::fmu::adapter::start_values(&MODELS[model]);
+        values[MODELS[model].by_name(damping).unwrap().symbol.index()] = -1.0;
+        let err = crate::physics::Plant::new(crate::fmu::adapter::plant_params(&MODELS[model], &values)).unwrap_err();
+        assert!(err.to_string().contains(damping), "{err}");
+        // A valid one is taken, and initialization goes through.
+        let (mut inst, _) = instance_of(model, Standard::Fmi2);
+        inst.set_real(&[vr(&inst, damping)], &[0.5]).unwrap();
+        inst.set_integer(&[vr(&inst, "contact_law")], &[2]).unwrap();
+        inst.enter_initialization_mode().unwrap();
+        inst.exit_initialization_mode()
+            .unwrap_or_else(|e| panic!("{damping}: {e}"));
+        assert_eq!(read(&mut inst, damping), 0.5);
+    }
+}
+
+/// An FMU state keeps contact_law (and the damping): get/set, serialize/deserialize; a state
+/// whose contact_law is neither 1 nor 2 is refused.
+#[test]
+fn fmu_states_carry_contact_law() {
+    for standard in [Standard::Fmi2, Standard::Fmi3] {
+        let (mut inst, _) = instance_of(1, standard);
+        let (law, d_b) = (vr(&inst, "contact_law"), vr(&inst, "D_b"));
+        inst.set_integer(&[law], &[2]).unwrap();
+        inst.set_real(&[d_b], &[3.0]).unwrap();
+        let before_init = inst.get_fmu_state().unwrap();
+        inst.enter_initialization_mode().unwrap();
+        inst.exit_initialization_mode().unwrap();
+        let running = inst.get_fmu_state().unwrap();
+        for snap in [&before_init, &running] {
+            let bytes = inst.serialize_fmu_state(snap).unwrap();
+            let (mut other, _) = instance_of(1, standard);
+            let back = other.deserialize_fmu_state(&bytes).unwrap();
+            assert_eq!(&back, snap);
+            other.set_fmu_state(&back).unwrap();
+            if other.phase() == Phase::Instantiated {
+                other.enter_initialization_mode().unwrap();
+            }
+            assert_eq!(read_integer(&mut other, "contact_law"), 2);
+            assert_eq!(read(&mut other, "D_b"), 3.0);
+        }
+        inst.reset().unwrap();
+        inst.enter_initialization_mode().unwrap();
+        assert_eq!(read_integer(&mut inst, "contact_law"), 1);
+        inst.set_fmu_state(&running).unwrap();
+        assert_eq!(read_integer(&mut inst, "contact_law"), 2);
+
+        for bad in [3.0, 0.0, 1.5] {
+            let mut snap = running.clone();
+            snap.values[Symbol::ContactLaw.index()] = bad;
+            let bytes = snap.to_bytes();
+            let err = inst.deserialize_fmu_state(&bytes).unwrap_err();
+            assert!(err.to_string().contains(&format!("contact_law = {bad}")), "{err}");
+            let (mut other, _) = instance_of(1, standard);
+            let err = other.set_fmu_state(&snap).unwrap_err();
+            assert!(err.to_string().contains("contact_law"), "{err}");
+        }
+    }
+}
+
+/// With a damper the indicators and their Jacobian rows are those of the physics: the values
+/// through get_real and fmi2GetEventIndicators, the rows through the directional derivative.
+#[test]
+fn the_damper_indicators_and_their_jacobian_rows() {
+    for law in [1, 2] {
+        let mut inst = Instance::new_for(&MODELS[0], Interface::ModelExchange, None, false);
+        inst.set_real(&[vr(&inst, "d"), vr(&inst, "Delta")], &[2.0, 1e-3])
+            .unwrap();
+        inst.set_integer(&[vr(&inst, "contact_law")], &[law]).unwrap();
+        inst.setup_experiment(None, 0.0, None).unwrap();
+        inst.enter_initialization_mode().unwrap();
+        inst.exit_initialization_mode().unwrap();
+        inst.enter_continuous_time_mode().unwrap();
+        let z = [0.004, 0.3, 0.001, -0.2];
+        inst.set_continuous_states(&z).unwrap();
+        let (u, du) = (z[0] - z[2], z[1] - z[3]);
+        let (k, d, g) = (200.0, 2.0, 1e-3);
+        let cap = |x: f64| if law == 1 { x } else { 1.0 };
+        let expected = [
+            u - g,
+            u + g,
+            k * (u - g) + d * du,
+            k * (u + g) + d * du,
+            cap(d * du - k * (u - g)),
+            cap(d * du - k * (u + g)),
+        ];
+        let mut indicators = [0.0; 6];
+        inst.get_event_indicators(&mut indicators).unwrap();
+        let names = [
+            "u_minus_g",
+            "u_plus_g",
+            "force_upper",
+            "force_lower",
+            "cap_upper",
+            "cap_lower",
+        ];
+        for ((name, x), e) in names.iter().zip(indicators).zip(expected) {
+            assert!(
+                (x - e).abs() <= 1e-12 * e.abs().max(1.0),
+                "law {law} {name}: {x} vs {e}"
+            );
+            assert_eq!(read(&mut inst, name), x, "{name}");
+        }
+        // Each row against the seed: J v = the indicator's change along v.
+        let states: Vec<u32> = ["theta_m", "omega_m", "theta_L", "omega_L"]
+            .iter()
+            .map(|n| vr(&inst, n))
+            .collect();
+        let unknowns: Vec<u32> = names.iter().map(|n| vr(&inst, n)).collect();
+        let seed = [0.5, -1.5, 0.25, 2.0];
+        let mut rows = [0.0; 6];
+        inst.get_directional_derivative(&unknowns, &states, &seed, &mut rows)
+            .unwrap();
+        let (dv, ddv) = (seed[0] - seed[2], seed[1] - seed[3]);
+        let slope = [
+            dv,
+            dv,
+            k * dv + d * ddv,
+            k * dv + d * ddv,
+            if law == 1 { d * ddv - k * dv } else { 0.0 },
+            if law == 1 { d * ddv - k * dv } else { 0.0 },
+        ];
+        for ((name, x), e) in names.iter().zip(rows).zip(slope) {
+            assert!(
+                (x - e).abs() <= 1e-12 * e.abs().max(1.0),
+                "law {law} {name}: {x} vs {e}"
+            );
+        }
+    }
+    // Without a damper the four new indicators are 1 and their rows 0.
+    let mut inst = model_exchange(0);
+    inst.enter_continuous_time_mode().unwrap();
+    let mut indicators = [0.0; 6];
+    inst.get_event_indicators(&mut indicators).unwrap();
+    assert_eq!(indicators[2..], [1.0; 4]);
+}

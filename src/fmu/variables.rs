@@ -134,27 +134,23 @@ mod tests {
         assert!(model_by_guid("").is_none());
     }
 
-    /// Each description declares as many event indicators as the physics computes.
+    /// Each description declares as many event indicators as the physics computes, in its
+    /// order.
     #[test]
     fn every_model_declares_the_physics_event_indicators() {
         use crate::fmu::adapter::{Calculated, Source};
         for m in &MODELS {
-            let declared = m
+            let declared: Vec<usize> = m
                 .variables
                 .iter()
-                .filter(|v| {
-                    matches!(
-                        v.symbol.source(),
-                        Source::Calculated(Calculated::UMinusG | Calculated::UPlusG)
-                    )
+                .filter_map(|v| match v.symbol.source() {
+                    Source::Calculated(c) => c.indicator(),
+                    _ => None,
                 })
-                .count();
-            assert_eq!(
-                declared,
-                crate::physics::vector_field::EVENT_INDICATORS,
-                "{}",
-                m.identifier
-            );
+                .collect();
+            let physics: Vec<usize> = (0..crate::physics::vector_field::EVENT_INDICATORS).collect();
+            assert_eq!(declared, physics, "{}", m.identifier);
+            assert_eq!(Calculated::INDICATORS.len(), physics.len());
         }
     }
 

@@ -794,3 +794,26 @@ def simulate_pi_ivp(params: dict, law: int, z0, breakpoints, w_ref, tau_L, gains
     """Method B in the PI loop; same arguments and result as `simulate_pi`."""
     bp, (w, tl) = _intervals(breakpoints, w_ref, tau_L)
     return _ivp_core(params, law, z0, xi0, bp, w, tl, tuple(gains), _check_out(t_out, bp), rtol, max_step)
+
+
+def twin_loop(p: dict, gains) -> tuple[np.ndarray, np.ndarray]:
+    """A_cl and D_1 of the linear twin under the continuous PI (docs/model.md §3 with the damper)
+    in [theta_m, omega_m, theta_L, omega_L, xi]: psi = K u + D u', tau_m = Kp (w_ref - omega_m) +
+    Ki xi; the disturbance phi = (K u + D u') - psi enters through D_1. The impulse response of
+    the bounds is h(s) = e_{omega_L} e^{A s} D_1."""
+    J_m, J_L, b_m, b_L, r_m, r_L, K, D = (p[k] for k in ("J_m", "J_L", "b_m", "b_L", "r_m", "r_L", "K", "D"))
+    Kp, Ki = gains
+    # psi = K (r_m th_m - r_L th_L) + D (r_m w_m - r_L w_L)
+    psi = np.array([K * r_m, D * r_m, -K * r_L, -D * r_L, 0.0])
+    A = np.zeros((5, 5))
+    A[0, 1] = 1.0
+    A[1] = -r_m * psi / J_m
+    A[1, 1] += -(b_m + Kp) / J_m
+    A[1, 4] += Ki / J_m
+    A[2, 3] = 1.0
+    A[3] = r_L * psi / J_L
+    A[3, 3] += -b_L / J_L
+    A[4, 1] = -1.0
+    # The disturbance phi enters as psi = (K u + D u') - phi.
+    D_1 = np.array([0.0, r_m / J_m, 0.0, -r_L / J_L, 0.0])
+    return A, D_1

@@ -135,7 +135,14 @@ def test_states_derivatives_and_event_indicators(model):
     assert pairs == [(f"der({s})", s) for s in states]
     assert pairs == [(u.variable.name, u.variable.derivative.name) for u in md2.derivatives]
     indicators = [(u.variable.name, u.variable.valueReference) for u in md3.eventIndicators]
-    assert indicators == [("u_minus_g", 28), ("u_plus_g", 29)]
+    assert indicators == [
+        ("u_minus_g", 28),
+        ("u_plus_g", 29),
+        ("force_upper", 44),
+        ("force_lower", 45),
+        ("cap_upper", 46),
+        ("cap_lower", 47),
+    ]
     assert md2.numberOfEventIndicators == len(indicators)
     assert [u.variable.name for u in md3.outputs] == [u.variable.name for u in md2.outputs]
 

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 import pytest
-from backlash_fmu.fmu import STATES, ModelExchange
+from backlash_fmu.fmu import EVENT_INDICATORS, STATES, ModelExchange
 from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
@@ -191,7 +191,7 @@ def test_model_description_declares_model_exchange(fmu):
     assert me is not None and md.coSimulation is not None, "both interfaces in one archive"
     assert me.modelIdentifier == fmu.path.stem  # the model it was asked for (fmu_path)
     assert me.providesDirectionalDerivative and me.canGetAndSetFMUstate and me.canSerializeFMUstate
-    assert md.numberOfEventIndicators == 2
+    assert md.numberOfEventIndicators == EVENT_INDICATORS == 6
     derivatives = [d.variable for d in md.derivatives]  # <ModelStructure><Derivatives>, in order
     # The web line's span tension T is its fifth state (docs/model.md §8).
     web = fmu.model == "BacklashWeb"
@@ -531,8 +531,11 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
             lambda inst, n=n: inst.fmu.fmi2GetNominalsOfContinuousStates(inst.c, buffer, n),
             lengths,
         )
-    for n in (1, 3, 0):
-        cases[f"indicators n={n}"] = (lambda inst, n=n: inst.fmu.fmi2GetEventIndicators(inst.c, buffer, n), (str(n), "2"))
+    for n in (2, 7, 0):
+        cases[f"indicators n={n}"] = (
+            lambda inst, n=n: inst.fmu.fmi2GetEventIndicators(inst.c, buffer, n),
+            (str(n), str(EVENT_INDICATORS)),
+        )
     cases["parameter after initialisation"] = (lambda inst: inst.set({"J_m": 1.0}), ("J_m",))
 
     for name, (call, mentions) in cases.items():

@@ -37,8 +37,9 @@ def refused_once(inst: CoSimulation, call, reason: str) -> None:
 
 
 def real_outputs(inst: CoSimulation) -> list[float]:
-    """Every Real variable but `contact`, in the order of the value references."""
-    return inst.get(*[n for n in inst.vr if n != "contact"])
+    """Every Real variable (not the Integers `contact`, `contact_law`), in the order of the value
+    references."""
+    return inst.get(*[n for n in inst.vr if inst.archive.variables[n].type in ("Real", "Float64")])
 
 
 def works_normally(fmu):

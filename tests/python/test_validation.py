@@ -25,6 +25,8 @@ COMMON = {
     "b_L": ("parameter", "Real", "N.m.s/rad"),
     "Kp": ("parameter", "Real", "N.m.s/rad"),
     "Ki": ("parameter", "Real", "N.m/rad"),
+    # 1: Modelica ElastoBacklash, 2: ElastoBacklash2 (docs/model.md §4).
+    "contact_law": ("parameter", "Integer", None),
 }
 # The interface of each drive train's form and of a web span (docs/model.md §4, §8), named by a
 # parameter only that form has.
@@ -32,11 +34,13 @@ FORMS = {
     "k": {
         "psi": ("output", "Real", "N.m"),
         "k": ("parameter", "Real", "N.m/rad"),
+        "d": ("parameter", "Real", "N.m.s/rad"),
         "Delta": ("parameter", "Real", "rad"),
     },
     "K_b": {
         "psi": ("output", "Real", "N"),
         "K_b": ("parameter", "Real", "N/m"),
+        "D_b": ("parameter", "Real", "N.s/m"),
         "R_1": ("parameter", "Real", "m"),
         "R_2": ("parameter", "Real", "m"),
         "R_g1": ("parameter", "Real", "m"),
@@ -72,6 +76,7 @@ BASE = {
     "N.m.s/rad": (1, 2, -1, -1),
     "N.m/rad": (1, 2, -2, -1),
     "N/m": (1, 0, -2, 0),
+    "N.s/m": (1, 0, -1, 0),
     "m": (0, 1, 0, 0),
     "m/s": (0, 1, -1, 0),
     "N/s": (1, 1, -3, 0),

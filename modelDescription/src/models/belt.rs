@@ -15,7 +15,7 @@ pub(super) const MODEL: ModelDef = ModelDef {
 };
 
 /// The belt drive's plant (paper eqs. 20–21): r_m = R_1, r_L = alpha_1, K = K_b,
-/// g = alpha_2 Delta (docs/model.md §1); also the drive of BacklashWeb.
+/// g = alpha_2 Delta, D = D_b (docs/model.md §1); also the drive of BacklashWeb.
 pub(super) fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
     let geometry = Geometry::Belt {
         k_b: at("K_b"),
@@ -25,7 +25,7 @@ pub(super) fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
         r_g2: at("R_g2"),
         delta: at("Delta"),
     };
-    drive_train(at, geometry)
+    drive_train(at, geometry, &BELT)
 }
 
 /// u = R_1 theta_m - alpha_1 theta_L is a length on the belt; psi is the belt's force.
@@ -33,7 +33,12 @@ const BELT: Transmission = Transmission {
     coordinate_unit: "m",
     psi_unit: "N",
     psi_quantity: "Force",
-    psi_description: "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1",
+    psi_description: "Belt force psi = K_b*dz(R_1*theta_m - alpha_1*theta_L, alpha_2*Delta), alpha_1 = R_2*R_g2/R_g1, alpha_2 = R_2/R_g1; with a damper (D_b > 0) the damped force clipped by contact_law so that it never pulls",
+    damping_name: "D_b",
+    damping_symbol: "DB",
+    damping_unit: "N.s/m",
+    damping_quantity: "TranslationalDampingConstant",
+    damping_description: "Belt damping, in parallel with its stiffness K_b (>= 0; 0: no damper)",
 };
 
 fn model() -> Model {
@@ -46,8 +51,14 @@ fn model() -> Model {
             stop_time: 0.2,
             step_size: 1e-4,
         },
-        variables: belt_variables(),
+        variables: belt_variables().into_iter().chain(damper_variables()).collect(),
     })
+}
+
+/// The belt's damper and its event indicators (value references 42–47), after every other
+/// variable of BacklashBelt and of the web line.
+pub(super) fn damper_variables() -> [Var; 6] {
+    super::damper_variables(&BELT)
 }
 
 /// The belt drive's variables (value references 1–29), of BacklashBelt and of the web line's

@@ -8,18 +8,25 @@ mod belt;
 mod shaft;
 mod web;
 
-use backlash_physics::{Geometry, Plant, PlantParams};
+use backlash_physics::{ContactLaw, Damping, Geometry, Plant, PlantParams};
 
 use crate::{Causality, Initial, Model, PlantMapping, Range, Type, Var, Variability};
 
-/// What a model's drive says of its transmission coordinate u and of the force ψ in its
-/// compliant member: their units, and ψ's quantity and text.
+/// What a model's drive says of its transmission coordinate u, of the force ψ in its compliant
+/// member and of the damper in that member: their units, ψ's quantity and text, and the
+/// damping parameter's name, symbol, unit, quantity and text.
 pub(super) struct Transmission {
     /// The unit of u and g (and of the event indicators u ∓ g).
     coordinate_unit: &'static str,
+    /// The unit of ψ (and of the event indicators of the damped force).
     psi_unit: &'static str,
     psi_quantity: &'static str,
     psi_description: &'static str,
+    damping_name: &'static str,
+    damping_symbol: &'static str,
+    damping_unit: &'static str,
+    damping_quantity: &'static str,
+    damping_description: &'static str,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -235,6 +242,78 @@ fn event_indicators(transmission: &Transmission) -> [Var; 2] {
     ]
 }
 
+/// The damper in the compliant member (docs/model.md §1, §4) and its event indicators (§6),
+/// after every other variable of a model: its damping D (value reference 42, `d` of the shaft,
+/// `D_b` of a belt), the Integer `contact_law` (43), and the event indicators of the damped
+/// force (44–47), which read 1 where the plant has no such surface.
+fn damper_variables(transmission: &Transmission) -> [Var; 6] {
+    let Transmission {
+        psi_unit,
+        psi_quantity,
+        damping_name,
+        damping_symbol,
+        damping_unit,
+        damping_quantity,
+        damping_description,
+        ..
+    } = *transmission;
+    let indicator =
+        |name, symbol, vr, description| continuous_local(name, symbol, vr, psi_unit, psi_quantity, description);
+    [
+        parameter(
+            damping_name,
+            damping_symbol,
+            42,
+            0.0,
+            Range::NonNegative,
+            damping_unit,
+            damping_quantity,
+            damping_description,
+        ),
+        var(
+            "contact_law",
+            "ContactLaw",
+            43,
+            Type::Integer,
+            Causality::Parameter,
+            Variability::Fixed,
+            Initial::Exact,
+            Some(ContactLaw::ElastoBacklash.code() as f64),
+            Range::Integers {
+                min: ContactLaw::ElastoBacklash.code(),
+                max: ContactLaw::ElastoBacklash2.code(),
+            },
+            "",
+            "",
+            "1: Modelica ElastoBacklash (damper force capped by the spring force), 2: ElastoBacklash2",
+        ),
+        indicator(
+            "force_upper",
+            "ForceUpper",
+            44,
+            "Event indicator K*(u - g) + D*u' (spring and damper force on the positive flank): with a damper, contact on the positive flank holds while it is positive; 1 without a damper",
+        ),
+        indicator(
+            "force_lower",
+            "ForceLower",
+            45,
+            "Event indicator K*(u + g) + D*u' (spring and damper force on the negative flank): with a damper, contact on the negative flank holds while it is negative; 1 without a damper",
+        ),
+        indicator(
+            "cap_upper",
+            "CapUpper",
+            46,
+            "Event indicator D*u' - K*(u - g): with contact_law = 1, the damper force is capped by the spring force on the positive flank while it is positive; 1 without a damper or with contact_law = 2",
+        ),
+        indicator(
+            "cap_lower",
+            "CapLower",
+            47,
+            "Event indicator D*u' - K*(u + g): with contact_law = 1, the damper force is capped by the spring force on the negative flank while it is negative; 1 without a damper or with contact_law = 2",
+        ),
+    ]
+}
+
 /// `der(theta_m)` … `der(omega_L)`, value references 24–27 in every model, after the state
 /// outputs of `v`.
 fn state_derivatives(v: &[Var]) -> [Var; 4] {
@@ -301,10 +380,10 @@ fn common_head(transmission: &Transmission) -> Vec<Var> {
             Variability::Discrete,
             Initial::Calculated,
             None,
-            Range::Finite,
+            Range::Integers { min: -1, max: 1 },
             "",
             "",
-            "Contact mode at the communication point: +1 positive flank, 0 free (inside the gap), -1 negative flank",
+            "Contact at the communication point, the sign of psi: +1 positive flank, 0 free (inside the gap, or the damped force would pull), -1 negative flank",
         ),
         var(
             "bound",
@@ -415,15 +494,32 @@ pub(crate) fn plant_of(model: &Model, values: &[(&'static str, f64)]) -> Plant {
 }
 
 /// The plant of a drive train of `geometry` whose inertias and viscous frictions are the
-/// parameters J_m, J_L, b_m, b_L (docs/model.md §4), read by `at`; its load an inertia.
-fn drive_train(at: &dyn Fn(&str) -> f64, geometry: Geometry) -> PlantParams {
+/// parameters J_m, J_L, b_m, b_L (docs/model.md §4) and whose compliant member has the damper
+/// of `transmission` (its damping parameter and `contact_law`), read by `at`; its load an
+/// inertia.
+fn drive_train(at: &dyn Fn(&str) -> f64, geometry: Geometry, transmission: &Transmission) -> PlantParams {
     PlantParams {
         j_m: at("J_m"),
         j_l: at("J_L"),
         b_m: at("b_m"),
         b_l: at("b_L"),
         geometry,
+        damping: Damping {
+            d: at(transmission.damping_name),
+            law: contact_law(at("contact_law")),
+        },
         web: None,
+    }
+}
+
+/// The law of a `contact_law` value. Only 1 and 2 reach here: the library refuses any other
+/// value when it is set or restored (its range), and the model structure moves it between the
+/// two; anything else is a fault of the caller.
+fn contact_law(value: f64) -> ContactLaw {
+    let code = value as i32;
+    match ContactLaw::from_code(code) {
+        Some(law) if code as f64 == value => law,
+        _ => panic!("contact_law = {value} is neither 1 nor 2"),
     }
 }
 

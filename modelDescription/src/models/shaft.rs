@@ -5,7 +5,8 @@ use backlash_physics::{Geometry, PlantParams};
 
 use super::Transmission;
 use super::{
-    common_head, drive_train, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef,
+    common_head, damper_variables, drive_train, event_indicators, parameter, pi_gains, state_derivatives,
+    with_state_nominals, ModelDef,
 };
 use crate::{DefaultExperiment, Model, Range};
 
@@ -14,21 +15,27 @@ pub(super) const MODEL: ModelDef = ModelDef {
     plant_params,
 };
 
-/// The shaft's plant (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Delta (docs/model.md §1).
+/// The shaft's plant (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Delta, D = d
+/// (docs/model.md §1).
 fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
     let geometry = Geometry::Shaft {
         k: at("k"),
         delta: at("Delta"),
     };
-    drive_train(at, geometry)
+    drive_train(at, geometry, &SHAFT)
 }
 
-/// u = theta_m - theta_L is an angle; psi is the shaft's torque.
+/// u = theta_m - theta_L is an angle; psi is the shaft's torque; d damps the shaft's twist.
 const SHAFT: Transmission = Transmission {
     coordinate_unit: "rad",
     psi_unit: "N.m",
     psi_quantity: "Torque",
-    psi_description: "Torque psi = k*dz(theta_m - theta_L, Delta) carried by the compliant shaft",
+    psi_description: "Torque psi carried by the compliant shaft: k*dz(theta_m - theta_L, Delta), and with a damper (d > 0) the damped torque clipped by contact_law so that it never pulls",
+    damping_name: "d",
+    damping_symbol: "D",
+    damping_unit: "N.m.s/rad",
+    damping_quantity: "RotationalDampingConstant",
+    damping_description: "Shaft damping, in parallel with its stiffness k (>= 0; 0: no damper)",
 };
 
 fn model() -> Model {
@@ -100,6 +107,7 @@ fn model() -> Model {
     let derivatives = state_derivatives(&v);
     v.extend(derivatives);
     v.extend(event_indicators(&SHAFT));
+    v.extend(damper_variables(&SHAFT));
     with_state_nominals(Model {
         identifier: "BacklashShaft",
         plant_params,

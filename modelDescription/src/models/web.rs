@@ -3,7 +3,7 @@
 
 use backlash_physics::{PlantParams, WebSpan};
 
-use super::belt::{self, belt_variables};
+use super::belt::{self, belt_variables, damper_variables};
 use super::{parameter, quantity_input, state_derivative, state_output, var, with_state_nominals, ModelDef};
 use crate::{Causality, DefaultExperiment, Initial, Model, Range, Type, Var, Variability};
 
@@ -12,7 +12,7 @@ pub(super) const MODEL: ModelDef = ModelDef {
     plant_params,
 };
 
-/// BacklashBelt's plant whose load pulls the web span (docs/model.md §8).
+/// BacklashBelt's plant, its damper included, whose load pulls the web span (docs/model.md §8).
 fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
     PlantParams {
         web: Some(WebSpan {
@@ -40,7 +40,7 @@ fn model() -> Model {
 }
 
 /// BacklashWeb: the belt drive's variables, then the web span's (value references 30–41,
-/// docs/model.md §8). Its defaults are BacklashBelt's drive pulling a film line: 50 mm roller,
+/// docs/model.md §8), then the belt's damper (42–47). Its defaults are BacklashBelt's drive pulling a film line: 50 mm roller,
 /// 1 m span, EA = 1e5 N (e.g. 50 µm PET, 0.5 m wide), 2 m/s.
 fn web_variables() -> Vec<Var> {
     use Causality::*;
@@ -154,5 +154,6 @@ fn web_variables() -> Vec<Var> {
             "Integral gain of the outer tension PI; used by the bounds only",
         ),
     ]);
+    v.extend(damper_variables());
     v
 }

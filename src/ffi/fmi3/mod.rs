@@ -2,9 +2,10 @@
 //! FMI 3.0 archives carry this same library. Every function goes through [`guard3`], which
 //! refuses an instance created through the FMI 2.0 functions.
 //!
-//! The models have Float64 variables and one Int32 (`contact`); the typed functions of the other
-//! types serve no variable. Clocks, Scheduled Execution, Configuration Mode, adjoint derivatives
-//! and per-element dependencies are not provided: those functions are refused with the reason.
+//! The models have Float64 variables and two Int32 (`contact`, `contact_law`); the typed
+//! functions of the other types serve no variable. Clocks, Scheduled Execution, Configuration
+//! Mode, adjoint derivatives and per-element dependencies are not provided: those functions are
+//! refused with the reason.
 
 mod co_simulation;
 mod lifecycle;

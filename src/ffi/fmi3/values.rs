@@ -1,4 +1,5 @@
-//! fmi3Get/Set<type> (FMI 3.0 §2.3.5): Float64 and Int32 reach the variables; the other types
+//! fmi3Get/Set<type> (FMI 3.0 §2.3.5): Float64 and Int32 (`contact`, `contact_law`) reach the
+//! variables; the other types
 //! have no variable, so any value reference is refused (by name and type when it names a
 //! variable of another type). All variables are scalars: nValues must equal nValueReferences.
 
@@ -92,8 +93,8 @@ pub unsafe extern "C" fn fmi3SetInt32(
         scalars(nValues, nValueReferences)?;
         // SAFETY: as in fmi3GetFloat64.
         let vrs = unsafe { input_array(valueReferences, nValueReferences, "valueReferences") }?;
-        let _ = unsafe { input_array(values, nValues, "values") }?;
-        inst.set_untyped_body(vrs, nValues, "Int32")
+        let values = unsafe { input_array(values, nValues, "values") }?;
+        inst.set_integer_body(vrs, values)
     })
 }
 

@@ -5,7 +5,7 @@ use super::lifecycle::Lifecycle;
 use super::Instance;
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
-use crate::fmu::snapshot::{PhysicsSnapshot, Snapshot};
+use crate::fmu::snapshot::{check_values, PhysicsSnapshot, Snapshot};
 
 impl Instance {
     pub(crate) fn snapshot(&self) -> Snapshot {
@@ -22,6 +22,7 @@ impl Instance {
                 plant: sim.state,
                 bound: sim.bound.words(),
                 bounds_behind: sim.bounds_behind,
+                events: sim.events,
             }),
         }
     }
@@ -47,6 +48,8 @@ impl Instance {
                 self.flavour.interface.name()
             )));
         }
+        // A snapshot read from bytes was checked so; one built in Rust is checked here.
+        check_values(self.model, &snapshot.values)?;
         let sim = match &snapshot.physics {
             Some(p) => Some(Simulation::restore(
                 self.model,
@@ -54,6 +57,7 @@ impl Instance {
                 p.plant,
                 &p.bound,
                 p.bounds_behind,
+                p.events,
             )?),
             None => None,
         };

@@ -16,7 +16,7 @@ mod values;
 use super::adapter::{self, Values};
 use super::error::{FmuError, Status};
 use super::logging::{LogCategory, LogSink, Logging};
-use super::simulation::Simulation;
+use super::simulation::{EventTerms, Simulation};
 use super::snapshot::Snapshot;
 use super::state_machine::{Flavour, Function, Interface, Phase, Standard};
 use super::variables::ModelInfo;
@@ -290,9 +290,7 @@ impl Instance {
     }
 
     pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> Result<Status, FmuError> {
-        self.run(Function::SetInteger, |s| {
-            s.set_untyped_body(vrs, values.len(), "Integer")
-        })
+        self.run(Function::SetInteger, |s| s.set_integer_body(vrs, values))
     }
 
     pub fn set_boolean(&mut self, vrs: &[u32], values: &[i32]) -> Result<Status, FmuError> {
@@ -426,6 +424,10 @@ impl Instance {
             _ => None,
         };
         let slack = sim.bound.sup_slack();
+        let mut sim = sim;
+        if self.flavour.interface == Interface::ModelExchange && sim.plant().damping() > 0.0 {
+            sim.events = EventTerms::start(&sim.state);
+        }
         self.start_clock(self.experiment.start_time);
         let phase = match self.flavour.interface {
             Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,

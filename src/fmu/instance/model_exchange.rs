@@ -1,8 +1,8 @@
 //! The Model Exchange calls (FMI 2.0.4 §3.2): the importer's solver sets time and the
 //! continuous states z = [θ_m, ω_m, θ_L, ω_L] (and T on a web line) and reads the vector field,
-//! the event indicators
-//! [u − g, u + g], the states' nominal values and the exact Jacobian of the mode in force
-//! (docs/model.md §6). There are no discrete states and no time events: modes follow u.
+//! the event indicators [u − g, u + g, K (u − g) + D u′, K (u + g) + D u′, D u′ − K (u − g),
+//! D u′ − K (u + g)], the states' nominal values and the exact Jacobian of the mode in force
+//! (docs/model.md §6). There are no discrete states and no time events: modes follow u and u′.
 
 use super::Instance;
 use crate::fmu::adapter::{self, Calculated, Source, StateEntry, StateVector, MAX_INPUTS, MAX_STATES};
@@ -75,6 +75,7 @@ impl Instance {
         }
         self.life.enter(Phase::EventMode);
         self.time_marks.event = self.time;
+        self.roll_events();
         Ok(Status::Ok)
     }
 
@@ -89,7 +90,8 @@ impl Instance {
         self.model.states
     }
 
-    /// The number of event indicators: u − g and u + g.
+    /// The number of event indicators: u ∓ g and the damped force's and the cap's surfaces
+    /// (docs/model.md §6).
     pub(crate) fn event_indicator_count(&self) -> usize {
         EVENT_INDICATORS
     }
@@ -115,7 +117,17 @@ impl Instance {
     pub(crate) fn completed_integrator_step_body(&mut self) -> Result<(bool, bool), FmuError> {
         let [_, last] = self.time_marks.completed_steps;
         self.time_marks.completed_steps = [last, self.time];
+        self.roll_events();
         Ok((false, false))
+    }
+
+    /// Model Exchange: the importer's trajectory is at the current state, an event or a
+    /// completed step: the damped bound's terms follow it ([`crate::fmu::simulation::EventTerms`]).
+    fn roll_events(&mut self) {
+        if let Some(sim) = self.life.sim_mut() {
+            let state = sim.state;
+            sim.events.roll(&state);
+        }
     }
 
     /// Any finite time from the start time on, forwards, or backwards as far as [`TimeMarks`]
@@ -227,7 +239,8 @@ impl Instance {
 
     /// dv_unknown = J dv_known with J the exact Jacobian, in the mode in force, of the unknowns
     /// (state derivatives, states, ψ, the event indicators, and the bounds, which depend on time
-    /// alone) with respect to the knowns (states and inputs).
+    /// alone) with respect to the knowns (states and inputs). The knowns are Real: an Integer
+    /// (`contact_law`, `contact`) is refused by its type.
     pub(crate) fn get_directional_derivative_body(
         &mut self,
         unknowns: &[u32],
@@ -251,7 +264,7 @@ impl Instance {
                 return Err(FmuError::ValueRefused {
                     name: v.name,
                     value: *dv,
-                    range: "a finite seed",
+                    range: "a finite seed".into(),
                 });
             }
             match v.symbol.source() {
@@ -281,7 +294,9 @@ impl Instance {
         // The span's forcing w is linear in v_in and T_in.
         let dw = plant.web().map_or(0.0, |w| w.forcing(dinput[2], dinput[3]));
         let dforcing = [dinput[0], dinput[1], dw];
-        let psi_rate = |dz: &StateVector| plant.force_rate(sim.state.mode, dz[0], dz[2]);
+        let psi_rate = |dz: &StateVector| plant.force_rate(sim.state.mode, [dz[0], dz[2]], [dz[1], dz[3]]);
+        // The indicators are linear in u and u′, and do not depend on the inputs.
+        let indicator_rates = adapter::indicator_rates(plant, &dz);
         // Computed in full before anything is written: a refusal leaves dvUnknown as it was.
         let mut values = Vec::with_capacity(rows.len());
         for row in rows {
@@ -295,7 +310,7 @@ impl Instance {
                 }
                 Unknown::State(entry) => dz[entry.index()],
                 Unknown::Psi => psi_rate(&dz),
-                Unknown::Indicator => plant.transmission(dz[0], dz[2]),
+                Unknown::Indicator(i) => indicator_rates[i],
                 Unknown::TimeOnly => 0.0,
             };
             if !value.is_finite() {
@@ -316,8 +331,9 @@ enum Unknown {
     Derivative(StateEntry),
     State(StateEntry),
     Psi,
-    /// u − g or u + g: both move with u.
-    Indicator,
+    /// The event indicator of this index (docs/model.md §6): u ∓ g move with u, the others with
+    /// u and u′.
+    Indicator(usize),
     /// The bounds: functions of time alone, so their rows are 0.
     TimeOnly,
 }
@@ -331,7 +347,12 @@ impl Unknown {
             Source::State(entry) => Some(Unknown::State(entry)),
             Source::Calculated(quantity) => match quantity {
                 Calculated::Psi => Some(Unknown::Psi),
-                Calculated::UMinusG | Calculated::UPlusG => Some(Unknown::Indicator),
+                Calculated::UMinusG
+                | Calculated::UPlusG
+                | Calculated::ForceUpper
+                | Calculated::ForceLower
+                | Calculated::CapUpper
+                | Calculated::CapLower => quantity.indicator().map(Unknown::Indicator),
                 Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
                 Calculated::BoundSup | Calculated::BoundTSup => None,
             },

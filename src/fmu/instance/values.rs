@@ -143,15 +143,20 @@ impl Instance {
         Ok(Status::Ok)
     }
 
+    /// The Integers: `contact`, the sign of ψ in the physics in force, and the stored Integer
+    /// parameters (`contact_law`), whose values are whole numbers in their range.
     pub(crate) fn get_integer_body(&mut self, vrs: &[u32], out: &mut [i32]) -> Result<Status, FmuError> {
         Self::same_length("fmi2GetInteger values", out.len(), vrs.len())?;
         for (vr, slot) in vrs.iter().zip(out.iter_mut()) {
             let v = self.typed_variable(*vr, VarType::Integer)?;
-            if v.symbol.source() != Source::Contact {
-                return Err(Self::wrong_type(v, "Integer"));
-            }
-            let sim = self.physics()?;
-            *slot = contact_indicator(&sim.state, sim.plant().half_gap());
+            *slot = match v.symbol.source() {
+                Source::Contact => {
+                    let sim = self.physics()?;
+                    contact_indicator(&sim.state, sim.plant())
+                }
+                Source::Parameter => self.values[v.symbol.index()] as i32,
+                _ => return Err(Self::wrong_type(v, "Integer")),
+            };
         }
         Ok(Status::Ok)
     }
@@ -171,22 +176,13 @@ impl Instance {
         }
     }
 
-    /// As `get_untyped_body`; setting `contact` (the only Integer, a calculated output) is
-    /// refused as not settable first.
+    /// As `get_untyped_body`: the models have no variable of the types set this way.
     pub(crate) fn set_untyped_body(
         &mut self,
         vrs: &[u32],
         count: usize,
         requested: &'static str,
     ) -> Result<Status, FmuError> {
-        Self::same_length("values", count, vrs.len())?;
-        let integer = vrs
-            .first()
-            .and_then(|vr| self.model.by_vr(*vr))
-            .filter(|v| v.ty == VarType::Integer);
-        if let (Some(v), "Integer") = (integer, requested) {
-            self.check_settable(v)?;
-        }
         self.get_untyped_body(vrs, count, requested)
     }
 
@@ -251,18 +247,32 @@ impl Instance {
     /// fmi2SetContinuousStates with the other entries unchanged would.
     pub(crate) fn set_real_body(&mut self, vrs: &[u32], values: &[f64]) -> Result<Status, FmuError> {
         Self::same_length("fmi2SetReal values", values.len(), vrs.len())?;
+        self.set_values(vrs, values, VarType::Real)
+    }
+
+    /// fmi2SetInteger, fmi3SetInt32: the Integer parameters (`contact_law`), by the rules of
+    /// the Real parameters, each value admitted by its range (1 or 2) before any is stored;
+    /// `contact`, an output, is not settable.
+    pub(crate) fn set_integer_body(&mut self, vrs: &[u32], values: &[i32]) -> Result<Status, FmuError> {
+        Self::same_length("fmi2SetInteger values", values.len(), vrs.len())?;
+        let values: Vec<f64> = values.iter().map(|x| *x as f64).collect();
+        self.set_values(vrs, &values, VarType::Integer)
+    }
+
+    /// Sets variables of type `ty` (an Integer's value as its f64).
+    fn set_values(&mut self, vrs: &[u32], values: &[f64], ty: VarType) -> Result<Status, FmuError> {
         // The plant's state with the states set here, once one is (after initialization).
         let mut z: Option<adapter::StateVector> = None;
         // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
-            if self.is_time(*vr) {
+            if self.is_time(*vr) && ty == VarType::Real {
                 return Err(FmuError::NotSettable {
                     name: TIME.0,
                     phase: self.phase(),
                     reason: "it is the independent variable: fmi3DoStep and fmi3SetTime move it",
                 });
             }
-            let v = self.typed_variable(*vr, VarType::Real)?;
+            let v = self.typed_variable(*vr, ty)?;
             self.check_settable(v)?;
             if !v.range.admits(*value) {
                 return Err(FmuError::ValueRefused {
@@ -284,7 +294,7 @@ impl Instance {
             _ => None,
         };
         for (vr, value) in vrs.iter().zip(values) {
-            let v = self.typed_variable(*vr, VarType::Real)?;
+            let v = self.typed_variable(*vr, ty)?;
             // After initialization a state's slot keeps its start value; the plant holds the state.
             if !(self.life.sim().is_some() && matches!(v.symbol.source(), Source::State(_))) {
                 self.values[v.symbol.index()] = *value;
@@ -328,7 +338,7 @@ impl Instance {
                 return Err(FmuError::ValueRefused {
                     name: v.name,
                     value: *value,
-                    range: "a finite derivative",
+                    range: "a finite derivative".into(),
                 });
             }
             targets.push(slot);

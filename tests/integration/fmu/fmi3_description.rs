@@ -334,8 +334,8 @@ fn variables_are_the_tables_in_fmi3_form() {
 
 /// The model structure names by value reference what FMI 2.0 names by index, with the same
 /// dependency lists; the bounds depend on time (value reference 0), which FMI 2.0 cannot name;
-/// the event indicators are 28 and 29 and depend on the angles; and the initial unknowns are
-/// those FMI 3.0 §2.4.8 lists (not the event indicators).
+/// the event indicators are 28, 29 (on the angles) and 44–47 (on the angles and the speeds);
+/// and the initial unknowns are those FMI 3.0 §2.4.8 lists (not the event indicators).
 #[test]
 fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
     each_model(|model, doc, doc2| {
@@ -408,12 +408,34 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
             assert!(listed, "{id} {}", v.name);
         }
 
-        // Event indicators: u - g and u + g, on the angles.
+        // Event indicators: u - g and u + g on the angles, then the damped force's and the cap's
+        // surfaces on the angles and the speeds (u and u'), in the order of the physics.
         let found = unknowns(&d, "EventIndicator");
         let angles = vec![model.vr("theta_m"), model.vr("theta_L")];
-        assert_eq!(found, [(28, Some(angles.clone())), (29, Some(angles))], "{id}");
-        assert_eq!(model.by_vr(28).unwrap().name, "u_minus_g");
-        assert_eq!(model.by_vr(29).unwrap().name, "u_plus_g");
+        let all: Vec<u32> = (3..=6).collect();
+        assert_eq!(
+            found,
+            [
+                (28, Some(angles.clone())),
+                (29, Some(angles)),
+                (44, Some(all.clone())),
+                (45, Some(all.clone())),
+                (46, Some(all.clone())),
+                (47, Some(all)),
+            ],
+            "{id}"
+        );
+        let names = [
+            "u_minus_g",
+            "u_plus_g",
+            "force_upper",
+            "force_lower",
+            "cap_upper",
+            "cap_lower",
+        ];
+        for ((vr, _), name) in found.iter().zip(names) {
+            assert_eq!(model.by_vr(*vr).unwrap().name, name);
+        }
 
         // Every value reference the structure names is a variable of the description.
         let known: Vec<u32> = std::iter::once(0).chain(model.variables.iter().map(|v| v.vr)).collect();

@@ -47,7 +47,7 @@ fn truncated_extended_and_empty_bytes_are_refused() {
         }
         let mut longer = bytes.clone();
         longer.push(0);
-        refused(&f, &longer, "bytes, a version-3 state");
+        refused(&f, &longer, "bytes, a version-4 state");
         // The instance, in state Error now, comes back with fmi2Reset.
         f.reset_and_check();
     }
@@ -88,8 +88,8 @@ fn garbage_and_other_model_bytes_are_refused() {
     refused(&f, &vec![0u8; shaft.len()], "magic");
     refused(&f, &vec![0xffu8; shaft.len()], "magic");
     let mut version = shaft.clone();
-    version[8] = 4;
-    refused(&f, &version, "format version 4");
+    version[8] = 5;
+    refused(&f, &version, "format version 5");
     // A guid length pointing past the end.
     let mut long_guid = shaft.clone();
     long_guid[10..12].copy_from_slice(&u16::MAX.to_le_bytes());
@@ -166,14 +166,15 @@ fn invalid_fields_are_refused(model: usize) {
         }
     }
     edit(values, &f64::NEG_INFINITY.to_le_bytes(), "not finite");
-    for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "T", "u"]
+    for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt", "V"]
         .iter()
         .enumerate()
     {
         edit(plant + 8 * i, &f64::NAN.to_le_bytes(), &format!("{name} = NaN"));
     }
+    edit(plant + 8 * 7, &(-1.0f64).to_le_bytes(), "V = -1 must be >= 0");
     let mode = mode_offset(&bytes);
-    edit(mode, &[2], "unknown contact mode 2");
+    edit(mode, &[4], "unknown contact mode 4");
     edit(mode, &[0x80], "unknown contact mode");
     // The first and the last word of the bound part.
     edit(mode + 1, &f64::NAN.to_le_bytes(), "a bound's state");
@@ -181,6 +182,16 @@ fn invalid_fields_are_refused(model: usize) {
     edit(last, &f64::NAN.to_le_bytes(), "a bound's state");
     edit(lag_offset(&bytes), &f64::NAN.to_le_bytes(), "the bounds' lag");
     edit(lag_offset(&bytes), &(-1e-3f64).to_le_bytes(), "the bounds' lag");
+    // The bound's terms gathered at events: finite, a known mode, counts >= 0.
+    let events = events_offset(&bytes);
+    edit(events, &0.5f64.to_le_bytes(), "tracking flag 0.5");
+    edit(events + 8, &7.0f64.to_le_bytes(), "unknown contact mode 7");
+    edit(events + 32, &(-1.0f64).to_le_bytes(), "not finite, >= 0 counts");
+    edit(
+        events + 16,
+        &f64::NAN.to_le_bytes(),
+        "the bound's terms of the trajectory",
+    );
     // The time marks: finite, and not before the start time (0 here).
     let marks = marks_offset(&bytes);
     edit(marks, &f64::NAN.to_le_bytes(), "second-last completed integrator step");

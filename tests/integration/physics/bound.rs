@@ -391,15 +391,15 @@ fn force_rate_is_the_slope_of_the_force() {
         let theta_m = u / plant.r_m();
         let s0 = PlantState::new(&plant, theta_m, 0.4, 0.0, 0.1);
         assert_eq!(s0.mode, mode);
-        let psi0 = plant.force(s0.u);
+        let psi0 = plant.force(s0.u, s0.du);
         let mut mid = s0;
         stepper.step(&mut mid, &inputs, delta, &mut |_| {}).unwrap();
         let mut end = mid;
         stepper.step(&mut end, &inputs, delta, &mut |_| {}).unwrap();
         assert_eq!(end.mode, mode, "no switch within the difference");
-        let slope = (plant.force(end.u) - psi0) / (2.0 * delta);
+        let slope = (plant.force(end.u, end.du) - psi0) / (2.0 * delta);
         let rates = stepper.time_derivative(&mid, &inputs, 1);
-        let rate = plant.force_rate(mid.mode, rates[0], rates[2]);
+        let rate = plant.force_rate(mid.mode, [rates[0], rates[2]], [rates[1], rates[3]]);
         if mode == ContactMode::Free {
             // Exact: ψ' is the literal 0 in the gap, and dz(u, g) is exactly 0 inside it at
             // both ends (u = 0.2 g barely moves over 2δ), so the difference is 0/(2δ) = 0.

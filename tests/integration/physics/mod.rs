@@ -3,6 +3,7 @@
 
 mod bound;
 mod closed_forms;
+mod damping;
 mod derivative;
 mod energy;
 mod params;

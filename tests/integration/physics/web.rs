@@ -6,7 +6,7 @@
 use crate::support::reference::RefEvent;
 use crate::support::rigs::{belt_damped, web_line};
 use crate::support::web_reference::{WebInputs, WebReference};
-use backlash_fmu::physics::{Geometry, Inputs, ParamError, Plant, PlantParams, PlantState, Stepper, WebSpan};
+use backlash_fmu::physics::{Damping, Geometry, Inputs, ParamError, Plant, PlantParams, PlantState, Stepper, WebSpan};
 
 /// [θ_m, ω_m, θ_L, ω_L, u, T] of the crate's state.
 fn sample(s: &PlantState) -> [f64; 6] {
@@ -200,10 +200,12 @@ fn a_decoupled_web_leaves_the_belt_drive_as_it_was() {
     // train's motion is the belt drive's to far below 1e-9.
     let delta = 5e-5;
     let belt = PlantParams {
+        damping: Damping::NONE,
         web: None,
         ..web_line(delta)
     };
     let decoupled = PlantParams {
+        damping: Damping::NONE,
         web: Some(WebSpan {
             ea: 1e-9,
             ..web_line(delta).web.unwrap()
@@ -260,6 +262,7 @@ fn web_parameters_are_refused_by_name() {
             let mut web = web_line(5e-5).web.unwrap();
             *[&mut web.r_w, &mut web.l_w, &mut web.ea, &mut web.v_ref][i] = bad;
             let params = PlantParams {
+                damping: Damping::NONE,
                 web: Some(web),
                 ..web_line(5e-5)
             };
@@ -274,6 +277,7 @@ fn web_parameters_are_refused_by_name() {
     }
     // A shaft pulls a web as well as a belt does: the span is independent of the geometry.
     let shaft = PlantParams {
+        damping: Damping::NONE,
         web: web_line(0.0).web,
         ..PlantParams::paper_rig(1e-3)
     };
@@ -385,7 +389,7 @@ fn the_web_vector_field_is_the_equations_and_the_steppers_motion() {
     for u_over_g in [-2.5, 0.4, 3.0] {
         let theta_m = u_over_g * g / plant.r_m();
         let state = PlantState::new(&plant, theta_m, 250.0, 0.0, 41.0).with_tension(35.0);
-        let psi = plant.force(state.u);
+        let psi = plant.force(state.u, state.du);
         let rates = plant.rates(&state, tau_m, tau_l);
         let span = web.forcing(v_in, t_in);
         let t_rate = plant.tension_rate(&state, span);
@@ -442,6 +446,7 @@ fn a_non_finite_span_forcing_is_refused_by_the_web_line_only() {
         "{refused:?}"
     );
     let belt = Plant::new(PlantParams {
+        damping: Damping::NONE,
         web: None,
         ..web_line(5e-5)
     })

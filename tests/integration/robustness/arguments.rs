@@ -9,6 +9,7 @@
 
 use crate::robustness_common::*;
 use backlash_fmu::ffi::*;
+use backlash_fmu::fmu::variables::VarType;
 use backlash_fmu::fmu::MODELS;
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
@@ -559,10 +560,15 @@ fn variables_that_cannot_be_set_now_are_refused() {
             assert_eq!(f.get_real(name).1.to_bits(), old.to_bits(), "{name} changed");
             f.reset_and_check();
         };
+        // contact_law, an Integer, by fmi2SetInteger: a fixed parameter too.
+        let f = Fmu::initialized(model, None);
+        f.refuses("fixed parameter", |_| f.set_integer("contact_law", 2));
+        assert_eq!(f.get_integer("contact_law"), (OK, 1));
+        f.reset_and_check();
         for v in m.variables {
             use backlash_fmu::fmu::variables::Causality::*;
             match (v.causality, v.is_initial_state(), v.name) {
-                (_, _, "contact") => {}
+                (_, _, "contact" | "contact_law") => {}
                 (Input, ..) => {}
                 (Output, true, _) => in_step_complete(v.name, "initial state"),
                 (Output, false, _) => in_step_complete(v.name, "output computed by the FMU"),
@@ -585,7 +591,7 @@ fn variables_that_cannot_be_set_now_are_refused() {
     }
 }
 
-/// The settable Real variables and values outside their range.
+/// Values outside the range of a settable Real variable.
 fn bad_values(range: backlash_fmu::fmu::variables::Range) -> Vec<f64> {
     use backlash_fmu::fmu::variables::Range::*;
     let mut v = vec![f64::NAN, -f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
@@ -593,14 +599,48 @@ fn bad_values(range: backlash_fmu::fmu::variables::Range) -> Vec<f64> {
         Finite => {}
         NonNegative => v.extend([-1e-300, -1.0, -f64::MAX]),
         Positive => v.extend([0.0, -0.0, -1e-300, -1.0]),
+        Integers { .. } => unreachable!("an Integer is set by fmi2SetInteger"),
     }
     v
+}
+
+/// Values outside the range of a settable Integer variable (`contact_law`).
+fn bad_integers(range: backlash_fmu::fmu::variables::Range) -> Vec<i32> {
+    use backlash_fmu::fmu::variables::Range::*;
+    match range {
+        Integers { min, max } => vec![min - 1, max + 1, 0, -1, i32::MIN, i32::MAX],
+        other => unreachable!("{other:?} is a Real's range"),
+    }
 }
 
 #[test]
 fn non_finite_and_out_of_range_values_never_reach_the_instance() {
     for (model, m) in MODELS.iter().enumerate() {
-        for v in m.variables.iter().filter(|v| v.start.is_some()) {
+        for v in m
+            .variables
+            .iter()
+            .filter(|v| v.start.is_some() && v.ty == VarType::Integer)
+        {
+            for x in bad_integers(v.range) {
+                for phase in 0..2 {
+                    let f = Fmu::new(model);
+                    if phase == 1 {
+                        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+                    }
+                    let reason = format!("value {x} refused for {}: it must be 1 or 2", v.name);
+                    f.refuses(&reason, |_| f.set_integer(v.name, x));
+                    if phase > 0 {
+                        assert_eq!(f.get_integer(v.name), (OK, v.start.unwrap() as i32), "{}", v.name);
+                        f.assert_all_finite(&format!("after {} = {x}", v.name));
+                    }
+                }
+            }
+        }
+        for v in m
+            .variables
+            .iter()
+            .filter(|v| v.start.is_some() && v.ty == VarType::Real)
+        {
             for x in bad_values(v.range) {
                 // Before, during and (inputs only) after initialization.
                 for phase in 0..3 {
@@ -896,7 +936,7 @@ fn reads_are_finite_or_refused(f: &Fmu, context: &str) {
     let n = f.log_len();
     let (s, nominal) = f.nominals();
     check("nominals", s, n, &nominal);
-    for v in f.model.variables.iter().filter(|v| v.name != "contact") {
+    for v in f.model.variables.iter().filter(|v| v.ty == VarType::Real) {
         let n = f.log_len();
         let (s, x) = f.get_real(v.name);
         assert!(!x.is_nan() || s != OK, "{context}: {} is NaN", v.name);
@@ -953,7 +993,7 @@ fn null_arrays_and_out_pointers_are_refused_in_me(model: usize) {
             ),
             (
                 false,
-                "argument eventIndicators is NULL but 2 values",
+                "argument eventIndicators is NULL but 6 values",
                 Box::new(|c| fmi2GetEventIndicators(c, null_mut(), NI)),
             ),
             (
@@ -1055,14 +1095,14 @@ fn model_exchange_vectors_of_the_wrong_length_are_refused_and_left_unwritten() {
                 }
             }
         }
-        for ni in [0, 1, 3, 4, 100] {
+        for ni in [0, 1, 2, 5, 7, 100] {
             let mut out = vec![7.0; ni];
             let ptr = if ni == 0 { null_mut() } else { out.as_mut_ptr() };
             // SAFETY: a buffer of length ni.
             refused_in_me(
                 model,
                 false,
-                &format!("event indicators: {ni} values given, 2 expected"),
+                &format!("event indicators: {ni} values given, {NI} expected"),
                 |c| unsafe { fmi2GetEventIndicators(c, ptr, ni) },
             );
             assert!(out.iter().all(|x| *x == 7.0), "{out:?}");
@@ -1452,7 +1492,7 @@ fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
     use backlash_fmu::fmu::variables::Causality::*;
     for (model, m) in MODELS.iter().enumerate() {
         for event_mode in [true, false] {
-            for v in m.variables.iter().filter(|v| v.name != "contact") {
+            for v in m.variables.iter().filter(|v| v.ty == VarType::Real) {
                 let reason = match (v.causality, v.is_initial_state()) {
                     (Input, _) => None,
                     // FMI 2.0.4 §3.2.3: in Event Mode "for a variable with causality = "input", or
@@ -1467,7 +1507,7 @@ fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
                     (Output, false) => Some("output computed by the FMU"),
                     (Parameter, _) => Some("fixed parameter"),
                     (CalculatedParameter, _) => Some("calculatedParameter"),
-                    // der(...) and the event indicators u_minus_g, u_plus_g.
+                    // der(...) and the event indicators (u_minus_g, ..., cap_lower).
                     (Local, _) if v.name.starts_with("der(") => Some("state derivative, computed by the FMU"),
                     (Local, _) => Some("computed by the FMU"),
                 };
@@ -1509,18 +1549,23 @@ fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
                     }
                 }
             }
-            // contact, the only Integer, is a calculated output; in Continuous-Time Mode no
-            // Integer can be set at all.
-            let contact = [m.vr("contact")];
-            let reason = if event_mode {
-                "output computed by the FMU"
-            } else {
-                "fmi2SetInteger is not allowed in state ContinuousTimeMode"
-            };
-            refused_in_me(model, event_mode, reason, |c| unsafe {
-                // SAFETY: arrays of length 1.
-                fmi2SetInteger(c, contact.as_ptr(), 1, [1].as_ptr())
-            });
+            // The Integers: contact is a calculated output, contact_law a fixed parameter; in
+            // Continuous-Time Mode no Integer can be set at all.
+            for (name, in_event_mode) in [
+                ("contact", "output computed by the FMU"),
+                ("contact_law", "fixed parameter"),
+            ] {
+                let vr = [m.vr(name)];
+                let reason = if event_mode {
+                    in_event_mode
+                } else {
+                    "fmi2SetInteger is not allowed in state ContinuousTimeMode"
+                };
+                refused_in_me(model, event_mode, reason, |c| unsafe {
+                    // SAFETY: arrays of length 1.
+                    fmi2SetInteger(c, vr.as_ptr(), 1, [1].as_ptr())
+                });
+            }
         }
     }
     fresh_me_instance_works(BELT);

@@ -514,7 +514,7 @@ fn me_table() -> Vec<MeCase> {
                 // [u - g, u + g] with u = r_m theta_m - r_L theta_L, and g > 0.
                 let (s, z) = f.event_indicators();
                 assert_eq!(s, OK);
-                let (r_m, r_l) = transmission(f.model, |name| f.get_real(name).1);
+                let (r_m, r_l) = transmission(f.model, |name| f.get_value(name).1);
                 let u = r_m * f.get_real("theta_m").1 - r_l * f.get_real("theta_L").1;
                 assert!(z[0] < z[1], "{z:?}");
                 assert!(((z[0] + z[1]) / 2.0 - u).abs() <= 1e-15, "{z:?}, u = {u}");

@@ -61,8 +61,9 @@ pub const BELT: usize = 1;
 /// BacklashBelt's drive pulling a web span (docs/model.md §8).
 pub const WEB: usize = 2;
 
-/// Number of event indicators ([u − g, u + g]) of every model in Model Exchange.
-pub const NI: usize = 2;
+/// Number of event indicators of every model in Model Exchange: u ∓ g, the damped force's and
+/// the cap's surfaces (docs/model.md §6).
+pub const NI: usize = 6;
 
 /// Number of continuous states of `model` in Model Exchange: its variables that are the
 /// derivative of a state. Four, z = [θ_m, ω_m, θ_L, ω_L]; five in BacklashWeb, whose span's
@@ -277,25 +278,54 @@ impl Fmu {
         (s, y[0])
     }
 
-    /// Every Real variable's value (outputs, calculated parameter, parameters, inputs) and
-    /// the contact indicator, read in one call each.
+    /// Every Real variable's value (outputs, calculated parameter, parameters, inputs), then
+    /// every Integer's (the contact indicator, `contact_law`) as an f64, read in one call each.
     pub fn all_values(&self) -> (fmi2Status, Vec<(&'static str, f64)>) {
-        let reals: Vec<_> = self.model.variables.iter().filter(|v| v.name != "contact").collect();
+        use backlash_fmu::fmu::variables::VarType;
+        let of_type = |ty| -> Vec<_> { self.model.variables.iter().filter(|v| v.ty == ty).collect() };
+        let (reals, integers) = (of_type(VarType::Real), of_type(VarType::Integer));
         let vrs: Vec<u32> = reals.iter().map(|v| v.vr).collect();
         let mut y = vec![f64::NAN; vrs.len()];
         // SAFETY: both arrays have vrs.len() elements.
         let s = unsafe { fmi2GetReal(self.c, vrs.as_ptr(), vrs.len(), y.as_mut_ptr()) };
         let mut out: Vec<_> = reals.iter().map(|v| v.name).zip(y).collect();
-        let mut contact = [i32::MIN];
-        let cvr = [self.vr("contact")];
-        // SAFETY: arrays of length 1.
-        let s2 = unsafe { fmi2GetInteger(self.c, cvr.as_ptr(), 1, contact.as_mut_ptr()) };
-        out.push(("contact", contact[0] as f64));
+        let vrs: Vec<u32> = integers.iter().map(|v| v.vr).collect();
+        let mut k = vec![i32::MIN; vrs.len()];
+        // SAFETY: both arrays have vrs.len() elements.
+        let s2 = unsafe { fmi2GetInteger(self.c, vrs.as_ptr(), vrs.len(), k.as_mut_ptr()) };
+        out.extend(integers.iter().map(|v| v.name).zip(k.into_iter().map(f64::from)));
         (if s2 != fmi2Status::fmi2OK { s2 } else { s }, out)
     }
 
+    /// The value of `name` by the get of its type (an Integer's as an f64).
+    pub fn get_value(&self, name: &str) -> (fmi2Status, f64) {
+        use backlash_fmu::fmu::variables::VarType;
+        match self.model.by_name(name).map(|v| v.ty) {
+            Some(VarType::Integer) => {
+                let (s, k) = self.get_integer(name);
+                (s, k as f64)
+            }
+            _ => self.get_real(name),
+        }
+    }
+
+    pub fn set_integer(&self, name: &str, value: i32) -> fmi2Status {
+        let vr = [self.vr(name)];
+        // SAFETY: arrays of length 1.
+        unsafe { fmi2SetInteger(self.c, vr.as_ptr(), 1, [value].as_ptr()) }
+    }
+
+    pub fn get_integer(&self, name: &str) -> (fmi2Status, i32) {
+        let vr = [self.vr(name)];
+        let mut y = [i32::MIN];
+        // SAFETY: arrays of length 1.
+        let s = unsafe { fmi2GetInteger(self.c, vr.as_ptr(), 1, y.as_mut_ptr()) };
+        (s, y[0])
+    }
+
     /// Reads every variable and asserts the read succeeds, every value is [`admissible`] (no
-    /// NaN, nothing infinite but bound_sup and bound_T_sup), and contact ∈ {−1, 0, 1}.
+    /// NaN, nothing infinite but bound_sup and bound_T_sup), contact ∈ {−1, 0, 1} and
+    /// contact_law ∈ {1, 2}.
     pub fn assert_all_finite(&self, context: &str) {
         let (s, values) = self.all_values();
         assert_eq!(
@@ -308,6 +338,9 @@ impl Fmu {
             assert!(admissible(name, x), "{context}: {name} = {x}");
             if name == "contact" {
                 assert!([-1.0, 0.0, 1.0].contains(&x), "{context}: contact = {x}");
+            }
+            if name == "contact_law" {
+                assert!([1.0, 2.0].contains(&x), "{context}: contact_law = {x}");
             }
         }
     }
@@ -603,18 +636,18 @@ pub fn phase_offset(bytes: &[u8]) -> usize {
     12 + u16::from_le_bytes([bytes[10], bytes[11]]) as usize
 }
 
-/// Offset of the first f64 of the plant state (θ_m, ω_m, θ_L, ω_L, T, u, u').
+/// Offset of the first f64 of the plant state (θ_m, ω_m, θ_L, ω_L, T, u, u', V).
 pub fn plant_offset(bytes: &[u8]) -> usize {
     phase_offset(bytes) + 4 + 8 * 4 + 8 * backlash_fmu::fmu::Symbol::COUNT + 8 * 4
 }
 
 /// Number of f64 of the bound part of an FMU state of `model` (format in src/fmu/snapshot.rs):
-/// 12 for a drive train's one bound, 32 for the web line's two.
+/// 14 for a drive train's one bound, 36 for the web line's two.
 pub fn bound_words(model: &ModelInfo) -> usize {
     if model.web {
-        32
+        36
     } else {
-        12
+        14
     }
 }
 
@@ -628,15 +661,22 @@ pub fn model_of_state(bytes: &[u8]) -> &'static ModelInfo {
 }
 
 /// Offset of the contact-mode byte of a state: counted from the end, before the bound part
-/// ([`bound_words`] f64), the bounds' lag (one f64), the time marks (three) and the checksum
-/// (8 bytes).
+/// ([`bound_words`] f64), the bounds' lag (one f64), the bound's terms gathered at events
+/// (five), the time marks (three) and the checksum (8 bytes).
 pub fn mode_offset(bytes: &[u8]) -> usize {
     lag_offset(bytes) - 8 * bound_words(model_of_state(bytes)) - 1
 }
 
-/// Offset of the bounds' lag behind the plant, the f64 before the time marks.
+/// Offset of the bounds' lag behind the plant, the f64 before the bound's terms gathered at
+/// events.
 pub fn lag_offset(bytes: &[u8]) -> usize {
-    marks_offset(bytes) - 8
+    events_offset(bytes) - 8
+}
+
+/// Offset of the damped bound's terms gathered at events (five f64: tracked, the phase's mode,
+/// u at its start, Σ|Δu| over slack and capped phases, phases in the gap), before the marks.
+pub fn events_offset(bytes: &[u8]) -> usize {
+    marks_offset(bytes) - 8 * 5
 }
 
 /// Offset of the time marks (the times of the second-last and the last completed integrator

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use backlash_fmu::fmu::adapter;
-use backlash_fmu::physics::{Geometry, PiGains, PlantParams};
+use backlash_fmu::physics::{Damping, Geometry, PiGains, PlantParams};
 
 /// The reader of tests/fixtures/rigs.toml that the cross-platform test and the bench use.
 #[path = "../../../xtask/src/rigs.rs"]
@@ -49,6 +49,7 @@ pub fn belt_damped(delta: f64, b_m: f64, b_l: f64) -> PlantParams {
             r_g2: 0.09,
             delta,
         },
+        damping: Damping::NONE,
         web: None,
     }
 }
