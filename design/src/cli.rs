@@ -58,6 +58,10 @@ options:
                   maximise the smallest damping ratio of the backlash-free closed-loop poles)
   --jm --jl       inertias [kg.m2] (defaults: shaft 2.28, 2.55; belt 1e-4, 5e-3)
   --bm --bl       viscous friction [N.m.s/rad] (defaults: shaft 0.05, 0.05; belt 1e-4, 1e-3)
+  --damping D     damper in the compliant member: shaft d [N.m.s/rad], belt and web D_b [N.s/m]
+                  (default 0); the backlash-free loop is then the spring-damper's, and
+                  bound_sup answers for the gap only (docs/model.md §3)
+  --contact-law L 1: Modelica's ElastoBacklash (default), 2: ElastoBacklash2
   --json          print one JSON object instead of text
   --help          this text";
 
@@ -158,7 +162,7 @@ pub fn design(command: &str, args: &[String]) -> Result<String, CliError> {
 
 /// The flags that take a number, and the setting each one gives ([`request::SETTINGS`]; `--k` is
 /// the stiffness of the form: `k` or `K_b`).
-const NUMBER_FLAGS: [(&str, &str); 20] = [
+const NUMBER_FLAGS: [(&str, &str); 22] = [
     ("--accuracy", "accuracy"),
     ("--delta", "Delta"),
     ("--k", STIFFNESS),
@@ -179,10 +183,14 @@ const NUMBER_FLAGS: [(&str, &str); 20] = [
     ("--lw", "L_w"),
     ("--ea", "EA"),
     ("--vref", "v_ref"),
+    ("--damping", DAMPING),
+    ("--contact-law", "contact_law"),
 ];
 
 /// Stands for the form's stiffness in [`NUMBER_FLAGS`].
 const STIFFNESS: &str = "";
+/// Stands for the damper of the form's compliant member (`d` or `D_b`) in [`NUMBER_FLAGS`].
+const DAMPING: &str = "damping";
 
 /// Parses the design command's flags (`command` names it in errors); `Ok(None)` for `--help`,
 /// else the request and whether the answer is wanted as JSON. The values are checked and
@@ -221,6 +229,8 @@ pub fn parse(command: &str, args: &[String]) -> Result<Option<(Request, bool)>, 
         let name = match (name, form) {
             (STIFFNESS, Form::Shaft) => "k",
             (STIFFNESS, _) => "K_b",
+            (DAMPING, Form::Shaft) => "d",
+            (DAMPING, _) => "D_b",
             (name, _) => name,
         };
         let text = match inline {
@@ -278,6 +288,37 @@ mod tests {
         list.iter().map(|s| s.to_string()).collect()
     }
 
+    /// `--damping` is the damper of the form's member (`d` or `D_b`), `--contact-law` its law;
+    /// both reach the plant of the request.
+    #[test]
+    fn damping_flags_reach_the_plant() {
+        for (model, law) in [("shaft", 2.0), ("belt", 1.0), ("web", 2.0)] {
+            let law_text = format!("{law}");
+            let mut list = vec![
+                "--model",
+                model,
+                "--damping",
+                "12.5",
+                "--contact-law",
+                law_text.as_str(),
+            ];
+            list.extend(if model == "web" {
+                ["--tension-accuracy", "20"]
+            } else {
+                ["--accuracy", "0.1"]
+            });
+            let Ok(Some((request, _))) = parse(COMMAND, &args(&list)) else {
+                panic!("{list:?} refused")
+            };
+            let params = match request {
+                Request::Speed(r) => r.params,
+                Request::Web(r) => r.drive,
+            };
+            assert_eq!(params.damping.d, 12.5, "{model}");
+            assert_eq!(params.damping.law.code() as f64, law, "{model}");
+        }
+    }
+
     #[test]
     fn rejects_bad_arguments() {
         for bad in [
@@ -301,6 +342,11 @@ mod tests {
             &["--accuracy", "0.1", "--model", "belt", "--model=belt"],
             &["--accuracy", "0.1", "--r1", "0.02"],
             &["--accuracy", "0.1", "--model", "belt", "--rg2", "0"],
+            &["--accuracy", "0.1", "--damping", "-1"],
+            &["--accuracy", "0.1", "--damping", "NaN"],
+            &["--accuracy", "0.1", "--contact-law", "3"],
+            &["--accuracy", "0.1", "--contact-law", "0"],
+            &["--accuracy", "0.1", "--contact-law", "1.5"],
         ] {
             let Err(e) = parse(COMMAND, &args(bad)) else {
                 panic!("{bad:?} accepted")

@@ -4,14 +4,14 @@
 //! passes keyword arguments as settings. Both speak of a setting by their own label (`--jm`,
 //! `J_m`), which the reasons quote.
 
-use backlash_physics::{Geometry, PiGains};
+use backlash_physics::{ContactLaw, Geometry, PiGains};
 
 use crate::{default_params, speed, study, web, Form};
 
 /// What can be set, by name: the accuracies and the parameters by their FMU names
 /// (docs/model.md §4, §8), each with the forms it belongs to (every form when empty) and the
 /// range it must lie in.
-pub const SETTINGS: [(&str, &[Form], Range); 21] = [
+pub const SETTINGS: [(&str, &[Form], Range); 24] = [
     ("accuracy", &[], Range::Positive),
     ("tension_accuracy", &[Form::Web], Range::Positive),
     ("Delta", &[], Range::Positive),
@@ -33,6 +33,9 @@ pub const SETTINGS: [(&str, &[Form], Range); 21] = [
     ("L_w", &[Form::Web], Range::Positive),
     ("EA", &[Form::Web], Range::Positive),
     ("v_ref", &[Form::Web], Range::Positive),
+    ("d", &[Form::Shaft], Range::NonNegative),
+    ("D_b", &[Form::Belt, Form::Web], Range::NonNegative),
+    ("contact_law", &[], Range::Law),
 ];
 
 /// The values a setting may take (all of them finite).
@@ -41,6 +44,8 @@ pub enum Range {
     Positive,
     NonNegative,
     Any,
+    /// `contact_law`: 1 (Modelica's ElastoBacklash) or 2 (ElastoBacklash2).
+    Law,
 }
 
 /// One value given for a design.
@@ -141,6 +146,11 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
         match range {
             Range::Positive if value <= 0.0 => return Err(refuse(format!("{label} = {text} must be > 0"))),
             Range::NonNegative if value < 0.0 => return Err(refuse(format!("{label} = {text} must be >= 0"))),
+            Range::Law if ContactLaw::from_code(value as i32).is_none() || value.fract() != 0.0 => {
+                return Err(refuse(format!(
+                    "{label} = {text} must be 1 (ElastoBacklash) or 2 (ElastoBacklash2)"
+                )))
+            }
             _ => {}
         }
         match s.name {
@@ -160,6 +170,8 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
             "L_w" => line.l_w = value,
             "EA" => line.ea = value,
             "v_ref" => line.v_ref = value,
+            "d" | "D_b" => params.damping.d = value,
+            "contact_law" => params.damping.law = ContactLaw::from_code(value as i32).expect("checked above"),
             "R_1" | "R_2" | "R_g1" | "R_g2" => {
                 let Geometry::Belt {
                     r_1, r_2, r_g1, r_g2, ..

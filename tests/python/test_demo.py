@@ -115,6 +115,23 @@ def test_pngs_are_written(demo_run):
         assert (out / name).stat().st_size > 0
 
 
+def test_damped_case_beside_the_undamped_one(demo_run):
+    """damped.csv (docs/model.md §3, "With a damper"): the same sine case without and with a damper
+    in the shaft; the bound holds in both, and with the damper the deviation from the
+    spring-damper twin exceeds K g int_0^inf |h| (bound_sup), which covers the gap only."""
+    out, _ = demo_run
+    with (out / "damped.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["d"]) > 0 for r in rows] == [False, True]
+    assert all(r["bound_holds"] == "True" for r in rows)
+    undamped, damped = rows
+    assert float(undamped["deviation_over_bound_sup"]) <= 1.0
+    assert float(damped["deviation_over_bound_sup"]) > 1.5
+    data = np.genfromtxt(out / "run_damped_sine.csv", delimiter=",", names=True)
+    dev = np.abs(data["omega_L_b"] - data["omega_L_0"])
+    assert np.all(dev <= data["bound"] * (1 + 1e-9) + TOL)
+
+
 @pytest.fixture(scope="module")
 def web_run(demo):
     return demo

@@ -12,7 +12,9 @@ In order (`main`):
    20 N) written to DIR/design_web.json, as `backlash design ... --json` prints them;
 2. `paper_experiments.run`: twin BacklashShaft instances (with and without backlash) under a PI
    speed loop closed through fmpy: DIR/run_*.csv, DIR/summary.csv, DIR/sampling.csv,
-   DIR/design_bound_sup.csv and the figures DIR/fig11-13_*.png, DIR/design_bound_sup.png;
+   DIR/design_bound_sup.csv and the figures DIR/fig11-13_*.png, DIR/design_bound_sup.png; and
+   one case with a damper in the shaft beside the same case without, against the spring-damper
+   twin (DIR/damped.csv, DIR/run_damped_sine.csv);
 3. `web_line.run`: twin BacklashWeb lines (Delta and Delta = 0) under the speed and tension PI
    loops: DIR/web_line.csv, DIR/web_line.png, and the web answer read back through the FMU.
 
