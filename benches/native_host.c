@@ -559,7 +559,7 @@ static void suite(int batches, long steps) {
     fmi2Component drive_step[DRIVES];
     for (int i = 0; i < DRIVES; i++) drive_step[i] = make_drive_pressed(&drive[i], drive_name[i], 0);
     long k_drive = 0;
-    double dx[4] = {0}, z[2] = {0}, x_me[4] = {DELTA_DEFAULT + 0.0055, 0.0, 0.0, 0.0};
+    double dx[4] = {0}, z[VR_EVENT_INDICATORS] = {0}, x_me[4] = {DELTA_DEFAULT + 0.0055, 0.0, 0.0, 0.0};
     double me_sink = 0.0;
 
     for (int b = 0; b < batches; b++) {
@@ -625,7 +625,7 @@ static void suite(int batches, long steps) {
 
         t0 = tic();
         for (long i = 0; i < floor_items; i++) {
-            check(api.get_event_indicators(me, z, 2), "fmi2GetEventIndicators");
+            check(api.get_event_indicators(me, z, VR_EVENT_INDICATORS), "fmi2GetEventIndicators");
             me_sink += z[0];
         }
         toc(t0, floor_items, t[INDICATORS], tw[INDICATORS], b);

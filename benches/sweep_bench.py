@@ -26,9 +26,11 @@ ratio of a serial run and a Dask run timed minutes apart measures the drift as m
 The paired figure takes the two parts of Dask's overhead apart, each within one window:
 - idle: the share of the median 1-worker run's wall time in which the worker was not computing
   samples (scheduling, transfers, waiting), 1 - sum of the tasks' compute times / wall time;
-- compute: the same blocks of samples computed in this process and in a 1-worker cluster's
-  worker (the sweep's own task, run_chunk), alternating which goes first, block after block;
-  the ratio of the two sums says whether a sample computes slower in a worker.
+- compute: the same blocks of samples computed in a plain Python process (a child of this one,
+  without Dask) and in a 1-worker cluster's worker (the sweep's own task, run_chunk),
+  alternating which goes first, block after block; the ratio of the two sums says whether a
+  sample computes slower in a worker. (Not in this process: its Dask client's threads share its
+  interpreter and slow a computation here by some percent.)
 Then the 1-worker time per sample is the serial one times compute / (1 - idle), and the paired
 overhead is 1 - (1 - idle) / compute.
 
@@ -43,6 +45,7 @@ naming python/, which the LocalCluster's workers inherit).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import statistics
 import sys
@@ -67,37 +70,53 @@ def median_run(runs: list[engine.Outcome]) -> engine.Outcome:
     return ordered[(len(ordered) - 1) // 2]
 
 
-def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -> tuple[float, int]:
-    """Worker compute time / this process's compute time of the same blocks of `block` samples
-    (the module's docstring), and the number of blocks."""
+# The plain process of the paired measure: the archive and settings, set up once.
+_PLAIN: dict = {}
+
+
+def _plain_setup(data: bytes, settings: dict) -> None:
     archive = twin.archive_from_bytes(data)
     engine._hold_library(archive)
     twin.prepare(data)
+    _PLAIN.update(archive=archive, settings=settings)
+
+
+def _plain_chunk(batch: list) -> float:
+    """The compute time of `batch` in the plain process, as run_chunk measures it on a worker."""
+    started = time.perf_counter()
+    engine.compute_rows(_PLAIN["archive"], batch, _PLAIN["settings"])
+    return time.perf_counter() - started
+
+
+def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -> tuple[float, int]:
+    """Worker compute time / plain-process compute time of the same blocks of `block` samples
+    (the module's docstring), and the number of blocks. The plain process is a separate Python
+    process without Dask, like the worker's a child of this one: this process, which holds the
+    Dask client and its event loop, is not the reference."""
     client, cluster = engine.connect(None, 1, 10.0)
     try:
         plugin = engine.ArchivePlugin(data)
         client.register_plugin(plugin, name=plugin.name)
+        with multiprocessing.get_context("spawn").Pool(1, _plain_setup, (data, settings)) as pool:
 
-        def here(batch: list) -> float:
-            started = time.perf_counter()
-            engine.compute_rows(archive, batch, settings)
-            return time.perf_counter() - started
+            def here(batch: list) -> float:
+                return pool.apply(_plain_chunk, (batch,))
 
-        def there(batch: list) -> float:
-            return client.submit(engine.run_chunk, plugin.digest, batch, settings, pure=False).result()[2]
+            def there(batch: list) -> float:
+                return client.submit(engine.run_chunk, plugin.digest, batch, settings, pure=False).result()[2]
 
-        samples = list(enumerate(draws))
-        here(samples[:2])
-        there(samples[:2])
-        local = worker = 0.0
-        blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
-        for i, batch in enumerate(blocks):
-            if i % 2 == 0:
-                local += here(batch)
-                worker += there(batch)
-            else:
-                worker += there(batch)
-                local += here(batch)
+            samples = list(enumerate(draws))
+            here(samples[:2])
+            there(samples[:2])
+            local = worker = 0.0
+            blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
+            for i, batch in enumerate(blocks):
+                if i % 2 == 0:
+                    local += here(batch)
+                    worker += there(batch)
+                else:
+                    worker += there(batch)
+                    local += here(batch)
         return worker / local, len(blocks)
     finally:
         client.close()

@@ -240,6 +240,9 @@ pub struct Exact<const N: usize, const KO: usize> {
     damping: f64,
     /// Law 1 (`ElastoBacklash`) with a damper: the cap's surfaces too.
     law1: bool,
+    /// K and g of the plant, at hand for the damper's surfaces.
+    stiffness: f64,
+    half_gap: f64,
     modes: [ModeDynamics<N>; 7],
     /// Longest piece [s]: PIECE_RATE over the fastest rate of the plant.
     len_ref: f64,
@@ -383,6 +386,8 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             plant,
             damping: plant.damping(),
             law1: plant.damping() > 0.0 && plant.contact_law() == ContactLaw::ElastoBacklash,
+            stiffness: plant.stiffness(),
+            half_gap: plant.half_gap(),
             modes,
             len_ref,
             max_h: MAX_PIECES as f64 * len_ref,
@@ -921,15 +926,19 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
     fn clear_damped(&self, mode: ContactMode, u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
         // The common case inline: a contact well inside its region, by the cheap test of
         // `roots::cubic_clear` on each of its surfaces (the largest fall of the quadratic).
-        if let ContactMode::Positive | ContactMode::Negative = mode {
-            let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
-            let side = mode.side();
+        // Without the round-off floor (>= 0) the test is stricter, never weaker.
+        let side = match mode {
+            ContactMode::Positive => 1.0,
+            ContactMode::Negative => -1.0,
+            _ => 0.0,
+        };
+        if side != 0.0 {
+            let (k, d, g) = (self.stiffness, self.damping, self.half_gap);
             let spring = k * (u - side * g);
             let curvature = k * (d2.abs() + span * c3) + d * c3;
-            let tol = 8.0 * f64::EPSILON * (k * (u.abs() + g) + d * du.abs());
             let fall = |s1: f64| span * (s1.abs() + 0.5 * span * curvature);
-            let force = side * (spring + d * du) - fall(k * du + d * d2) > -tol;
-            let cap = !self.law1 || -side * (d * du - spring) - fall(d * d2 - k * du) > -tol;
+            let force = side * (spring + d * du) > fall(k * du + d * d2);
+            let cap = !self.law1 || side * (spring - d * du) > fall(d * d2 - k * du);
             if force & cap {
                 return true;
             }

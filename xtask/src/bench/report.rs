@@ -511,7 +511,7 @@ const NATIVE_ROWS: [(&str, &str, &str); 19] = [
     ("ours_set2_step_switching", "switching step", "fmi2SetReal(2) + fmi2DoStep with a contact made and lost inside every step (schedule below)"),
     ("piloop_step", "native PI loop", "one step of the loop of sections 2-3 in C: fmi2GetReal(omega_m), PI, fmi2SetReal(2), fmi2DoStep"),
     ("me_get_derivatives", "Model Exchange right-hand side", "fmi2GetDerivatives(4) of a Model Exchange instance in Continuous-Time Mode, in contact"),
-    ("me_get_event_indicators", "Model Exchange event indicators", "fmi2GetEventIndicators(2): u - g, u + g"),
+    ("me_get_event_indicators", "Model Exchange event indicators", "fmi2GetEventIndicators(6): u - g, u + g and the damper's four (1 without one)"),
     ("me_set_states_get_derivatives", "one solver evaluation", "fmi2SetContinuousStates(4) + fmi2GetDerivatives(4)"),
     ("ours3_step_event_free", "FMI 3.0 event-free step", "fmi3DoStep alone (FMI 3.0 archive's token, no early return), the schedule of `ours_step_event_free`"),
     ("belt_step_event_free", "belt drive's event-free step", "BacklashBelt's fmi2DoStep alone, in permanent contact, one instance stepped on through the run (belt and web schedule below)"),

@@ -499,8 +499,8 @@ fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
     Ok(xml)
 }
 
-/// The guid of the archive's description, and `#define <prefix><name> <vr>u` for every
-/// ScalarVariable of it.
+/// The guid of the archive's description, `#define <prefix><name> <vr>u` for every
+/// ScalarVariable of it, and `#define <prefix>EVENT_INDICATORS <n>` of its event indicators.
 fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
     let guid = fmu::FMI2.token(&doc)?;
@@ -522,6 +522,15 @@ fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), Stri
     if count == 0 {
         return Err("modelDescription.xml lists no ScalarVariable".into());
     }
+    // The number of event indicators Model Exchange's fmi2GetEventIndicators fills.
+    let indicators = doc
+        .root_element()
+        .attribute("numberOfEventIndicators")
+        .ok_or("modelDescription.xml has no numberOfEventIndicators")?;
+    text.push_str(&format!(
+        "#define {prefix}EVENT_INDICATORS {indicators}
+"
+    ));
     Ok((guid.to_string(), text))
 }
 
