@@ -29,8 +29,10 @@ The paired figure takes the two parts of Dask's overhead apart, each within one 
 - compute: the same blocks of samples computed in a plain Python process (a child of this one,
   without Dask) and in a 1-worker cluster's worker (the sweep's own task, run_chunk),
   alternating which goes first, block after block; the ratio of the two sums says whether a
-  sample computes slower in a worker. (Not in this process: its Dask client's threads share its
-  interpreter and slow a computation here by some percent.)
+  sample computes slower in a worker. Both processes are pinned to one core: the host runs this
+  machine's two cores at speeds some percent apart, so that two processes on different cores
+  differ by that much whatever they run. (Not in this process either: its Dask client's threads
+  share its interpreter.)
 Then the 1-worker time per sample is the serial one times compute / (1 - idle), and the paired
 overhead is 1 - (1 - idle) / compute.
 
@@ -74,7 +76,14 @@ def median_run(runs: list[engine.Outcome]) -> engine.Outcome:
 _PLAIN: dict = {}
 
 
+def _pin() -> None:
+    """This process on the first core: the two processes of the paired measure then run on
+    the same core, whose speed the host may set apart from the other's."""
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+
+
 def _plain_setup(data: bytes, settings: dict) -> None:
+    _pin()
     archive = twin.archive_from_bytes(data)
     engine._hold_library(archive)
     twin.prepare(data)
@@ -97,6 +106,7 @@ def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -
     try:
         plugin = engine.ArchivePlugin(data)
         client.register_plugin(plugin, name=plugin.name)
+        client.run(_pin)
         with multiprocessing.get_context("spawn").Pool(1, _plain_setup, (data, settings)) as pool:
 
             def here(batch: list) -> float:

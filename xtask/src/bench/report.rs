@@ -870,8 +870,8 @@ fn dask_sweep(md: &mut Md, r: &Results) -> Result<(), String> {
         "Scaling from 1 to 2 workers: {scaling:.2}x (target >= 1.8x: {}). Dask's overhead per sample: \
          {paired:.1}% (target <= 5%: {}), from its two parts, each measured within one stretch of time: the \
          worker idle {idle:.1}% of the median 1-worker run (1 - its tasks' compute time / its wall time), and a \
-         sample computing {compute:.3}x as long in a worker as in this process ({} blocks of {} samples, \
-         computed here and in a 1-worker cluster by turns); 1-worker time = serial time x {compute:.3} / (1 - \
+         sample computing {compute:.3}x as long in a worker as in a plain Python process without Dask ({} blocks \
+         of {} samples, computed in each by turns, both processes on one core); 1-worker time = serial time x {compute:.3} / (1 - \
          {:.3}). The ratio of the whole runs above, 1 - serial time / 1-worker time = {overhead:.1}%, compares \
          runs timed minutes apart, over which this machine's speed drifts by tens of percent. The 1-minute load \
          average was {:.2} when this bench started and {:.2} when it ended, on {} cores.",

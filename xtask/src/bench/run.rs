@@ -350,17 +350,24 @@ impl Runner {
     /// The criterion bench of the physics core; its figures are read from the estimates.json
     /// files criterion writes during this run.
     pub(super) fn criterion(&mut self) -> Result<(), String> {
-        let mut cmd = util::cargo();
-        cmd.args([
-            "bench",
-            "--bench",
-            "physics",
-            "--",
-            "--warm-up-time",
-            "1",
-            "--measurement-time",
-            "3",
-        ]);
+        // Built first on every core; then measured on one (taskset): the host may run this
+        // machine's cores at different speeds, and benches that are compared (the damped step
+        // with the plain one) must not each land on another.
+        util::run(util::cargo().args(["bench", "--bench", "physics", "--no-run"]))?;
+        let mut cmd = Command::new("taskset");
+        cmd.current_dir(util::repo_root())
+            .args(["-c", "0"])
+            .arg(util::cargo().get_program())
+            .args([
+                "bench",
+                "--bench",
+                "physics",
+                "--",
+                "--warm-up-time",
+                "1",
+                "--measurement-time",
+                "3",
+            ]);
         let text = describe(&cmd);
         println!("$ {text}");
         // Whole seconds, so that a file system with coarse timestamps still counts this run's files.
