@@ -12,6 +12,17 @@ use super::taylor::{exp_series, Sparse, TaylorModel};
 use nalgebra::{SMatrix, SVector};
 use thiserror::Error;
 
+/// What the damper's term of `bound` follows on the trajectory (docs/model.md §3, "With a
+/// damper"); it counts only with a damper in the compliant member.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Trajectory {
+    /// Co-Simulation: the stepper's V ([`super::PlantState::variation`]), growing at `rate`.
+    Stepped { variation: f64, rate: f64 },
+    /// Model Exchange: Σ|Δu| over the slack and capped phases between the importer's events
+    /// (`monotone`, growing at `rate`) and the number of phases in the gap (`gaps`).
+    AtEvents { monotone: f64, gaps: f64, rate: f64 },
+}
+
 /// Why `bound_sup` is +∞.
 #[derive(Clone, Copy, Debug, PartialEq, Error)]
 pub enum Unbounded {
@@ -182,8 +193,8 @@ pub struct LoopBound<const N: usize, const BA: usize, const KO: usize, const R: 
     /// D of the compliant member: > 0 tracks `BoundState::peak` and `variation` for the
     /// damper's terms.
     damping: f64,
-    /// K, to recover g from `scale` = K g.
-    stiffness: f64,
+    /// g, the half gap in u (the damper's terms of the Model Exchange form).
+    half_gap: f64,
 }
 
 /// An upper bound on max |h| over [0, w] from h, h′, h″ at 0 (`d`) and |h‴| ≤ `c3` on [0, w]:
@@ -284,7 +295,7 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
             // is below f64::MAX.
             reach_limit: (f64::MAX / (4.0 * scale)).min(1e150),
             damping: plant.damping(),
-            stiffness: plant.stiffness(),
+            half_gap: plant.half_gap(),
         };
         bound.tail = reduced.tail_bound().ok();
         bound.reset();
@@ -510,29 +521,41 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
         self.scale * self.state.l1
     }
 
-    /// The bound with a damper D in the compliant member (docs/model.md §3, "With a damper"):
-    /// K g ∫_0^t |h| + D max_{[0,t]} |h| V, where V = `variation` is ∫|u′| over the time the
-    /// trajectory spent free, slack or capped ([`super::PlantState::variation`]). Without a
-    /// damper, [`Self::bound`].
-    pub fn damped_bound(&self, variation: f64) -> f64 {
+    /// `bound` on a trajectory with a damper D in the compliant member (docs/model.md §3, "With a
+    /// damper"): K g ∫_0^t |h| + D max_{[0,t]} |h| V with the stepper's V
+    /// ([`Trajectory::Stepped`]), or K g ∫_0^t |h| + D (max|h| (Σ|Δu| + 2 g N) + g ∫_0^t |h′|)
+    /// from the phases between events ([`Trajectory::AtEvents`]). Without a damper,
+    /// [`Self::bound`], whatever the trajectory.
+    pub fn damped_bound(&self, trajectory: Trajectory) -> f64 {
         if self.damping == 0.0 {
             return self.bound();
         }
-        self.bound() + self.damping * self.state.peak * variation
+        let peak = self.state.peak;
+        let term = match trajectory {
+            Trajectory::Stepped { variation, .. } => peak * variation,
+            Trajectory::AtEvents { monotone, gaps, .. } => {
+                peak * (monotone + 2.0 * self.half_gap * gaps) + self.half_gap * self.state.variation
+            }
+        };
+        self.bound() + self.damping * term
     }
 
-    /// The bound with a damper D in Model Exchange (docs/model.md §3, "With a damper"), where the
-    /// trajectory is known at the events the importer locates only: K g ∫_0^t |h| +
-    /// D (max|h| (`monotone` + 2 g `gaps`) + g ∫_0^t |h′|), `monotone` being Σ|Δu| over the slack
-    /// and capped phases (u is monotone in each) and `gaps` the number of phases in the gap.
-    /// Without a damper, [`Self::bound`].
-    pub fn damped_bound_at_events(&self, monotone: f64, gaps: f64) -> f64 {
+    /// d/dt of [`Self::damped_bound`]: K g |h| + D max|h| |u′| while u′ counts (free, slack or
+    /// capped; at events, slack or capped), and at events also D g |h′|, h′ = (A e^{A t} D_1) at
+    /// the output. max|h| is bounded piece by piece: between pieces it does not move.
+    pub fn damped_bound_rate(&self, trajectory: Trajectory) -> f64 {
         if self.damping == 0.0 {
-            return self.bound();
+            return self.bound_rate();
         }
-        let g = self.scale / self.stiffness;
-        let peak = self.state.peak;
-        self.bound() + self.damping * (peak * (monotone + 2.0 * g * gaps) + g * self.state.variation)
+        let term = match trajectory {
+            Trajectory::Stepped { rate, .. } => self.state.peak * rate,
+            Trajectory::AtEvents { rate, .. } => {
+                let response = &self.state.response;
+                let h_rate: f64 = (0..N).map(|j| self.m[(OUT, j)] * response[j]).sum();
+                self.state.peak * rate + self.half_gap * h_rate.abs()
+            }
+        };
+        self.bound_rate() + self.damping * term
     }
 
     /// max |h| over [0, elapsed], bounded from above; 0 without a damper (not tracked).

@@ -17,7 +17,9 @@ pub mod stepper;
 pub mod taylor;
 pub mod vector_field;
 
-pub use bound::{BoundError, BoundState, PiGains, SpeedErrorBound, Unbounded, WebSpeedBound, WebTensionBound};
+pub use bound::{
+    BoundError, BoundState, PiGains, SpeedErrorBound, Trajectory, Unbounded, WebSpeedBound, WebTensionBound,
+};
 pub use mode::{contact_indicator, damped_mode_at, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, ContactLaw, Damping, Geometry, ParamError, Plant, PlantParams, WebSpan};
 pub use stepper::{max_step, Inputs, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP};

@@ -240,9 +240,6 @@ pub struct Exact<const N: usize, const KO: usize> {
     damping: f64,
     /// Law 1 (`ElastoBacklash`) with a damper: the cap's surfaces too.
     law1: bool,
-    /// K and g of the plant, at hand for the damper's surfaces.
-    stiffness: f64,
-    half_gap: f64,
     modes: [ModeDynamics<N>; 7],
     /// Longest piece [s]: PIECE_RATE over the fastest rate of the plant.
     len_ref: f64,
@@ -374,20 +371,25 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         };
         let mut e_u = AugVector::<N>::zeros();
         e_u[linear::U] = 1.0;
-        let modes = ContactMode::ALL.map(|mode| {
+        let dynamics = |mode: ContactMode| {
             let m = linear::mode_matrix(&plant, mode);
             ModeDynamics {
                 m,
                 sparse: Sparse::new(&m),
                 u_rows: SignalRows::new(e_u, &m, len_ref),
             }
+        };
+        // Without a damper its four modes are never entered: they hold the free mode's
+        // dynamics (as `fill_cache` holds its kernel), not built for nothing.
+        let free = dynamics(ContactMode::Free);
+        let modes = ContactMode::ALL.map(|mode| match (mode.index() < 3, plant.damping() > 0.0) {
+            (true, _) | (false, true) if mode != ContactMode::Free => dynamics(mode),
+            _ => free.clone(),
         });
         Exact {
             plant,
             damping: plant.damping(),
             law1: plant.damping() > 0.0 && plant.contact_law() == ContactLaw::ElastoBacklash,
-            stiffness: plant.stiffness(),
-            half_gap: plant.half_gap(),
             modes,
             len_ref,
             max_h: MAX_PIECES as f64 * len_ref,
@@ -933,7 +935,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             _ => 0.0,
         };
         if side != 0.0 {
-            let (k, d, g) = (self.stiffness, self.damping, self.half_gap);
+            let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
             let spring = k * (u - side * g);
             let curvature = k * (d2.abs() + span * c3) + d * c3;
             let fall = |s1: f64| span * (s1.abs() + 0.5 * span * curvature);

@@ -154,10 +154,10 @@ impl Calculated {
                 let i = self.indicator().expect("an event indicator");
                 sim.plant().event_indicators(&sim.state)[i]
             }
-            Calculated::Bound => sim.bound_value(),
+            Calculated::Bound => sim.bound.bound(sim.trajectory()),
             Calculated::BoundPaper => sim.bound.bound_paper(),
             Calculated::BoundSup => sim.bound_sup_value(),
-            Calculated::BoundT => sim.bound_t_value(),
+            Calculated::BoundT => sim.bound.bound_t(sim.trajectory()),
             Calculated::BoundTSup => sim.bound_t_sup_value(),
         }
     }
@@ -179,9 +179,9 @@ impl Calculated {
                 let i = self.indicator().expect("an event indicator");
                 Some(indicator_rates(sim.plant(), z_dot)[i])
             }
-            Calculated::Bound => Some(sim.bound.bound_rate()),
+            Calculated::Bound => Some(sim.bound.bound_rate(sim.trajectory())),
             Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
-            Calculated::BoundT => Some(sim.bound.bound_t_rate()),
+            Calculated::BoundT => Some(sim.bound.bound_t_rate(sim.trajectory())),
             Calculated::BoundSup | Calculated::BoundTSup => None,
         }
     }

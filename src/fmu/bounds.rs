@@ -3,7 +3,7 @@
 //! span tension, advanced together.
 
 use crate::physics::{
-    BoundError, BoundState, PiGains, Plant, SpeedErrorBound, Unbounded, WebSpeedBound, WebTensionBound,
+    BoundError, BoundState, PiGains, Plant, SpeedErrorBound, Trajectory, Unbounded, WebSpeedBound, WebTensionBound,
 };
 
 // The drive trains' bound stays inline, out of reach of an indirection on the hot path of every
@@ -113,12 +113,11 @@ impl Bounds {
         }
     }
 
-    /// `bound` on the trajectory whose [`crate::physics::PlantState::variation`] is `variation`
-    /// (it matters only with a damper in the compliant member).
-    pub fn bound(&self, variation: f64) -> f64 {
+    /// `bound` on `trajectory` (it matters only with a damper in the compliant member).
+    pub fn bound(&self, trajectory: Trajectory) -> f64 {
         match self {
-            Bounds::Speed(b) => b.damped_bound(variation),
-            Bounds::Web(w) => w.speed.damped_bound(variation),
+            Bounds::Speed(b) => b.damped_bound(trajectory),
+            Bounds::Web(w) => w.speed.damped_bound(trajectory),
         }
     }
 
@@ -129,10 +128,10 @@ impl Bounds {
         }
     }
 
-    pub fn bound_rate(&self) -> f64 {
+    pub fn bound_rate(&self, trajectory: Trajectory) -> f64 {
         match self {
-            Bounds::Speed(b) => b.bound_rate(),
-            Bounds::Web(w) => w.speed.bound_rate(),
+            Bounds::Speed(b) => b.damped_bound_rate(trajectory),
+            Bounds::Web(w) => w.speed.damped_bound_rate(trajectory),
         }
     }
 
@@ -144,34 +143,17 @@ impl Bounds {
     }
 
     /// `bound_T` (0 without a web span, which has no such variable).
-    /// `bound` in Model Exchange, from the trajectory's terms gathered at events
-    /// ([`crate::physics::SpeedErrorBound::damped_bound_at_events`]).
-    pub fn bound_at_events(&self, monotone: f64, gaps: f64) -> f64 {
+    pub fn bound_t(&self, trajectory: Trajectory) -> f64 {
         match self {
-            Bounds::Speed(b) => b.damped_bound_at_events(monotone, gaps),
-            Bounds::Web(w) => w.speed.damped_bound_at_events(monotone, gaps),
+            Bounds::Speed(_) => 0.0,
+            Bounds::Web(w) => w.tension.damped_bound(trajectory),
         }
     }
 
-    /// `bound_T` in Model Exchange, as [`Bounds::bound_at_events`].
-    pub fn bound_t_at_events(&self, monotone: f64, gaps: f64) -> f64 {
+    pub fn bound_t_rate(&self, trajectory: Trajectory) -> f64 {
         match self {
             Bounds::Speed(_) => 0.0,
-            Bounds::Web(w) => w.tension.damped_bound_at_events(monotone, gaps),
-        }
-    }
-
-    pub fn bound_t(&self, variation: f64) -> f64 {
-        match self {
-            Bounds::Speed(_) => 0.0,
-            Bounds::Web(w) => w.tension.damped_bound(variation),
-        }
-    }
-
-    pub fn bound_t_rate(&self) -> f64 {
-        match self {
-            Bounds::Speed(_) => 0.0,
-            Bounds::Web(w) => w.tension.bound_rate(),
+            Bounds::Web(w) => w.tension.damped_bound_rate(trajectory),
         }
     }
 

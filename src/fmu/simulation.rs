@@ -5,7 +5,7 @@ use super::adapter::{self, StateVector, Values};
 use super::bounds::Bounds;
 use super::error::FmuError;
 use super::variables::{Causality, ModelInfo};
-use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, PlantState, Stepper};
+use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, PlantState, Stepper, Trajectory};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
@@ -34,7 +34,8 @@ pub struct Simulation {
 /// in progress (its mode and u where it began), Σ|Δu| over the finished slack and capped phases
 /// (u is monotone in each) and the number of phases in the gap. A phase ends where the mode of the
 /// state changes, which the importer locates as an event (the event indicators of §6); a change
-/// it does not locate is taken where it is first seen, which only lengthens the phase before.
+/// it does not locate is taken where it is first seen (docs/model.md §3: the guarantee rests on
+/// the importer locating them).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EventTerms {
     /// False in Co-Simulation, where the stepper follows the whole trajectory
@@ -67,7 +68,7 @@ impl EventTerms {
     }
 
     /// Slack and capped phases, in which u is monotone.
-    fn monotone_in(mode: ContactMode) -> bool {
+    pub fn monotone_in(mode: ContactMode) -> bool {
         !matches!(mode, ContactMode::Free | ContactMode::Positive | ContactMode::Negative)
     }
 
@@ -325,24 +326,25 @@ impl Simulation {
         self.stepper.plant()
     }
 
-    /// `bound` (docs/model.md §3): with a damper, its trajectory's term from the stepper's
-    /// variation (Co-Simulation) or from the importer's events (Model Exchange).
-    pub fn bound_value(&self) -> f64 {
+    /// What `bound` and `bound_T` follow on the trajectory (docs/model.md §3, "With a damper"):
+    /// the stepper's variation (Co-Simulation) or the phases between the importer's events
+    /// (Model Exchange); each grows at |u′| where it counts.
+    pub fn trajectory(&self) -> Trajectory {
+        let speed = self.state.du.abs();
         if self.events.tracked {
             let (monotone, gaps) = self.events.now(&self.state);
-            self.bound.bound_at_events(monotone, gaps)
+            let rate = if EventTerms::monotone_in(self.events.phase) {
+                speed
+            } else {
+                0.0
+            };
+            Trajectory::AtEvents { monotone, gaps, rate }
         } else {
-            self.bound.bound(self.state.variation)
-        }
-    }
-
-    /// `bound_T` of a web line (docs/model.md §8), as [`Simulation::bound_value`].
-    pub fn bound_t_value(&self) -> f64 {
-        if self.events.tracked {
-            let (monotone, gaps) = self.events.now(&self.state);
-            self.bound.bound_t_at_events(monotone, gaps)
-        } else {
-            self.bound.bound_t(self.state.variation)
+            let rate = if self.state.mode.in_contact() { 0.0 } else { speed };
+            Trajectory::Stepped {
+                variation: self.state.variation,
+                rate,
+            }
         }
     }
 
