@@ -24,6 +24,7 @@
 
 #define GROWTH_LIMIT 4096
 #define MAX_STATES 8
+#define MAX_INDICATORS 32
 
 static int logged = 0;
 
@@ -50,8 +51,10 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
     } while (0)
 
 int main(int argc, char **argv) {
-    if (argc != 7) {
-        fprintf(stderr, "usage: %s <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m> <continuous states>\n",
+    if (argc != 8) {
+        fprintf(stderr,
+                "usage: %s <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m> <continuous states> "
+                "<event indicators>\n",
                 argv[0]);
         return 2;
     }
@@ -74,6 +77,12 @@ int main(int argc, char **argv) {
     const size_t nx = (size_t)atol(argv[6]);
     if (nx < 1 || nx > MAX_STATES) {
         fprintf(stderr, "%zu continuous states: expected 1 to %d\n", nx, MAX_STATES);
+        return 2;
+    }
+    /* numberOfEventIndicators of the model description. */
+    const size_t nz = (size_t)atol(argv[7]);
+    if (nz > MAX_INDICATORS) {
+        fprintf(stderr, "%zu event indicators: expected at most %d\n", nz, MAX_INDICATORS);
         return 2;
     }
     size_t heap_after_warmup = 0;
@@ -129,7 +138,7 @@ int main(int argc, char **argv) {
         fmi2EventInfo info;
         CHECK(fmi2NewDiscreteStates(c, &info), fmi2OK);
         CHECK(fmi2EnterContinuousTimeMode(c), fmi2OK);
-        fmi2Real x[MAX_STATES], dx[MAX_STATES], z[2];
+        fmi2Real x[MAX_STATES], dx[MAX_STATES], z[MAX_INDICATORS];
         fmi2Boolean enter = fmi2True, terminate = fmi2True;
         CHECK(fmi2GetContinuousStates(c, x, nx), fmi2OK);
         for (int i = 0; i < 5; i++) {
@@ -137,7 +146,7 @@ int main(int argc, char **argv) {
             for (size_t j = 0; j < nx; j++) x[j] += 1e-5 * dx[j];
             CHECK(fmi2SetTime(c, (i + 1) * 1e-5), fmi2OK);
             CHECK(fmi2SetContinuousStates(c, x, nx), fmi2OK);
-            CHECK(fmi2GetEventIndicators(c, z, 2), fmi2OK);
+            CHECK(fmi2GetEventIndicators(c, z, nz), fmi2OK);
             CHECK(fmi2CompletedIntegratorStep(c, fmi2True, &enter, &terminate), fmi2OK);
         }
         CHECK(fmi2GetReal(c, &omega_m, 1, &w), fmi2OK);

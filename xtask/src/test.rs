@@ -89,10 +89,18 @@ pub fn run(args: &[String]) -> Result<(), String> {
         *built.borrow_mut() = fmu::package(&platforms)?;
         Ok(())
     })?;
-    // 4. The libraries' C ABI against the official headers, and their exported symbols.
+    // 4. The libraries' C ABI against the official headers, and their exported symbols; then
+    //    the leak check's C driver, natively and briefly, so that the longer run in CI (with
+    //    valgrind) finds a driver that still fits the models' interface.
     timed("ABI check", &|| {
-        step("4/9 ABI check");
-        abi::check(&built.borrow())
+        step("4/9 ABI check, and the leak check's driver (200 cycles, native)");
+        abi::check(&built.borrow())?;
+        util::run(
+            Command::new("bash")
+                .arg("scripts/leak_check.sh")
+                .args(["200", "--native"])
+                .current_dir(util::repo_root()),
+        )
     })?;
     // 5. A Rust importer (the `fmi` crate) loads the packaged archive. --include-ignored runs
     //    the tests that a plain `cargo test` skips; they fail if an archive is missing.
