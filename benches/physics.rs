@@ -1,15 +1,17 @@
 //! Cost of the physics core (issue targets: an event-free step within a few 4×4 matrix–vector
 //! products, a step with a switch under 2 µs; the web line's event-free step within 1.5× the
-//! belt drive's; with a damper in the compliant member, within 1.1× the step without). Run: `cargo bench --bench physics`.
+//! belt drive's; with a damper in the compliant member, within 1.1× the step without, judged on a
+//! paired measure printed after criterion's). Run: `cargo bench --bench physics`.
 
 use backlash_fmu::fmu::adapter;
 use backlash_fmu::physics::{
     ContactLaw, ContactMode, Damping, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper,
     WebSpan, WebSpeedBound, WebTensionBound,
 };
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::{criterion_group, Criterion};
 use nalgebra::{Matrix4, Vector4};
 use std::hint::black_box;
+use std::time::Instant;
 
 const H: f64 = 1e-3;
 
@@ -29,6 +31,34 @@ fn damped_rig(law: ContactLaw) -> Plant {
     .expect("a valid damped rig")
 }
 
+/// The damped event-free steps, by bench name.
+const DAMPED: [(&str, ContactLaw); 2] = [
+    ("step_1ms_no_switch_damped_law1", ContactLaw::ElastoBacklash),
+    ("step_1ms_no_switch_damped_law2", ContactLaw::ElastoBacklash2),
+];
+
+/// The torque of the event-free steps.
+const PRESSING: Inputs = Inputs::held(2.0, 0.0);
+
+/// A stepper of `plant`, and a state in contact pressed 10 mrad past the gap, from which one step
+/// of [`PRESSING`] switches nothing (checked).
+fn pressed_past_gap(plant: Plant, name: &str) -> (Stepper, PlantState) {
+    let mut stepper = Stepper::new(plant);
+    let pressed = PlantState::new(&plant, plant.half_gap() + 0.01, 0.0, 0.0, 0.0);
+    assert_eq!(pressed.mode, ContactMode::Positive);
+    let mut check = pressed;
+    let n = stepper.step(&mut check, &PRESSING, H, &mut |_| {}).expect("valid step");
+    assert_eq!(n, 0, "{name}: no switch in the benchmark step");
+    (stepper, pressed)
+}
+
+/// One event-free step from `pressed`.
+fn step_pressed(stepper: &mut Stepper, pressed: PlantState) -> PlantState {
+    let mut s = black_box(pressed);
+    stepper.step(&mut s, &PRESSING, H, &mut |_| {}).expect("valid step");
+    s
+}
+
 fn benches(c: &mut Criterion) {
     let plant = rig();
     let g = plant.half_gap();
@@ -39,38 +69,14 @@ fn benches(c: &mut Criterion) {
     c.bench_function("matvec_4x4", |b| b.iter(|| black_box(&m) * black_box(&v)));
 
     // In contact, pressed well past the gap: no switch within the step.
-    let mut stepper = Stepper::new(plant);
-    let pressed = PlantState::new(&plant, g + 0.01, 0.0, 0.0, 0.0);
-    assert_eq!(pressed.mode, ContactMode::Positive);
-    let inputs = Inputs::held(2.0, 0.0);
-    c.bench_function("step_1ms_no_switch", |b| {
-        b.iter(|| {
-            let mut s = black_box(pressed);
-            stepper.step(&mut s, &inputs, H, &mut |_| {}).expect("valid step");
-            s
-        })
-    });
+    let (mut stepper, pressed) = pressed_past_gap(plant, "step_1ms_no_switch");
+    c.bench_function("step_1ms_no_switch", |b| b.iter(|| step_pressed(&mut stepper, pressed)));
 
     // The same with a damper in the shaft (contact damping ratio 0.5, either law): its
     // surfaces are certified out of reach by the same kernel outputs (docs/model.md §2).
-    for (name, law) in [
-        ("step_1ms_no_switch_damped_law1", ContactLaw::ElastoBacklash),
-        ("step_1ms_no_switch_damped_law2", ContactLaw::ElastoBacklash2),
-    ] {
-        let damped = damped_rig(law);
-        let mut stepper = Stepper::new(damped);
-        let pressed = PlantState::new(&damped, g + 0.01, 0.0, 0.0, 0.0);
-        assert_eq!(pressed.mode, ContactMode::Positive);
-        let mut check = pressed;
-        let n = stepper.step(&mut check, &inputs, H, &mut |_| {}).expect("valid step");
-        assert_eq!(n, 0, "{name}: no switch in the benchmark step");
-        c.bench_function(name, |b| {
-            b.iter(|| {
-                let mut s = black_box(pressed);
-                stepper.step(&mut s, &inputs, H, &mut |_| {}).expect("valid step");
-                s
-            })
-        });
+    for (name, law) in DAMPED {
+        let (mut stepper, pressed) = pressed_past_gap(damped_rig(law), name);
+        c.bench_function(name, |b| b.iter(|| step_pressed(&mut stepper, pressed)));
     }
 
     // Free, closing the gap at 0.1 rad/s from 50 µrad away: one switch half-way.
@@ -160,5 +166,79 @@ fn web_benches(c: &mut Criterion) {
     });
 }
 
+/// The damped event-free steps against the plain one, paired: within one process, blocks of the
+/// three alternate round by round (the order rotating), so that a change of the machine's speed
+/// during the run hits them alike, and each round gives a ratio of block times. Criterion's
+/// estimates of the same steps are each taken over a few seconds of their own, and on a noisy
+/// machine they move by more than the 10% the target allows. Prints one line, `paired-damped-step`
+/// and a JSON object: for each damped bench the median of the rounds' ratios and its 95%
+/// interval (order statistics), and the median time per step of all three.
+fn paired_damped_step() {
+    const ROUNDS: usize = 301;
+    const STEPS: usize = 20_000;
+    let (mut plain, plain_state) = pressed_past_gap(rig(), "step_1ms_no_switch");
+    let mut cases: Vec<(Stepper, PlantState)> = DAMPED
+        .iter()
+        .map(|&(name, law)| pressed_past_gap(damped_rig(law), name))
+        .collect();
+    let block = |stepper: &mut Stepper, state: PlantState| {
+        let start = Instant::now();
+        for _ in 0..STEPS {
+            black_box(step_pressed(stepper, state));
+        }
+        start.elapsed().as_secs_f64() / STEPS as f64
+    };
+    // Warm-up, not kept.
+    for _ in 0..20 {
+        block(&mut plain, plain_state);
+        for (stepper, state) in &mut cases {
+            block(stepper, *state);
+        }
+    }
+    let mut times = vec![Vec::with_capacity(ROUNDS); 1 + cases.len()];
+    for round in 0..ROUNDS {
+        for k in 0..times.len() {
+            let which = (round + k) % times.len();
+            let t = match which {
+                0 => block(&mut plain, plain_state),
+                i => {
+                    let (stepper, state) = &mut cases[i - 1];
+                    block(stepper, *state)
+                }
+            };
+            times[which].push(t);
+        }
+    }
+    let median = |mut v: Vec<f64>| -> (f64, f64, f64) {
+        v.sort_by(f64::total_cmp);
+        // The 95% interval of a median from order statistics: ranks n/2 ± 0.98 sqrt(n).
+        let n = v.len() as f64;
+        let half = (0.98 * n.sqrt()).ceil() as usize;
+        let mid = v.len() / 2;
+        (v[mid.saturating_sub(half)], v[mid], v[(mid + half).min(v.len() - 1)])
+    };
+    let mut entries = vec![format!("\"rounds\": {ROUNDS}, \"steps_per_block\": {STEPS}")];
+    entries.push(format!(
+        "\"step_1ms_no_switch_ns\": {:e}",
+        median(times[0].clone()).1 * 1e9
+    ));
+    for (i, (name, _)) in DAMPED.iter().enumerate() {
+        let ratios: Vec<f64> = times[i + 1].iter().zip(&times[0]).map(|(d, p)| d / p).collect();
+        let (low, mid, high) = median(ratios);
+        entries.push(format!("\"{name}_ns\": {:e}", median(times[i + 1].clone()).1 * 1e9));
+        entries.push(format!("\"{name}_ratio\": [{low:e}, {mid:e}, {high:e}]"));
+    }
+    println!("paired-damped-step {{{}}}", entries.join(", "));
+}
+
 criterion_group!(physics, benches, web_benches);
-criterion_main!(physics);
+
+fn main() {
+    physics();
+    Criterion::default().configure_from_args().final_summary();
+    // `cargo bench` passes --bench; `cargo test --benches` runs each criterion bench once and
+    // not this.
+    if std::env::args().any(|a| a == "--bench") {
+        paired_damped_step();
+    }
+}

@@ -28,7 +28,7 @@ pub struct Inputs {
 }
 
 impl Inputs {
-    pub fn held(tau_m: f64, tau_l: f64) -> Inputs {
+    pub const fn held(tau_m: f64, tau_l: f64) -> Inputs {
         Inputs {
             tau_m,
             tau_l,

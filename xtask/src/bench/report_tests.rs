@@ -12,7 +12,7 @@
 use std::fs;
 use std::path::PathBuf;
 
-use super::super::run::{CriterionEstimate, Facts, Measurements, Results};
+use super::super::run::{CriterionEstimate, Facts, Measurements, PairedDamped, Results};
 use super::super::Plan;
 use super::render;
 
@@ -125,6 +125,7 @@ fn measured(text: &str, criterion: bool) -> Measurements {
     Measurements {
         results: Results::parse(text),
         criterion,
+        paired_damped: None,
         commands: vec![
             "cc -O2 -o target/bench/native_host benches/native_host.c -ldl -lm".into(),
             "target/bench/native_host target/bench/BacklashShaft.so suite 101 20000".into(),
@@ -254,4 +255,37 @@ fn schedule_checks_fail_with_unchanged_messages() {
     for (append, drop, expected) in cases {
         assert_eq!(error(append, drop), expected, "appending {append:?}, without {drop:?}");
     }
+}
+
+/// The paired measure of the damped step: read from the bench's line, and judged on the median
+/// ratio (1.104 fails the 1.1x target, 1.066 meets it).
+#[test]
+fn paired_damped_step_is_read_and_judged() {
+    let line = |law2: f64| {
+        format!(
+            "Benchmarking ...\npaired-damped-step {{\"rounds\": 301, \"steps_per_block\": 20000, \
+             \"step_1ms_no_switch_ns\": 26.9, \"step_1ms_no_switch_damped_law1_ns\": 28.9, \
+             \"step_1ms_no_switch_damped_law1_ratio\": [1.06, 1.066, 1.069], \
+             \"step_1ms_no_switch_damped_law2_ns\": 29.2, \
+             \"step_1ms_no_switch_damped_law2_ratio\": [1.08, {law2}, 1.2]}}\n"
+        )
+    };
+    let plan = Plan::full();
+    for (law2, verdict) in [(1.086, "(target: **met**)."), (1.104, "(target: **not met**).")] {
+        let paired = PairedDamped::parse(&line(law2))
+            .expect("valid line")
+            .expect("a paired line");
+        assert_eq!(paired.rounds, 301);
+        assert_eq!(paired.damped[1].2, [1.08, law2, 1.2]);
+        let mut m = measured(&full_text(), true);
+        m.paired_damped = Some(paired);
+        let report = render(&plan, &m, &facts()).expect("renders");
+        let target = report
+            .lines()
+            .find(|l| l.starts_with("Event-free step with a damper"))
+            .expect("the target's line");
+        assert!(target.contains("**1.066x**") && target.ends_with(verdict), "{target}");
+    }
+    assert!(PairedDamped::parse("no such line").expect("nothing to read").is_none());
+    assert!(PairedDamped::parse("paired-damped-step {\"rounds\": 3}").is_err());
 }

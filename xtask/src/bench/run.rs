@@ -73,10 +73,56 @@ pub(super) struct CriterionEstimate {
     pub high_ns: f64,
 }
 
+/// The paired measure of the damped event-free steps against the plain one (benches/physics.rs,
+/// `paired_damped_step`): blocks of each alternating in one process.
+pub(super) struct PairedDamped {
+    pub rounds: u64,
+    pub steps_per_block: u64,
+    /// The plain step's median time [ns].
+    pub plain_ns: f64,
+    /// Per damped bench: its name, median time [ns], and the median of the rounds' ratios to the
+    /// plain step with its 95% interval (low, median, high).
+    pub damped: Vec<(String, f64, [f64; 3])>,
+}
+
+impl PairedDamped {
+    /// The `paired-damped-step {json}` line of the bench's output, if it printed one.
+    pub fn parse(output: &str) -> Result<Option<PairedDamped>, String> {
+        let Some(json) = output.lines().find_map(|l| l.strip_prefix("paired-damped-step ")) else {
+            return Ok(None);
+        };
+        let v: serde_json::Value =
+            serde_json::from_str(json).map_err(|e| format!("paired-damped-step: {e}: {json}"))?;
+        let num = |key: &str| {
+            v[key]
+                .as_f64()
+                .ok_or_else(|| format!("paired-damped-step: no number `{key}`"))
+        };
+        let mut damped = Vec::new();
+        for name in ["step_1ms_no_switch_damped_law1", "step_1ms_no_switch_damped_law2"] {
+            let ratio: Vec<f64> = v[format!("{name}_ratio")]
+                .as_array()
+                .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+                .unwrap_or_default();
+            let [low, mid, high] = ratio[..] else {
+                return Err(format!("paired-damped-step: `{name}_ratio` is not three numbers"));
+            };
+            damped.push((name.to_string(), num(&format!("{name}_ns"))?, [low, mid, high]));
+        }
+        Ok(Some(PairedDamped {
+            rounds: num("rounds")? as u64,
+            steps_per_block: num("steps_per_block")? as u64,
+            plain_ns: num("step_1ms_no_switch_ns")?,
+            damped,
+        }))
+    }
+}
+
 /// Everything one run measured, and the commands that measured it, in order.
 pub(super) struct Measurements {
     pub results: Results,
     pub criterion: Vec<CriterionEstimate>,
+    pub paired_damped: Option<PairedDamped>,
     pub commands: Vec<String>,
 }
 
@@ -255,6 +301,7 @@ impl Runner {
             measured: Measurements {
                 results: Results::default(),
                 criterion: Vec::new(),
+                paired_damped: None,
                 commands: vec![compile_text],
             },
         })
@@ -382,6 +429,7 @@ impl Runner {
             ));
         }
         self.measured.criterion = found;
+        self.measured.paired_damped = PairedDamped::parse(&out)?;
         self.measured.commands.push(text);
         Ok(())
     }
