@@ -9,6 +9,7 @@ Prints `@ <key> <value> ...` lines, collected by xtask/src/bench/run.rs:
     @ sweep_scaling <dask1 s / dask2 s>
     @ sweep_overhead <1 - serial s / dask1 s, percent>
     @ sweep_paired <worker/serial compute of the same blocks> <blocks> <samples a block> <idle %> <overhead %>
+    @ sweep_scaling_paired <2 x shared x (1 - idle2) / (1 - idle)> <shared: alone / together compute> <blocks> <samples a block> <idle2 %>
     @ sweep_chunk <chunk, 1 worker> <tasks, 1 worker> <chunk, 2 workers> <tasks, 2 workers> <ms per sample>
     @ sweep_identical <1 if every table of every run is the serial one, else 0>
     @ sweep_load <1-minute load average at the start> <at the end> <cores>
@@ -35,6 +36,15 @@ The paired figure takes the two parts of Dask's overhead apart, each within one 
   share its interpreter.)
 Then the 1-worker time per sample is the serial one times compute / (1 - idle), and the paired
 overhead is 1 - (1 - idle) / compute.
+
+The scaling from 1 to 2 workers is taken apart the same way. A run's time is the compute time
+of its samples over its workers' busy share: T1 = C1 / (1 - idle), T2 = C2 / (2 (1 - idle2)),
+idle2 the share of the median 2-worker run's worker time not spent computing samples (the tail
+where one worker waits for the other included). C1 / C2, how much slower a sample computes when
+two workers share the machine (the client's and scheduler's work beside them included), is
+measured paired: blocks of samples computed on the worker of a 1-worker cluster and, at once, on
+each worker of a 2-worker cluster, by turns (`shared`). The paired scaling is
+2 x shared x (1 - idle2) / (1 - idle); the ratio of the median whole runs is reported beside it.
 
     python benches/sweep_bench.py [--samples 240] [--repeats 3] [--seed 1] [--block 8] [--chunk N] [--fmu PATH]
 
@@ -133,6 +143,47 @@ def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -
         cluster.close()
 
 
+def paired_scaling(data: bytes, draws: list[dict], settings: dict, block: int) -> tuple[float, int]:
+    """Compute time of a block of samples on the worker of a 1-worker cluster / its mean compute
+    time on each worker of a 2-worker cluster running it at once (both clusters up, alternating
+    which goes first, block after block), and the number of blocks: how much slower a sample
+    computes when two workers share the machine, within one stretch of time (the module's
+    docstring). Not pinned: the workers of the sweep are not."""
+    one, one_cluster = engine.connect(None, 1, 10.0)
+    two, two_cluster = engine.connect(None, 2, 10.0)
+    try:
+        plugin = engine.ArchivePlugin(data)
+        for client in (one, two):
+            client.register_plugin(plugin, name=plugin.name)
+        pair = sorted(two.nthreads())
+
+        def alone(batch: list) -> float:
+            return one.submit(engine.run_chunk, plugin.digest, batch, settings, pure=False).result()[2]
+
+        def together(batch: list) -> float:
+            futures = [two.submit(engine.run_chunk, plugin.digest, batch, settings, pure=False, workers=[w])
+                       for w in pair]
+            return statistics.fmean(f.result()[2] for f in futures)
+
+        samples = list(enumerate(draws))
+        alone(samples[:2])
+        together(samples[:2])
+        single = shared = 0.0
+        blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
+        for i, batch in enumerate(blocks):
+            if i % 2 == 0:
+                single += alone(batch)
+                shared += together(batch)
+            else:
+                shared += together(batch)
+                single += alone(batch)
+        return single / shared, len(blocks)
+    finally:
+        for client, cluster in ((one, one_cluster), (two, two_cluster)):
+            client.close()
+            cluster.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", type=int, default=240)
@@ -170,6 +221,9 @@ def main(argv: list[str] | None = None) -> int:
     idle = statistics.median(1 - r.sample_seconds * r.samples / r.elapsed for r in runs[1])
     compute, blocks = paired_compute(data, draws, settings, args.block)
     emit("sweep_paired", compute, blocks, args.block, idle * 100, (1 - (1 - idle) / compute) * 100)
+    busy2 = statistics.median(r.sample_seconds * r.samples / (2 * r.elapsed) for r in runs[2])
+    shared, blocks = paired_scaling(data, draws, settings, args.block)
+    emit("sweep_scaling_paired", 2 * shared * busy2 / (1 - idle), shared, blocks, args.block, (1 - busy2) * 100)
     emit("sweep_chunk", med[1].chunk, med[1].tasks, med[2].chunk, med[2].tasks, med[2].sample_seconds * 1e3)
     reference = serial.rows
     emit("sweep_identical", int(all(r.rows == reference for out in runs.values() for r in out)))

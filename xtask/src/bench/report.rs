@@ -866,8 +866,28 @@ fn dask_sweep(md: &mut Md, r: &Results) -> Result<(), String> {
         r.num("sweep_paired", 3)?,
         r.num("sweep_paired", 4)?,
     );
+    let (paired_scaling, shared, idle2) = (
+        r.num("sweep_scaling_paired", 0)?,
+        r.num("sweep_scaling_paired", 1)?,
+        r.num("sweep_scaling_paired", 4)?,
+    );
     md.line(format!(
-        "Scaling from 1 to 2 workers: {scaling:.2}x (target >= 1.8x: {}). Dask's overhead per sample: \
+        "Scaling from 1 to 2 workers: {paired_scaling:.2}x (target >= 1.8x: {}), from its parts, each measured \
+         within one stretch of time: the workers idle {idle2:.1}% of the median 2-worker run (1 - its tasks' \
+         compute time / twice its wall time; the tail where one worker waits for the other included) and {idle:.1}% \
+         of the median 1-worker run, and a sample computing {shared:.3}x as fast on each of two workers sharing \
+         the machine as on one worker alone ({} blocks of {} samples, on a 1-worker cluster and at once on both \
+         workers of a 2-worker cluster, by turns, not pinned); scaling = 2 x {shared:.3} x (1 - {:.3}) / (1 - \
+         {:.3}). The ratio of the median whole runs above is {scaling:.2}x.",
+        yes(paired_scaling >= 1.8),
+        r.num("sweep_scaling_paired", 2)?,
+        r.num("sweep_scaling_paired", 3)?,
+        idle2 / 100.0,
+        idle / 100.0,
+    ));
+    md.line("");
+    md.line(format!(
+        "Dask's overhead per sample: \
          {paired:.1}% (target <= 5%: {}), from its two parts, each measured within one stretch of time: the \
          worker idle {idle:.1}% of the median 1-worker run (1 - its tasks' compute time / its wall time), and a \
          sample computing {compute:.3}x as long in a worker as in a plain Python process without Dask ({} blocks \
@@ -875,7 +895,6 @@ fn dask_sweep(md: &mut Md, r: &Results) -> Result<(), String> {
          {:.3}). The ratio of the whole runs above, 1 - serial time / 1-worker time = {overhead:.1}%, compares \
          runs timed minutes apart, over which this machine's speed drifts by tens of percent. The 1-minute load \
          average was {:.2} when this bench started and {:.2} when it ended, on {} cores.",
-        yes(scaling >= 1.8),
         yes(paired <= 5.0),
         r.num("sweep_paired", 1)?,
         r.num("sweep_paired", 2)?,

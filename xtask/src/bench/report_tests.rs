@@ -63,6 +63,7 @@ const COMMON: &str = "\
 @ sweep_scaling 1.9193
 @ sweep_overhead 2.21
 @ sweep_paired 1.012 30 8 0.45 1.64
+@ sweep_scaling_paired 1.9391 0.9712 30 8 0.62
 @ sweep_chunk 43 12 30 20 23.4
 @ sweep_load 0.42 1.37 2
 ";
