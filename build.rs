@@ -6,6 +6,13 @@ use std::path::{Path, PathBuf};
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
+    // The library stays loaded once loaded (ELF's NODELETE flag): an importer that closes it while
+    // an instance lives and opens it again (ecos does, when two components of a system use the
+    // same FMU file) finds its table of live instances as it left it, rather than an empty one
+    // that hands the next instance the live one's handle (tests/python/test_reload.py).
+    if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("linux") {
+        println!("cargo:rustc-cdylib-link-arg=-Wl,-z,nodelete");
+    }
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     write(
         &out.join("model_variables.rs"),

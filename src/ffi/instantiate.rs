@@ -69,6 +69,7 @@ pub(crate) unsafe fn instantiate(request: Request) -> *mut c_void {
         Ok(model) => model,
         Err(why) => return refuse(why),
     };
+    keep_loaded();
     let mut instance = Instance::with(model, flavour, options, sink, logging_on);
     instance.log(Status::Ok, LogCategory::Calls, || {
         format!(
@@ -90,3 +91,35 @@ pub(crate) unsafe fn instantiate(request: Request) -> *mut c_void {
         }
     }
 }
+
+/// On Windows, the counterpart of the NODELETE flag the library is linked with on Linux
+/// (build.rs): with its first instance the DLL pins itself, so that an importer's FreeLibrary
+/// while an instance lives never unloads it, and the table of live instances outlasts a reload
+/// (tests/python/test_reload.py, and the cross test's `reload` scenario).
+#[cfg(windows)]
+fn keep_loaded() {
+    static PINNED: std::sync::Once = std::sync::Once::new();
+    PINNED.call_once(|| {
+        const GET_MODULE_HANDLE_EX_FLAG_PIN: u32 = 0x1;
+        const GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS: u32 = 0x4;
+        #[link(name = "kernel32")]
+        extern "system" {
+            fn GetModuleHandleExW(flags: u32, name: *const u16, module: *mut *mut c_void) -> i32;
+        }
+        let mut module = std::ptr::null_mut();
+        // SAFETY: with FROM_ADDRESS, `name` is read as an address inside the module to pin (this
+        // function's), not as a string; `module` is a valid place for the handle. A failure
+        // leaves the DLL as Windows loaded it: nothing to undo.
+        unsafe {
+            GetModuleHandleExW(
+                GET_MODULE_HANDLE_EX_FLAG_PIN | GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS,
+                keep_loaded as *const u16,
+                &mut module,
+            )
+        };
+    });
+}
+
+/// Elsewhere the linker's flag does it (build.rs).
+#[cfg(not(windows))]
+fn keep_loaded() {}

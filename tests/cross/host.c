@@ -28,7 +28,8 @@
  *   save <steps> <every> <file>      open loop: fmi2SerializeFMUstate at steps/2 into <file>,
  *                                    then the samples of the rest of the run
  *   restore <steps> <every> <file>   a fresh instance restores <file> and runs the rest
- *   misuse                           calls FMI 2.0 forbids, and the status each gets
+ *   misuse                           calls FMI 2.0 forbids, and the status each gets; then the
+ *                                    library closed and reopened under a live instance
  *   fmi3 <steps> <every>             the open loop through FMI 3.0 (fmi3DoStep with early return
  *                                    allowed): each step stops at every contact switch inside it
  *                                    (an `early` line) and continues from there to its end
@@ -63,8 +64,10 @@ static void die(const char *fmt, ...) {
 /* ---- the library: LoadLibrary/GetProcAddress on Windows, dlopen/dlsym elsewhere ---- */
 
 static void *library;
+static const char *library_path;
 
 static void open_library(const char *path) {
+    library_path = path;
 #ifdef _WIN32
     library = (void *)LoadLibraryA(path);
     if (!library) die("LoadLibrary %s failed (error %lu)", path, (unsigned long)GetLastError());
@@ -72,6 +75,16 @@ static void open_library(const char *path) {
     library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!library) die("dlopen %s: %s", path, dlerror());
 #endif
+}
+
+/* Closes the library as an importer does that unloads it (its last reference: the host holds one). */
+static void close_library(void) {
+#ifdef _WIN32
+    if (!FreeLibrary((HMODULE)library)) die("FreeLibrary failed (error %lu)", (unsigned long)GetLastError());
+#else
+    if (dlclose(library) != 0) die("dlclose: %s", dlerror());
+#endif
+    library = NULL;
 }
 
 static void *symbol(const char *name) {
@@ -565,6 +578,17 @@ static void misuse(void) {
     c = make("after-misuse");
     before = messages;
     report("fresh_instance_steps", api.do_step(c, 0.0, H, fmi2True), before);
+
+    /* An importer that closes the library while an instance lives and opens it again (ecos does,
+     * for two components of one FMU file): the instance steps on, and the next one gets a handle
+     * of its own (the library stays loaded: build.rs, src/ffi/instantiate.rs). */
+    close_library();
+    load(library_path);
+    fmi2Component d = make("after-reload");
+    before = messages;
+    report("step_after_reload", api.do_step(c, H, H, fmi2True), before);
+    printf("@ misuse reload_distinct_handles %s %ld\n", c != d ? "distinct" : "same", messages - before);
+    release(d);
     release(c);
 }
 
