@@ -153,6 +153,31 @@ pub struct DefaultExperiment {
     pub step_size: f64,
 }
 
+/// One input of a model's reference experiment: the default experiment driven by square waves,
+/// whose results every archive carries (`cargo xtask fmu`, FMI-LS-REF). Over the steps
+/// k = 0, 1, ... of the default experiment the value held over step k is `level + amplitude`
+/// while ⌊k / half_period⌋ is even and `level - amplitude` while it is odd (with amplitude 0, a
+/// constant).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SquareWave {
+    pub input: &'static str,
+    pub level: f64,
+    pub amplitude: f64,
+    /// Steps between the flips (> 0).
+    pub half_period: u32,
+}
+
+impl SquareWave {
+    /// The value held over step `k`.
+    pub fn at(&self, k: u64) -> f64 {
+        if (k / u64::from(self.half_period)).is_multiple_of(2) {
+            self.level + self.amplitude
+        } else {
+            self.level - self.amplitude
+        }
+    }
+}
+
 pub struct Model {
     pub identifier: &'static str,
     /// How its parameters make its plant; its state nominals and model structure are computed
@@ -160,6 +185,9 @@ pub struct Model {
     pub plant_params: PlantMapping,
     pub description: &'static str,
     pub default_experiment: DefaultExperiment,
+    /// The inputs of its reference experiment ([`SquareWave`]); the others keep their start
+    /// values.
+    pub reference_inputs: &'static [SquareWave],
     pub variables: Vec<Var>,
 }
 

@@ -6,7 +6,8 @@
 //! `binaries/<platform>/<id>.<ext>` (the same library under each model's identifier: FMI 2.0
 //! `linux64/<id>.so`, with `--all-platforms` also `win64/<id>.dll`; FMI 3.0 `x86_64-linux/<id>.so`,
 //! with `--all-platforms` also `x86_64-windows/<id>.dll` and `aarch64-linux/<id>.so`),
-//! `documentation/index.html`. FMI 2.0 has no folder for aarch64-linux.
+//! and the files of [`kit::entries`] (the documentation page, ...). FMI 2.0 has no folder for
+//! aarch64-linux.
 //!
 //! Beside the archives of each standard, in every folder it fills, the manifest [`MANIFEST`]:
 //! the model identifiers, one a line, in the order of `model_identifiers()` (the Python tests
@@ -21,7 +22,7 @@ use zip::CompressionMethod;
 
 use crate::platform::{self, Built, Platform};
 use crate::util::{self, step};
-use crate::{cross, documentation};
+use crate::{cross, kit};
 
 /// Name of the cdylib that cargo writes for the `backlash_fmu` library.
 pub const LIBRARY_FILE: &str = platform::LINUX64.library_file;
@@ -194,11 +195,11 @@ pub fn package_into(platforms: &[&'static Platform], base: &Path) -> Result<Vec<
         for &id in ids {
             let xml = (standard.description)(id);
             check_description(standard, id, &xml)?;
-            let html = documentation::render(id, &xml)?;
+            let kit = kit::entries(standard, id, &xml)?;
             let path = out_dir.join(format!("{id}.fmu"));
             let entries = binary_entries(id, &libraries, standard.folder_of);
-            write_archive(&path, &xml, &entries, &html)?;
-            verify_archive(&path, standard, id, &entries)?;
+            write_archive(&path, &xml, &entries, &kit)?;
+            verify_archive(&path, standard, id, &entries, &kit)?;
             println!(
                 "wrote {} ({} bytes)",
                 util::shown(&path),
@@ -276,8 +277,8 @@ fn check_description(standard: &Standard, id: &str, xml: &str) -> Result<(), Str
 }
 
 /// Writes the archive `path`: the description, the `binaries` (archive name and bytes) and the
-/// documentation page.
-fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], html: &str) -> Result<(), String> {
+/// files of the `kit` (the documentation page and the rest of [`kit::entries`]).
+fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], kit: &[kit::Entry]) -> Result<(), String> {
     // Write beside the target and rename, so that an interrupted run never leaves a truncated
     // archive where the tests look for one.
     let partial = path.with_extension("fmu.partial");
@@ -290,7 +291,7 @@ fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], html: &st
     let mut entries: Vec<(String, &[u8], SimpleFileOptions)> =
         vec![("modelDescription.xml".into(), xml.as_bytes(), text)];
     entries.extend(binaries.iter().map(|(name, bytes)| (name.clone(), *bytes, binary)));
-    entries.push(("documentation/index.html".into(), html.as_bytes(), text));
+    entries.extend(kit.iter().map(|e| (e.name.clone(), e.bytes.as_slice(), text)));
     for (name, bytes, options) in entries {
         zip.start_file(name.as_str(), options)
             .and_then(|_| zip.write_all(bytes).map_err(Into::into))
@@ -303,7 +304,13 @@ fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], html: &st
 
 /// Reopens the archive and checks it holds exactly the expected entries, with forward slashes,
 /// and a description of `standard` for this model.
-fn verify_archive(path: &Path, standard: &Standard, id: &str, binaries: &[(String, &[u8])]) -> Result<(), String> {
+fn verify_archive(
+    path: &Path,
+    standard: &Standard,
+    id: &str,
+    binaries: &[(String, &[u8])],
+    kit: &[kit::Entry],
+) -> Result<(), String> {
     let file = fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut archive = zip::ZipArchive::new(file).map_err(|e| format!("{}: not a zip archive: {e}", path.display()))?;
     let mut names: Vec<String> = archive
@@ -313,10 +320,8 @@ fn verify_archive(path: &Path, standard: &Standard, id: &str, binaries: &[(Strin
         .map_err(|e| format!("{}: {e}", path.display()))?;
     names.sort();
     let mut expected: Vec<String> = binaries.iter().map(|(name, _)| name.clone()).collect();
-    expected.extend([
-        "documentation/index.html".to_string(),
-        "modelDescription.xml".to_string(),
-    ]);
+    expected.extend(kit.iter().map(|e| e.name.clone()));
+    expected.push("modelDescription.xml".to_string());
     expected.sort();
     if names != expected {
         return Err(format!("{}: entries {names:?}, expected {expected:?}", path.display()));

@@ -6,6 +6,7 @@ mod cross;
 mod demo;
 mod documentation;
 mod fmu;
+mod kit;
 mod platform;
 mod python;
 mod rigs;

@@ -7,7 +7,7 @@ use super::Transmission;
 use super::{
     common_head, drive_train, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef,
 };
-use crate::{DefaultExperiment, Model, Range, Var};
+use crate::{DefaultExperiment, Model, Range, SquareWave, Var};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -51,6 +51,11 @@ fn model() -> Model {
             stop_time: 0.2,
             step_size: 1e-4,
         },
+        // The motor torque reverses every 25 ms; a load torque from t = 0.1 s.
+        reference_inputs: &[
+            SquareWave { input: "tau_m", level: 0.0, amplitude: 0.02, half_period: 250 },
+            SquareWave { input: "tau_L", level: -0.005, amplitude: 0.005, half_period: 1000 },
+        ],
         variables: belt_variables().into_iter().chain(damper_variables()).collect(),
     })
 }

@@ -8,7 +8,7 @@ use super::{
     common_head, damper_variables, drive_train, event_indicators, parameter, pi_gains, state_derivatives,
     with_state_nominals, ModelDef,
 };
-use crate::{DefaultExperiment, Model, Range};
+use crate::{DefaultExperiment, Model, Range, SquareWave};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -117,6 +117,12 @@ fn model() -> Model {
             stop_time: 10.0,
             step_size: 1e-2,
         },
+        // The motor torque reverses every second, so the motor crosses the gap and takes up
+        // the other flank again and again; a load torque from t = 5 s.
+        reference_inputs: &[
+            SquareWave { input: "tau_m", level: 0.0, amplitude: 3.0, half_period: 100 },
+            SquareWave { input: "tau_L", level: -0.25, amplitude: 0.25, half_period: 500 },
+        ],
         variables: v,
     })
 }
