@@ -1,21 +1,21 @@
-"""The archives in real co-simulation masters: ecos (PyPI ecospy) from an SSP 1.0 system, and
-libcosim (PyPI libcosimpy) from an OSP system structure, each running two BacklashShaft
+"""The archives in real co-simulation masters: ecos (PyPI ecospy) and fmpy's SSP runner from an
+SSP 1.0 system, and libcosim (PyPI libcosimpy) from an OSP system structure, each running two BacklashShaft
 components of ONE archive file: a plant under a constant motor torque, and a follower whose motor
 torque is the plant's motor speed (1 N.m per rad/s), through a connection.
 
 What is checked, against a loop closed here through the same archive (backlash_fmu.fmu):
-- both masters transfer values Jacobi-style: over the step [t_k, t_k+1) the follower's input is
-  the plant's output at t_k, and before the first step the plant's initial output reaches the
-  follower (ecos and libcosim both pass connections in Initialization Mode);
-- ecos counts time as a sum of steps (t += h) and hands each fmi2DoStep the step size h as
-  given; libcosim counts integer nanoseconds and hands each fmi2DoStep the difference of two such
+- every master transfers values Jacobi-style: over the step [t_k, t_k+1) the follower's input is
+  the plant's output at t_k; before the first step ecos and libcosim pass the plant's initial
+  output to the follower (in Initialization Mode), fmpy's SSP runner passes 0;
+- ecos and fmpy count time as a sum of steps (t += h) and hand each fmi2DoStep the step size h
+  as given; libcosim counts integer nanoseconds and hands each fmi2DoStep the difference of two such
   times in seconds (k h_ns / 1e9): the loop here does each master's arithmetic, so the values
   agree to the bit;
 - two components of one archive file: ecos closes and reopens the library for the second one,
   which the library survives (it stays loaded, tests/python/test_reload.py); libcosim loads the
-  file once.
+  file once, fmpy unpacks it once per component.
 libcosim refuses FMI 3.0 archives ("Unsupported FMI version", its own limit, libcosim 0.11); ecos
-runs them, and does here.
+runs them, and does here; fmpy's SSP runner looks for FMI 2.0's binaries/linux64 only.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -47,17 +48,17 @@ PLANT = {"tau_m": 10.0, "omega_m": 0.5, "Delta": 0.001}
 FOLLOWER = {"J_m": 1.0}
 
 
-def reference(fmi: int, times: list[float], sizes: list[float]) -> np.ndarray:
+def reference(fmi: int, times: list[float], sizes: list[float], first: float | None = None) -> np.ndarray:
     """(plant omega_m, follower tau_m, follower omega_m) after each step, the loop closed here:
-    the follower's input over [t_k, t_k+1) is the plant's output at t_k; step k starts at
-    times[k] with the size sizes[k]."""
+    the follower's input over [t_k, t_k+1) is the plant's output at t_k, but over the first step
+    `first` if given; step k starts at times[k] with the size sizes[k]."""
     archive = shared("BacklashShaft", fmi)
     plant = archive.co_simulation("plant", PLANT)
     follower = archive.co_simulation("follower", {**FOLLOWER, "tau_m": plant.get("omega_m")[0]})
     rows = []
     try:
         for k in range(STEPS):
-            w = plant.get("omega_m")[0]
+            w = first if k == 0 and first is not None else plant.get("omega_m")[0]
             follower.set_inputs(tau_m=w)
             plant.step(times[k], sizes[k])
             follower.step(times[k], sizes[k])
@@ -183,3 +184,32 @@ def test_libcosim_refuses_fmi3_with_its_own_reason(tmp_path):
     get_error.restype = ctypes.c_char_p
     assert not slave.ptr(), "libcosim 0.11 loaded an FMI 3.0 archive"
     assert b"Unsupported FMI version" in get_error()
+
+
+def test_fmpy_ssp_runner_runs_two_components_of_one_archive_jacobi(tmp_path):
+    """fmpy's SSP runner reads a zipped .ssp; it applies no parameter binding of the file, only the
+    `parameter_set` it is given (component.variable), and records each row at the start time of
+    its step with the values after it. It steps while its clock (t += h) is short of the stop
+    time, so a stop time half a step before the last point gives exactly STEPS steps."""
+    from fmpy.ssp.ssd import Parameter, ParameterSet
+    from fmpy.ssp.simulation import simulate_ssp
+
+    system = ssp_system(tmp_path / "system", fmu_path("BacklashShaft", 2))
+    ssp = tmp_path / "pair.ssp"
+    with zipfile.ZipFile(ssp, "w") as z:
+        for path in sorted(system.rglob("*")):
+            if path.is_file():
+                z.write(path, path.relative_to(system).as_posix())
+    values = ParameterSet(parameters=[Parameter(name=f"{c}.{n}", type="Real", value=v)
+                                      for c, params in (("plant", PLANT), ("follower", FOLLOWER))
+                                      for n, v in params.items()])
+    result = simulate_ssp(str(ssp), start_time=0.0, stop_time=STEPS * H - H / 2, step_size=H, parameter_set=values)
+    assert len(result) == STEPS
+    clock = [0.0]
+    for _ in range(STEPS - 1):
+        clock.append(clock[-1] + H)
+    assert list(result["time"]) == clock
+    expected = reference(2, clock, [H] * STEPS, first=0.0)
+    assert np.ptp(expected[:, 2]) > 0.1, "the follower must move"
+    assert np.array_equal(result["plant.omega_m"], expected[:, 0])
+    assert np.array_equal(result["follower.omega_m"], expected[:, 2])
