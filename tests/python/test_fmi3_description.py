@@ -152,7 +152,11 @@ def test_archive_layout_and_page(model):
         # x86_64-linux always; `cargo xtask fmu --all-platforms` adds Windows and ARM (the FMI 3.0
         # platform tuples), each beside the same binary in the FMI 2.0 archive where it has one.
         names = set(zf3.namelist())
-        required = {f"binaries/x86_64-linux/{model}.so", "documentation/index.html", "modelDescription.xml"}
+        required = {f"binaries/x86_64-linux/{model}.so", "documentation/index.html", "modelDescription.xml",
+                    *(f"extra/org.fmi-standard.fmi-ls-ref/{name}"
+                      for name in ("fmi-ls-manifest.xml", f"{model}_in.csv", f"{model}_out.csv")),
+                    *(f"terminalsAndIcons/{name}"
+                      for name in ("icon.png", "terminalsAndIcons.xml", "flange_a.png", "flange_b.png"))}
         optional = {f"binaries/x86_64-windows/{model}.dll", f"binaries/aarch64-linux/{model}.so"}
         assert required <= names and names <= required | optional, sorted(names)
         # The same libraries as the FMI 2.0 archive's.

@@ -1,7 +1,9 @@
 //! What every archive carries beside its description and binaries, so that a user can check an
-//! importer against it: the documentation page (`documentation/index.html`) and the reference
-//! results of FMI-LS-REF ([`reference`]).
+//! importer against it: the documentation page (`documentation/index.html`), the reference
+//! results of FMI-LS-REF ([`reference`]), and the model's icon with, in FMI 3.0, its two flanges
+//! as terminals ([`icon`]).
 
+mod icon;
 mod reference;
 
 use crate::documentation;
@@ -15,11 +17,11 @@ pub struct Entry {
 
 /// The kit's files in the archive of model `id` for `standard`, whose description is `xml`.
 pub fn entries(standard: &Standard, id: &str, xml: &str) -> Result<Vec<Entry>, String> {
-    let _ = standard;
     let mut kit = vec![Entry {
         name: "documentation/index.html".into(),
         bytes: documentation::render(id, xml)?.into_bytes(),
     }];
     kit.extend(reference::entries(id)?);
+    kit.extend(icon::entries(standard.fmi_version, id, xml)?);
     Ok(kit)
 }

@@ -1,0 +1,779 @@
+//! The model's picture and, in FMI 3.0, its two flanges: `model.png` at the root of an FMI 2.0
+//! archive (FMI 2.0 §2.3, "optional image file of FMU icon"), and in an FMI 3.0 archive
+//! `terminalsAndIcons/` (FMI 3.0.2 §2.4.9): `icon.png`, `terminalsAndIcons.xml` with the motor-side
+//! and the load-side flange as terminals, and one image per flange terminal.
+//!
+//! The images are drawn here at packaging time, so the repository holds no binary file: a small
+//! canvas paints shapes given by their signed distance, and a minimal PNG encoder (8-bit RGBA, one
+//! `IDAT`, no row filter) writes them. One picture serves every model: all three share the drive
+//! train of docs/model.md §1 (motor inertia, compliant member, backlash, load inertia).
+
+use std::io::Write;
+
+use flate2::write::ZlibEncoder;
+use flate2::Compression;
+use model_description::xml::escape;
+
+use super::Entry;
+
+/// The archive entries of this kit for the standard `fmi_version` ("2.0" or "3.0") of model `id`,
+/// whose model description is `xml`.
+pub fn entries(fmi_version: &str, id: &str, xml: &str) -> Result<Vec<Entry>, String> {
+    let icon = picture(ICON_PIXELS, ICON, draw_drive_train).map_err(|e| format!("{id}: icon: {e}"))?;
+    match fmi_version {
+        "2.0" => Ok(vec![Entry {
+            name: "model.png".into(),
+            bytes: icon,
+        }]),
+        "3.0" => {
+            let doc =
+                roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
+            let description_version = doc.root_element().attribute("fmiVersion");
+            // FMI 3.0.2 §2.4.9: the two fmiVersion attributes must match.
+            if description_version != Some(fmi_version) {
+                return Err(format!(
+                    "{id}: the model description's fmiVersion is {description_version:?}, not {fmi_version}"
+                ));
+            }
+            let mut kit = vec![
+                Entry {
+                    name: "terminalsAndIcons/icon.png".into(),
+                    bytes: icon,
+                },
+                Entry {
+                    name: "terminalsAndIcons/terminalsAndIcons.xml".into(),
+                    bytes: terminals_and_icons(fmi_version, &doc)
+                        .map_err(|e| format!("{id}: {e}"))?
+                        .into_bytes(),
+                },
+            ];
+            for flange in &FLANGES {
+                kit.push(Entry {
+                    name: format!("terminalsAndIcons/{}.png", flange.name),
+                    bytes: picture(FLANGE_PIXELS, flange.extent, |canvas| draw_flange(canvas, flange))
+                        .map_err(|e| format!("{id}: image of {}: {e}", flange.name))?,
+                });
+            }
+            Ok(kit)
+        }
+        other => Err(format!("{id}: no icon or terminals for fmiVersion {other:?}")),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Terminals (FMI 3.0.2 §2.4.9.2)
+
+/// The icon's place in the terminalsAndIcons coordinate system: the default extent of the
+/// standard (−100…100 both ways), which is also the coordinate system's.
+const ICON: Extent = Extent {
+    x1: -100.0,
+    y1: -100.0,
+    x2: 100.0,
+    y2: 100.0,
+};
+
+/// The standard's default: 200 units are 20 mm.
+const SCALING_TO_MM: f64 = 0.1;
+
+/// A rotational flange of the drive train as a terminal with the members of Modelica's
+/// `Rotational.Interfaces.Flange`: `phi`, the absolute angle, and `tau`, the cut torque (a flow).
+struct Flange {
+    /// The terminal's name and the base name of its image: Modelica's names for the two flanges
+    /// of a two-flange component.
+    name: &'static str,
+    terminal_kind: &'static str,
+    description: &'static str,
+    /// The variable served as `phi` (docs/model.md §1: an angle of the state).
+    angle: &'static str,
+    /// The variable served as `tau` (docs/model.md §1: an applied torque, an input).
+    torque: &'static str,
+    /// Where the terminal sits: on the icon's edge, at the end of the drawn shaft.
+    extent: Extent,
+    /// Modelica's flange icons: Flange_a a filled circle, Flange_b an open one.
+    fill: Rgb,
+}
+
+/// The two flanges, motor side first; their variables are common to every model (docs/model.md §1).
+const FLANGES: [Flange; 2] = [
+    Flange {
+        name: "flange_a",
+        terminal_kind: "Modelica.Mechanics.Rotational.Interfaces.Flange_a",
+        description: "Motor-side flange: motor angle theta_m and motor torque tau_m",
+        angle: "theta_m",
+        torque: "tau_m",
+        extent: Extent {
+            x1: -110.0,
+            y1: -10.0,
+            x2: -90.0,
+            y2: 10.0,
+        },
+        fill: Rgb(95, 95, 95),
+    },
+    Flange {
+        name: "flange_b",
+        terminal_kind: "Modelica.Mechanics.Rotational.Interfaces.Flange_b",
+        description: "Load-side flange: load angle theta_L and load torque tau_L",
+        angle: "theta_L",
+        torque: "tau_L",
+        extent: Extent {
+            x1: 90.0,
+            y1: -10.0,
+            x2: 110.0,
+            y2: 10.0,
+        },
+        fill: Rgb(255, 255, 255),
+    },
+];
+
+/// One member of a flange terminal.
+struct Member {
+    /// Its name in Modelica's flange.
+    member_name: &'static str,
+    variable_kind: &'static str,
+    /// The causality its variable has in every model (docs/model.md §1).
+    causality: &'static str,
+}
+
+/// The angle is a potential: connected flanges have equal angles.
+const ANGLE: Member = Member {
+    member_name: "phi",
+    variable_kind: "signal",
+    causality: "output",
+};
+
+/// `inflow`: τ_m and τ_L enter docs/model.md §1 with a plus sign,
+/// `J_m ω_m' = τ_m − b_m ω_m − r_m ψ` and `J_L ω_L' = τ_L − b_L ω_L + r_L ψ`, so a positive torque
+/// accelerates its inertia along its angle: it flows into the FMU through its flange, as Modelica's
+/// `flange.tau` is positive into the component (an inertia: `J a = flange_a.tau + flange_b.tau`).
+const TORQUE: Member = Member {
+    member_name: "tau",
+    variable_kind: "inflow",
+    causality: "input",
+};
+
+/// FMI 3.0.2 §2.4.9.2.3: `signal`, `inflow` and `outflow` members are restricted to these.
+const MEMBER_CAUSALITIES: [&str; 4] = ["input", "output", "parameter", "calculatedParameter"];
+
+/// `terminalsAndIcons/terminalsAndIcons.xml` for the parsed model description `doc`: the icon's
+/// extent and the two flange terminals, each member checked against the description.
+fn terminals_and_icons(fmi_version: &str, doc: &roxmltree::Document) -> Result<String, String> {
+    let mut xml = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    xml += &format!(
+        "<fmiTerminalsAndIcons {}>\n",
+        attributes(&[("fmiVersion", fmi_version.into())])
+    );
+    xml += "  <GraphicalRepresentation>\n";
+    let mut coordinates = extent_attributes(ICON);
+    coordinates.push(("suggestedScalingFactorTo_mm", SCALING_TO_MM.to_string()));
+    xml += &empty_element(4, "CoordinateSystem", &coordinates);
+    xml += &empty_element(4, "Icon", &extent_attributes(ICON));
+    xml += "  </GraphicalRepresentation>\n  <Terminals>\n";
+    for flange in &FLANGES {
+        let terminal = attributes(&[
+            ("name", flange.name.into()),
+            ("matchingRule", "plug".into()),
+            ("terminalKind", flange.terminal_kind.into()),
+            ("description", flange.description.into()),
+        ]);
+        xml += &format!("    <Terminal {terminal}>\n");
+        for (variable, member) in [(flange.angle, &ANGLE), (flange.torque, &TORQUE)] {
+            check_member(doc, flange, variable, member)?;
+            let member = [
+                ("variableName", variable.into()),
+                ("memberName", member.member_name.into()),
+                ("variableKind", member.variable_kind.into()),
+            ];
+            xml += &empty_element(6, "TerminalMemberVariable", &member);
+        }
+        // Modelica draws rotational connections in black.
+        let mut drawn = vec![("defaultConnectionColor", "0 0 0".to_string())];
+        drawn.extend(extent_attributes(flange.extent));
+        drawn.push(("iconBaseName", flange.name.into()));
+        xml += &empty_element(6, "TerminalGraphicalRepresentation", &drawn);
+        xml += "    </Terminal>\n";
+    }
+    xml += "  </Terminals>\n</fmiTerminalsAndIcons>\n";
+    Ok(xml)
+}
+
+/// `name="value"` for each pair, the values escaped, separated by spaces.
+fn attributes(pairs: &[(&str, String)]) -> String {
+    let pairs: Vec<String> = pairs
+        .iter()
+        .map(|(name, value)| format!("{name}=\"{}\"", escape(value)))
+        .collect();
+    pairs.join(" ")
+}
+
+/// One line: the element `name` with `pairs` as its attributes and no content, `indent` spaces in.
+fn empty_element(indent: usize, name: &str, pairs: &[(&str, String)]) -> String {
+    format!("{:indent$}<{name} {}/>\n", "", attributes(pairs))
+}
+
+fn extent_attributes(extent: Extent) -> Vec<(&'static str, String)> {
+    let Extent { x1, y1, x2, y2 } = extent;
+    vec![
+        ("x1", x1.to_string()),
+        ("y1", y1.to_string()),
+        ("x2", x2.to_string()),
+        ("y2", y2.to_string()),
+    ]
+}
+
+/// The description must have `variable`, a Float64 with the causality `member` expects: a
+/// terminal naming a missing variable, or one whose sign convention differs, would mislead the
+/// importer that connects it.
+fn check_member(doc: &roxmltree::Document, flange: &Flange, variable: &str, member: &Member) -> Result<(), String> {
+    let node = doc
+        .root_element()
+        .children()
+        .filter(|n| n.has_tag_name("ModelVariables"))
+        .flat_map(|n| n.children())
+        .find(|n| n.is_element() && n.attribute("name") == Some(variable))
+        .ok_or_else(|| format!("{}: the model description has no variable {variable}", flange.name))?;
+    let causality = node.attribute("causality").unwrap_or("local");
+    if !node.has_tag_name("Float64") || causality != member.causality || !MEMBER_CAUSALITIES.contains(&causality) {
+        return Err(format!(
+            "{}: {variable} (member {}, {}) is a {} with causality {causality}; expected a Float64 {}",
+            flange.name,
+            member.member_name,
+            member.variable_kind,
+            node.tag_name().name(),
+            member.causality
+        ));
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Drawing
+
+/// Side of the icon in pixels: one pixel per unit of its extent.
+const ICON_PIXELS: u32 = 200;
+/// Side of a flange's image in pixels (two per unit of its 20-unit extent).
+const FLANGE_PIXELS: u32 = 40;
+
+/// A rectangle of the terminalsAndIcons coordinate system, (x1, y1) its lower left corner.
+#[derive(Clone, Copy)]
+struct Extent {
+    x1: f64,
+    y1: f64,
+    x2: f64,
+    y2: f64,
+}
+
+/// A colour, 0–255 per channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Rgb(u8, u8, u8);
+
+const BLACK: Rgb = Rgb(0, 0, 0);
+const SHAFT_GREY: Rgb = Rgb(160, 160, 160);
+
+/// A square PNG of `pixels` a side showing `extent` as `draw` paints it.
+fn picture(pixels: u32, extent: Extent, draw: impl FnOnce(&mut Canvas)) -> Result<Vec<u8>, String> {
+    let mut canvas = Canvas::new(pixels, pixels, extent);
+    draw(&mut canvas);
+    png(pixels, pixels, &canvas.rgba8())
+}
+
+/// The drive train of docs/model.md §1 from left to right: the motor flange's shaft, the motor
+/// inertia (marked M), the compliant member as a zigzag spring, the backlash as a plate with play
+/// inside a slotted cup, the load inertia (larger) and the load flange's shaft; both shafts end on
+/// the icon's edge, where the terminals sit.
+fn draw_drive_train(canvas: &mut Canvas) {
+    // A shaft's edges are drawn along its length only: its ends meet an inertia or the icon's edge.
+    let shaft = |canvas: &mut Canvas, from: f64, to: f64| {
+        canvas.fill(rect(from, -4.0, to, 4.0, 0.0), SHAFT_GREY);
+        for y in [-4.0, 4.0] {
+            canvas.fill(segment((from, y), (to, y), 0.6), BLACK);
+        }
+    };
+    shaft(canvas, -100.0, -80.0);
+    inertia(canvas, -80.0, -46.0, 32.0);
+    canvas.fill(
+        polyline(
+            &[
+                (-74.0, -16.0),
+                (-74.0, 16.0),
+                (-64.0, -2.0),
+                (-54.0, 16.0),
+                (-54.0, -16.0),
+            ],
+            2.2,
+        ),
+        Rgb(40, 40, 40),
+    );
+
+    // The spring: a lead on either side and four full waves.
+    let (start, end, lead, amplitude) = (-46.0, 6.0, 6.0, 16.0);
+    let waves = 4;
+    let pitch = (end - start - 2.0 * lead) / (2 * waves) as f64;
+    let mut zigzag = vec![(start, 0.0), (start + lead, 0.0)];
+    for k in 0..2 * waves {
+        let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+        zigzag.push((start + lead + (k as f64 + 0.5) * pitch, sign * amplitude));
+    }
+    zigzag.extend([(end - lead, 0.0), (end, 0.0)]);
+    canvas.fill(polyline(&zigzag, 1.6), BLACK);
+
+    // The backlash: the rod's plate moves 12 units either way inside the cup before touching a lip
+    // or the back wall.
+    canvas.fill(segment((end, 0.0), (34.0, 0.0), 1.6), BLACK);
+    canvas.fill(rect(32.0, -16.0, 36.0, 16.0, 0.0), BLACK);
+    for sign in [1.0, -1.0] {
+        let band = |from: f64, to: f64| (sign * from).min(sign * to)..(sign * from).max(sign * to);
+        let (arm, lip) = (band(24.0, 28.0), band(10.0, 28.0));
+        canvas.fill(rect(16.0, arm.start, 52.0, arm.end, 0.0), BLACK);
+        canvas.fill(rect(16.0, lip.start, 20.0, lip.end, 0.0), BLACK);
+    }
+    canvas.fill(rect(48.0, -28.0, 52.0, 28.0, 0.0), BLACK);
+
+    shaft(canvas, 52.0, 58.0);
+    inertia(canvas, 58.0, 92.0, 46.0);
+    shaft(canvas, 92.0, 100.0);
+}
+
+/// An inertia between `left` and `right`, `half_height` above and below the axis, shaded as
+/// Modelica's rotational inertia: a cylinder lit along its axis.
+fn inertia(canvas: &mut Canvas, left: f64, right: f64, half_height: f64) {
+    let body = rect(left, -half_height, right, half_height, 3.0);
+    canvas.paint(&body, |_, y| {
+        let edge = (y / half_height).powi(2).min(1.0);
+        let level = (235.0 - edge * 125.0) as u8;
+        Rgb(level, level, level)
+    });
+    canvas.fill(outline(body, 1.0), BLACK);
+}
+
+/// A flange terminal's image: Modelica's flange icon, a circle filling the extent.
+fn draw_flange(canvas: &mut Canvas, flange: &Flange) {
+    let Extent { x1, y1, x2, y2 } = flange.extent;
+    let (cx, cy, radius) = ((x1 + x2) / 2.0, (y1 + y2) / 2.0, (x2 - x1) / 2.0 - 0.75);
+    canvas.fill(circle(cx, cy, radius), flange.fill);
+    canvas.fill(outline(circle(cx, cy, radius), 0.5), BLACK);
+}
+
+/// A shape: its signed distance at a point, in coordinate units, negative inside.
+type Shape = Box<dyn Fn(f64, f64) -> f64>;
+
+/// The rectangle from (x1, y1) to (x2, y2), its corners rounded with `radius`.
+fn rect(x1: f64, y1: f64, x2: f64, y2: f64, radius: f64) -> Shape {
+    let (cx, cy, hx, hy) = ((x1 + x2) / 2.0, (y1 + y2) / 2.0, (x2 - x1) / 2.0, (y2 - y1) / 2.0);
+    Box::new(move |x, y| {
+        let qx = (x - cx).abs() - hx + radius;
+        let qy = (y - cy).abs() - hy + radius;
+        qx.max(0.0).hypot(qy.max(0.0)) + qx.max(qy).min(0.0) - radius
+    })
+}
+
+fn circle(cx: f64, cy: f64, radius: f64) -> Shape {
+    Box::new(move |x, y| (x - cx).hypot(y - cy) - radius)
+}
+
+/// A stroke `half_width` either side of the segment from `a` to `b`, with round ends.
+fn segment(a: (f64, f64), b: (f64, f64), half_width: f64) -> Shape {
+    Box::new(move |x, y| distance_to_segment((x, y), a, b) - half_width)
+}
+
+/// A stroke `half_width` either side of the line through `points`.
+fn polyline(points: &[(f64, f64)], half_width: f64) -> Shape {
+    let points = points.to_vec();
+    Box::new(move |x, y| {
+        points
+            .windows(2)
+            .map(|w| distance_to_segment((x, y), w[0], w[1]))
+            .fold(f64::INFINITY, f64::min)
+            - half_width
+    })
+}
+
+/// A stroke `half_width` either side of the boundary of `shape`.
+fn outline(shape: Shape, half_width: f64) -> Shape {
+    Box::new(move |x, y| shape(x, y).abs() - half_width)
+}
+
+fn distance_to_segment(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let length2 = dx * dx + dy * dy;
+    let t = if length2 > 0.0 {
+        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / length2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
+}
+
+/// An image of `width` × `height` pixels showing `extent`, (x1, y1) at its lower left corner as
+/// FMI 3.0.2 §2.4.9.1.3 maps it; colours premultiplied by their opacity, all 0…1.
+struct Canvas {
+    width: usize,
+    height: usize,
+    extent: Extent,
+    pixels: Vec<[f64; 4]>,
+}
+
+impl Canvas {
+    fn new(width: u32, height: u32, extent: Extent) -> Self {
+        let (width, height) = (width as usize, height as usize);
+        Canvas {
+            width,
+            height,
+            extent,
+            pixels: vec![[0.0; 4]; width * height],
+        }
+    }
+
+    /// Paints `shape` in one colour.
+    fn fill(&mut self, shape: impl Fn(f64, f64) -> f64, colour: Rgb) {
+        self.paint(shape, |_, _| colour);
+    }
+
+    /// Paints `shape` over what is there, in the colour `colour` gives each point; the edge is
+    /// blended over one pixel.
+    fn paint(&mut self, shape: impl Fn(f64, f64) -> f64, colour: impl Fn(f64, f64) -> Rgb) {
+        let Extent { x1, y1, x2, y2 } = self.extent;
+        let (dx, dy) = ((x2 - x1) / self.width as f64, (y2 - y1) / self.height as f64);
+        for row in 0..self.height {
+            let y = y2 - (row as f64 + 0.5) * dy;
+            for column in 0..self.width {
+                let x = x1 + (column as f64 + 0.5) * dx;
+                let coverage = (0.5 - shape(x, y) / dx).clamp(0.0, 1.0);
+                if coverage == 0.0 {
+                    continue;
+                }
+                let Rgb(r, g, b) = colour(x, y);
+                let pixel = &mut self.pixels[row * self.width + column];
+                for (channel, value) in pixel.iter_mut().zip([r, g, b, 255]) {
+                    *channel = f64::from(value) / 255.0 * coverage + *channel * (1.0 - coverage);
+                }
+            }
+        }
+    }
+
+    /// The pixels as 8-bit RGBA, not premultiplied, rows top to bottom.
+    fn rgba8(&self) -> Vec<u8> {
+        let to_byte = |v: f64| (v * 255.0).round().clamp(0.0, 255.0) as u8;
+        self.pixels
+            .iter()
+            .flat_map(|&[r, g, b, a]| {
+                if a > 0.0 {
+                    [to_byte(r / a), to_byte(g / a), to_byte(b / a), to_byte(a)]
+                } else {
+                    [0; 4]
+                }
+            })
+            .collect()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// PNG (ISO/IEC 15948, W3C PNG second edition)
+
+const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+
+/// A PNG of `width` × `height` 8-bit RGBA pixels given row by row from the top: the signature,
+/// `IHDR`, one `IDAT` (zlib stream of the rows, each with filter type 0, None) and `IEND`.
+fn png(width: u32, height: u32, rgba: &[u8]) -> Result<Vec<u8>, String> {
+    let row_bytes = width as usize * 4;
+    if width == 0 || height == 0 || rgba.len() != row_bytes * height as usize {
+        return Err(format!("{} bytes are no {width} x {height} RGBA image", rgba.len()));
+    }
+    let mut header = Vec::with_capacity(13);
+    header.extend(width.to_be_bytes());
+    header.extend(height.to_be_bytes());
+    // Bit depth 8, colour type 6 (RGBA), compression 0 (deflate), filter method 0, no interlace.
+    header.extend([8, 6, 0, 0, 0]);
+
+    let mut zlib = ZlibEncoder::new(Vec::new(), Compression::best());
+    for row in rgba.chunks(row_bytes) {
+        zlib.write_all(&[0])
+            .and_then(|_| zlib.write_all(row))
+            .map_err(|e| format!("compressing the pixels: {e}"))?;
+    }
+    let data = zlib.finish().map_err(|e| format!("compressing the pixels: {e}"))?;
+
+    let mut file = PNG_SIGNATURE.to_vec();
+    chunk(&mut file, b"IHDR", &header);
+    chunk(&mut file, b"IDAT", &data);
+    chunk(&mut file, b"IEND", &[]);
+    Ok(file)
+}
+
+/// Appends a chunk: length, type, data, and the CRC-32 of type and data.
+fn chunk(file: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    let length = u32::try_from(data.len()).expect("a PNG chunk holds less than 2^31 bytes");
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(kind);
+    crc.update(data);
+    file.extend(length.to_be_bytes());
+    file.extend(kind);
+    file.extend(data);
+    file.extend(crc.finalize().to_be_bytes());
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::Read;
+
+    use super::*;
+
+    /// CRC-32 bit by bit (ISO 3309, reflected polynomial 0xEDB88320), independent of crc32fast.
+    fn crc32_reference(bytes: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &byte in bytes {
+            crc ^= u32::from(byte);
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+
+    /// The chunks of a PNG file (type, data), each CRC checked.
+    fn chunks(file: &[u8]) -> Vec<([u8; 4], Vec<u8>)> {
+        assert_eq!(file[..8], PNG_SIGNATURE);
+        let mut rest = &file[8..];
+        let mut found = Vec::new();
+        while !rest.is_empty() {
+            let length = u32::from_be_bytes(rest[..4].try_into().unwrap()) as usize;
+            let kind: [u8; 4] = rest[4..8].try_into().unwrap();
+            let data = &rest[8..8 + length];
+            let crc = u32::from_be_bytes(rest[8 + length..12 + length].try_into().unwrap());
+            assert_eq!(crc, crc32_reference(&rest[4..8 + length]), "CRC of {:?}", kind);
+            found.push((kind, data.to_vec()));
+            rest = &rest[12 + length..];
+        }
+        found
+    }
+
+    /// The pixels of a PNG written by [`png`]: RGBA rows with filter type 0.
+    fn decode(file: &[u8]) -> (u32, u32, Vec<u8>) {
+        let chunks = chunks(file);
+        let kinds: Vec<&[u8; 4]> = chunks.iter().map(|(kind, _)| kind).collect();
+        assert_eq!(kinds, [b"IHDR", b"IDAT", b"IEND"]);
+        let header = &chunks[0].1;
+        let width = u32::from_be_bytes(header[..4].try_into().unwrap());
+        let height = u32::from_be_bytes(header[4..8].try_into().unwrap());
+        assert_eq!(header[8..], [8, 6, 0, 0, 0]);
+        let mut raw = Vec::new();
+        flate2::read::ZlibDecoder::new(chunks[1].1.as_slice())
+            .read_to_end(&mut raw)
+            .unwrap();
+        let row_bytes = width as usize * 4 + 1;
+        assert_eq!(raw.len(), row_bytes * height as usize);
+        let mut pixels = Vec::new();
+        for row in raw.chunks(row_bytes) {
+            assert_eq!(row[0], 0, "filter type");
+            pixels.extend(&row[1..]);
+        }
+        (width, height, pixels)
+    }
+
+    fn icon_pixels() -> Vec<u8> {
+        let mut canvas = Canvas::new(ICON_PIXELS, ICON_PIXELS, ICON);
+        draw_drive_train(&mut canvas);
+        canvas.rgba8()
+    }
+
+    /// The RGBA pixel of the icon at the point (x, y) of its coordinate system.
+    fn icon_at(pixels: &[u8], x: f64, y: f64) -> [u8; 4] {
+        let column = ((x - ICON.x1) / (ICON.x2 - ICON.x1) * f64::from(ICON_PIXELS)) as usize;
+        let row = ((ICON.y2 - y) / (ICON.y2 - ICON.y1) * f64::from(ICON_PIXELS)) as usize;
+        let at = (row * ICON_PIXELS as usize + column) * 4;
+        pixels[at..at + 4].try_into().unwrap()
+    }
+
+    #[test]
+    fn png_round_trips_its_pixels_with_correct_crcs() {
+        let pixels: Vec<u8> = (0..3 * 2 * 4).map(|i| (i * 37 % 256) as u8).collect();
+        let file = png(3, 2, &pixels).unwrap();
+        assert_eq!(decode(&file), (3, 2, pixels));
+    }
+
+    #[test]
+    fn png_ends_with_the_well_known_iend_chunk() {
+        // Every PNG ends in these 12 bytes: length 0, "IEND", CRC 0xAE426082.
+        let file = png(1, 1, &[1, 2, 3, 4]).unwrap();
+        assert_eq!(
+            file[file.len() - 12..],
+            [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82]
+        );
+    }
+
+    #[test]
+    fn png_refuses_pixels_of_another_size() {
+        assert!(png(2, 2, &[0; 12]).is_err());
+        assert!(png(0, 1, &[]).is_err());
+    }
+
+    #[test]
+    fn icon_shows_the_drive_train_on_a_transparent_background() {
+        let pixels = icon_pixels();
+        for corner in [(-99.0, -99.0), (-99.0, 99.0), (99.0, -99.0), (99.0, 99.0)] {
+            assert_eq!(icon_at(&pixels, corner.0, corner.1)[3], 0, "corner {corner:?}");
+        }
+        // The motor inertia on the left, the taller load inertia on the right.
+        assert_eq!(icon_at(&pixels, -50.0, 25.0)[3], 255);
+        assert_eq!(icon_at(&pixels, -50.0, 40.0)[3], 0);
+        assert_eq!(icon_at(&pixels, 75.0, 40.0)[3], 255);
+        // The shafts reach the edges where the flanges sit.
+        assert_eq!(icon_at(&pixels, -99.5, 0.0), [160, 160, 160, 255]);
+        assert_eq!(icon_at(&pixels, 99.5, 0.0), [160, 160, 160, 255]);
+        // The play either side of the backlash plate is empty.
+        assert_eq!(icon_at(&pixels, 26.0, 12.0)[3], 0);
+        assert_eq!(icon_at(&pixels, 42.0, 12.0)[3], 0);
+        assert_eq!(icon_at(&pixels, 34.0, 12.0), [0, 0, 0, 255]);
+    }
+
+    #[test]
+    fn every_image_is_a_png_of_its_declared_size() {
+        let xml = model_description::xml3::model_description(model_description::model_identifiers()[0]);
+        for entry in entries("3.0", "test", &xml).unwrap() {
+            if entry.name.ends_with(".png") {
+                let (width, height, pixels) = decode(&entry.bytes);
+                let side = if entry.name.ends_with("icon.png") {
+                    ICON_PIXELS
+                } else {
+                    FLANGE_PIXELS
+                };
+                assert_eq!((width, height), (side, side), "{}", entry.name);
+                assert!(pixels.chunks(4).any(|p| p[3] == 255), "{} is empty", entry.name);
+            }
+        }
+    }
+
+    fn names(entries: &[Entry]) -> Vec<&str> {
+        entries.iter().map(|e| e.name.as_str()).collect()
+    }
+
+    #[test]
+    fn fmi2_archives_get_model_png_only() {
+        for &id in model_description::model_identifiers() {
+            let xml = model_description::xml::model_description(id);
+            assert_eq!(names(&entries("2.0", id, &xml).unwrap()), ["model.png"]);
+        }
+    }
+
+    #[test]
+    fn unknown_standard_is_refused() {
+        assert!(entries("1.0", "X", "<fmiModelDescription/>").is_err());
+    }
+
+    #[test]
+    fn every_fmi3_model_gets_both_flanges_with_its_variables() {
+        for &id in model_description::model_identifiers() {
+            let xml = model_description::xml3::model_description(id);
+            let kit = entries("3.0", id, &xml).unwrap();
+            assert_eq!(
+                names(&kit),
+                [
+                    "terminalsAndIcons/icon.png",
+                    "terminalsAndIcons/terminalsAndIcons.xml",
+                    "terminalsAndIcons/flange_a.png",
+                    "terminalsAndIcons/flange_b.png"
+                ]
+            );
+            let text = std::str::from_utf8(&kit[1].bytes).unwrap();
+            let doc = roxmltree::Document::parse(text).unwrap();
+            let root = doc.root_element();
+            assert_eq!(root.attribute("fmiVersion"), Some("3.0"));
+            let terminals: Vec<_> = root.descendants().filter(|n| n.has_tag_name("Terminal")).collect();
+            let found: Vec<_> = terminals
+                .iter()
+                .map(|t| {
+                    let members: Vec<_> = t
+                        .children()
+                        .filter(|n| n.has_tag_name("TerminalMemberVariable"))
+                        .map(|m| {
+                            (
+                                m.attribute("memberName").unwrap(),
+                                m.attribute("variableName").unwrap(),
+                                m.attribute("variableKind").unwrap(),
+                            )
+                        })
+                        .collect();
+                    (
+                        t.attribute("name").unwrap(),
+                        t.attribute("terminalKind").unwrap(),
+                        t.attribute("matchingRule").unwrap(),
+                        members,
+                    )
+                })
+                .collect();
+            assert_eq!(
+                found,
+                [
+                    (
+                        "flange_a",
+                        "Modelica.Mechanics.Rotational.Interfaces.Flange_a",
+                        "plug",
+                        vec![("phi", "theta_m", "signal"), ("tau", "tau_m", "inflow")]
+                    ),
+                    (
+                        "flange_b",
+                        "Modelica.Mechanics.Rotational.Interfaces.Flange_b",
+                        "plug",
+                        vec![("phi", "theta_L", "signal"), ("tau", "tau_L", "inflow")]
+                    ),
+                ],
+                "{id}"
+            );
+        }
+    }
+
+    /// A minimal FMI 3.0 description with the four flange variables, `tau_L` as `tau_l_element`.
+    fn description(tau_l_element: &str) -> String {
+        format!(
+            r#"<fmiModelDescription fmiVersion="3.0"><ModelVariables>
+            <Float64 name="tau_m" valueReference="1" causality="input"/>
+            {tau_l_element}
+            <Float64 name="theta_m" valueReference="3" causality="output"/>
+            <Float64 name="theta_L" valueReference="5" causality="output"/>
+            </ModelVariables></fmiModelDescription>"#
+        )
+    }
+
+    #[test]
+    fn a_description_with_the_flange_variables_is_accepted() {
+        let xml = description(r#"<Float64 name="tau_L" valueReference="2" causality="input"/>"#);
+        assert!(entries("3.0", "X", &xml).is_ok());
+    }
+
+    #[test]
+    fn a_missing_flange_variable_is_refused() {
+        let error = entries("3.0", "X", &description("")).err().unwrap();
+        assert!(
+            error.contains("flange_b") && error.contains("no variable tau_L"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_flange_variable_of_another_causality_or_type_is_refused() {
+        for element in [
+            r#"<Float64 name="tau_L" valueReference="2" causality="output"/>"#,
+            r#"<Float64 name="tau_L" valueReference="2"/>"#,
+            r#"<Int32 name="tau_L" valueReference="2" causality="input"/>"#,
+        ] {
+            let error = entries("3.0", "X", &description(element)).err().unwrap();
+            assert!(error.contains("tau_L (member tau, inflow)"), "{error}");
+        }
+    }
+
+    #[test]
+    fn a_description_of_another_standard_is_refused() {
+        let xml = description(r#"<Float64 name="tau_L" valueReference="2" causality="input"/>"#)
+            .replace("fmiVersion=\"3.0\"", "fmiVersion=\"2.0\"");
+        assert!(entries("3.0", "X", &xml).is_err());
+    }
+
+    /// The bit-by-bit CRC agrees with the check value of CRC-32: "123456789" → 0xCBF43926.
+    #[test]
+    fn reference_crc_matches_the_standard_check_value() {
+        assert_eq!(crc32_reference(b"123456789"), 0xCBF4_3926);
+    }
+}
