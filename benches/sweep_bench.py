@@ -62,6 +62,7 @@ import os
 import statistics
 import sys
 from pathlib import Path
+from typing import Callable
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -107,6 +108,22 @@ def _plain_chunk(batch: list) -> float:
     return time.perf_counter() - started
 
 
+def alternated(first: Callable[[list], float], second: Callable[[list], float], draws: list[dict],
+               block: int) -> tuple[float, float, int]:
+    """The sums of first(batch) and second(batch) over the blocks of `block` samples of `draws`,
+    the two taking turns to go first, after one untimed block of two samples each; and the
+    number of blocks."""
+    samples = list(enumerate(draws))
+    first(samples[:2])
+    second(samples[:2])
+    sums = [0.0, 0.0]
+    blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
+    for i, batch in enumerate(blocks):
+        for j in (0, 1) if i % 2 == 0 else (1, 0):
+            sums[j] += (first, second)[j](batch)
+    return sums[0], sums[1], len(blocks)
+
+
 def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -> tuple[float, int]:
     """Worker compute time / plain-process compute time of the same blocks of `block` samples
     (the module's docstring), and the number of blocks. The plain process is a separate Python
@@ -125,19 +142,8 @@ def paired_compute(data: bytes, draws: list[dict], settings: dict, block: int) -
             def there(batch: list) -> float:
                 return client.submit(engine.run_chunk, plugin.digest, batch, settings, pure=False).result()[2]
 
-            samples = list(enumerate(draws))
-            here(samples[:2])
-            there(samples[:2])
-            local = worker = 0.0
-            blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
-            for i, batch in enumerate(blocks):
-                if i % 2 == 0:
-                    local += here(batch)
-                    worker += there(batch)
-                else:
-                    worker += there(batch)
-                    local += here(batch)
-        return worker / local, len(blocks)
+            local, worker, blocks = alternated(here, there, draws, block)
+        return worker / local, blocks
     finally:
         client.close()
         cluster.close()
@@ -165,19 +171,8 @@ def paired_scaling(data: bytes, draws: list[dict], settings: dict, block: int) -
                        for w in pair]
             return statistics.fmean(f.result()[2] for f in futures)
 
-        samples = list(enumerate(draws))
-        alone(samples[:2])
-        together(samples[:2])
-        single = shared = 0.0
-        blocks = [samples[i:i + block] for i in range(0, len(samples), block)]
-        for i, batch in enumerate(blocks):
-            if i % 2 == 0:
-                single += alone(batch)
-                shared += together(batch)
-            else:
-                shared += together(batch)
-                single += alone(batch)
-        return single / shared, len(blocks)
+        single, shared, blocks = alternated(alone, together, draws, block)
+        return single / shared, blocks
     finally:
         for client, cluster in ((one, one_cluster), (two, two_cluster)):
             client.close()
