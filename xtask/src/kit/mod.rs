@@ -4,6 +4,7 @@
 //! as terminals ([`icon`]).
 
 mod icon;
+mod image;
 mod reference;
 
 use crate::documentation;
