@@ -30,10 +30,11 @@ if [[ ! -f "$headers/fmi2Functions.h" ]]; then
 fi
 cc -O1 -g -Wall -Wextra -Werror -I "$headers" scripts/leak_driver.c -o "$work/leak_driver" -ldl
 
-# Every model whose FMI 2.0 archive `cargo xtask fmu` writes: no list of models to keep up here.
-compgen -G "target/fmu/*.fmu" >/dev/null || cargo xtask fmu
-for fmu in target/fmu/*.fmu; do
-    model="$(basename "$fmu" .fmu)"
+# Every plant whose FMI 2.0 archive `cargo xtask fmu` writes, as its manifest lists them: no list
+# of models to keep up here.
+[[ -f target/fmu/models.txt ]] || cargo xtask fmu
+for model in $(cat target/fmu/models.txt); do
+    fmu="target/fmu/$model.fmu"
     python3 -m zipfile -e "$fmu" "$work/$model"
     md="$work/$model/modelDescription.xml"
     guid="$(grep -o 'guid="[^"]*"' "$md" | head -n1 | cut -d'"' -f2)"

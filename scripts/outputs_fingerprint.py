@@ -79,10 +79,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("fmu_dir", help="directory holding the FMI 2.0 archives (target/fmu)")
     parser.add_argument("--dump", help="write the recorded values to this file")
     args = parser.parse_args(argv)
-    archives = sorted(Path(args.fmu_dir).glob("*.fmu"))
-    if not archives:
-        print(f"error: no .fmu archive in {args.fmu_dir} (build them with `cargo xtask fmu`)", file=sys.stderr)
+    manifest = Path(args.fmu_dir) / "models.txt"
+    if not manifest.is_file():
+        print(f"error: no models.txt in {args.fmu_dir} (build the archives with `cargo xtask fmu`)", file=sys.stderr)
         return 2
+    # The plants, as the manifest lists them.
+    archives = sorted(Path(args.fmu_dir) / f"{model}.fmu" for model in manifest.read_text().split())
     lines = []
     for archive in archives:
         own = [line for scenario in SCENARIOS for line in run(archive, scenario)]

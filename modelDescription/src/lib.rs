@@ -21,12 +21,28 @@ pub mod xml3;
 
 use backlash_physics::PlantParams;
 
-pub use models::{default_plant_params, model, ModelDef, MODELS};
+pub use models::{default_plant_params, model, ModelDef, CONTROLLERS, MODELS};
 
-/// The models this crate describes, in a fixed order (that of the one list, [`MODELS`]).
+/// The plants this crate describes, in a fixed order (that of the one list, [`MODELS`]).
 pub fn model_identifiers() -> &'static [&'static str] {
     static IDENTIFIERS: std::sync::OnceLock<Vec<&'static str>> = std::sync::OnceLock::new();
     IDENTIFIERS.get_or_init(|| MODELS.iter().map(|m| (m.describe)().identifier).collect())
+}
+
+/// The controllers this crate describes (models of [`Kind::Controller`]), in the order of
+/// [`CONTROLLERS`]: served by the same library, packed as archives of their own, and kept out of
+/// [`model_identifiers`], whose every tool expects a plant.
+pub fn controller_identifiers() -> &'static [&'static str] {
+    static IDENTIFIERS: std::sync::OnceLock<Vec<&'static str>> = std::sync::OnceLock::new();
+    IDENTIFIERS.get_or_init(|| CONTROLLERS.iter().map(|describe| describe().identifier).collect())
+}
+
+/// What a model is: a plant, made by its physics mapping, or a sampled controller (Co-Simulation
+/// only: no continuous state, no event indicator, its output held between samples).
+#[derive(Clone, Copy, Debug)]
+pub enum Kind {
+    Plant(PlantMapping),
+    Controller,
 }
 
 /// Scalar type of a variable.
@@ -180,9 +196,9 @@ impl SquareWave {
 
 pub struct Model {
     pub identifier: &'static str,
-    /// How its parameters make its plant; its state nominals and model structure are computed
-    /// from that plant.
-    pub plant_params: PlantMapping,
+    /// A plant: how its parameters make it (its state nominals and model structure are computed
+    /// from that plant); or a controller.
+    pub kind: Kind,
     pub description: &'static str,
     pub default_experiment: DefaultExperiment,
     /// The inputs of its reference experiment ([`SquareWave`]); the others keep their start
@@ -211,6 +227,8 @@ pub(crate) const UNITS: &[UnitRow] = &[
     ("N/s", [1, 1, -3, 0], &[]),
     ("rad/(s.N)", [-1, -1, 1, 1], &[]),
     ("rad/(s2.N)", [-1, -1, 0, 1], &[]),
+    ("s", [0, 0, 1, 0], &[("ms", 1000.0)]),
+    ("Hz", [0, 0, -1, 0], &[]),
 ];
 
 /// One log category (FMI 2.0 §2.2.4): the Rust variant that names it in the library, its

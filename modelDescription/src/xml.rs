@@ -7,7 +7,7 @@ use crate::common::{
     write_units_categories_and_experiment, EVENT_INDICATORS,
 };
 use crate::structure::{derivative_dependencies, initial_dependencies, output_dependencies};
-use crate::{model, Causality, Model, Type};
+use crate::{model, Causality, Kind, Model, Type};
 
 /// `text` as XML (or HTML) attribute value or text (shared with the FMI 3.0 description).
 pub use crate::common::escape;
@@ -34,20 +34,36 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
         model.identifier,
         guid,
         escape(model.description),
-        EVENT_INDICATORS.len()
+        match model.kind {
+            Kind::Plant(_) => EVENT_INDICATORS.len(),
+            Kind::Controller => 0,
+        }
     );
-    // Event indicators: the contact surfaces of docs/model.md §6; no event needs an iteration,
-    // so completed integrator steps need not be reported.
-    let _ = writeln!(
-        x,
-        "  <ModelExchange modelIdentifier=\"{}\" needsExecutionTool=\"false\" completedIntegratorStepNotNeeded=\"true\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" providesDirectionalDerivative=\"true\"/>",
-        model.identifier
-    );
-    let _ = writeln!(
-        x,
-        "  <CoSimulation modelIdentifier=\"{}\" needsExecutionTool=\"false\" canHandleVariableCommunicationStepSize=\"true\" canInterpolateInputs=\"true\" maxOutputDerivativeOrder=\"1\" canRunAsynchronuously=\"false\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" providesDirectionalDerivative=\"false\"/>",
-        model.identifier
-    );
+    match model.kind {
+        Kind::Plant(_) => {
+            // Event indicators: the contact surfaces of docs/model.md §6; no event needs an iteration,
+            // so completed integrator steps need not be reported.
+            let _ = writeln!(
+                x,
+                "  <ModelExchange modelIdentifier=\"{}\" needsExecutionTool=\"false\" completedIntegratorStepNotNeeded=\"true\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" providesDirectionalDerivative=\"true\"/>",
+                model.identifier
+            );
+            let _ = writeln!(
+                x,
+                "  <CoSimulation modelIdentifier=\"{}\" needsExecutionTool=\"false\" canHandleVariableCommunicationStepSize=\"true\" canInterpolateInputs=\"true\" maxOutputDerivativeOrder=\"1\" canRunAsynchronuously=\"false\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" providesDirectionalDerivative=\"false\"/>",
+                model.identifier
+            );
+        }
+        // A sampled controller: Co-Simulation only, one sample per step of its period, no input
+        // or output derivatives, no FMU state.
+        Kind::Controller => {
+            let _ = writeln!(
+                x,
+                "  <CoSimulation modelIdentifier=\"{}\" needsExecutionTool=\"false\" canHandleVariableCommunicationStepSize=\"false\" canInterpolateInputs=\"false\" maxOutputDerivativeOrder=\"0\" canRunAsynchronuously=\"false\" canBeInstantiatedOnlyOncePerProcess=\"false\" canNotUseMemoryManagementFunctions=\"true\" canGetAndSetFMUstate=\"false\" canSerializeFMUstate=\"false\" providesDirectionalDerivative=\"false\"/>",
+                model.identifier
+            );
+        }
+    }
 
     write_units_categories_and_experiment(&mut x, model);
     write_variables(&mut x, model);
@@ -92,6 +108,18 @@ fn write_variables(x: &mut String, model: &Model) {
 /// `<ModelStructure>`: outputs, derivatives and initial unknowns with their dependencies, by
 /// index; two spaces in.
 fn write_model_structure(x: &mut String, model: &Model) {
+    if let Kind::Controller = model.kind {
+        // Its one output is held from the last sample: no dependency at the same instant, no
+        // derivative, and its start value is exact (no initial unknown).
+        x.push_str("  <ModelStructure>\n    <Outputs>\n");
+        for (i, v) in model.variables.iter().enumerate() {
+            if v.causality == Causality::Output {
+                let _ = writeln!(x, "      <Unknown index=\"{}\" dependencies=\"\"/>", i + 1);
+            }
+        }
+        x.push_str("    </Outputs>\n  </ModelStructure>\n");
+        return;
+    }
     let index_of = |vr: u32| index_of(model, vr);
     let index_list = |names: &[&str]| -> String {
         let mut indices: Vec<usize> = names.iter().map(|n| index_of(vr_of(model, n))).collect();

@@ -19,7 +19,7 @@ use crate::common::{
 use crate::structure::{
     derivative_dependencies, event_indicator_dependencies, initial_dependencies, output_dependencies,
 };
-use crate::{model, Causality, Model, Type};
+use crate::{model, Causality, Kind, Model, Type};
 
 /// The name and value reference of the independent variable (time), which only the FMI 3.0
 /// description has.
@@ -49,20 +49,33 @@ fn xml_with_token(model: &Model, token: &str) -> String {
         token,
         escape(model.description)
     );
-    // As FMI 2.0: no event needs an iteration, so completed integrator steps need not be
-    // reported; the exact Jacobian for Model Exchange only. Co-Simulation may return early at a
-    // contact switch and offers Event Mode there (docs/model.md §7); FMI 3.0 has no input
-    // derivatives, so FMI 2.0's canInterpolateInputs has no counterpart.
-    let _ = writeln!(
-        x,
-        "  <ModelExchange modelIdentifier=\"{}\" canGetAndSetFMUState=\"true\" canSerializeFMUState=\"true\" providesDirectionalDerivatives=\"true\" needsCompletedIntegratorStep=\"false\"/>",
-        model.identifier
-    );
-    let _ = writeln!(
-        x,
-        "  <CoSimulation modelIdentifier=\"{}\" canGetAndSetFMUState=\"true\" canSerializeFMUState=\"true\" canHandleVariableCommunicationStepSize=\"true\" maxOutputDerivativeOrder=\"1\" hasEventMode=\"true\" mightReturnEarlyFromDoStep=\"true\" canReturnEarlyAfterIntermediateUpdate=\"false\" providesIntermediateUpdate=\"false\" providesDirectionalDerivatives=\"false\"/>",
-        model.identifier
-    );
+    match model.kind {
+        Kind::Plant(_) => {
+            // As FMI 2.0: no event needs an iteration, so completed integrator steps need not be
+            // reported; the exact Jacobian for Model Exchange only. Co-Simulation may return early at a
+            // contact switch and offers Event Mode there (docs/model.md §7); FMI 3.0 has no input
+            // derivatives, so FMI 2.0's canInterpolateInputs has no counterpart.
+            let _ = writeln!(
+                x,
+                "  <ModelExchange modelIdentifier=\"{}\" canGetAndSetFMUState=\"true\" canSerializeFMUState=\"true\" providesDirectionalDerivatives=\"true\" needsCompletedIntegratorStep=\"false\"/>",
+                model.identifier
+            );
+            let _ = writeln!(
+                x,
+                "  <CoSimulation modelIdentifier=\"{}\" canGetAndSetFMUState=\"true\" canSerializeFMUState=\"true\" canHandleVariableCommunicationStepSize=\"true\" maxOutputDerivativeOrder=\"1\" hasEventMode=\"true\" mightReturnEarlyFromDoStep=\"true\" canReturnEarlyAfterIntermediateUpdate=\"false\" providesIntermediateUpdate=\"false\" providesDirectionalDerivatives=\"false\"/>",
+                model.identifier
+            );
+        }
+        // As FMI 2.0's: Co-Simulation only, a fixed step, no Event Mode (nothing happens between
+        // samples), no FMU state.
+        Kind::Controller => {
+            let _ = writeln!(
+                x,
+                "  <CoSimulation modelIdentifier=\"{}\" canGetAndSetFMUState=\"false\" canSerializeFMUState=\"false\" canHandleVariableCommunicationStepSize=\"false\" maxOutputDerivativeOrder=\"0\" hasEventMode=\"false\" mightReturnEarlyFromDoStep=\"false\" canReturnEarlyAfterIntermediateUpdate=\"false\" providesIntermediateUpdate=\"false\" providesDirectionalDerivatives=\"false\"/>",
+                model.identifier
+            );
+        }
+    }
 
     write_units_categories_and_experiment(&mut x, model);
     write_variables(&mut x, model);
@@ -110,6 +123,14 @@ fn write_model_structure(x: &mut String, model: &Model) {
     let name_list = |names: &[&str]| -> Vec<u32> { names.iter().map(|n| vr_of(model, n)).collect() };
     // FMI 3.0 §2.4.8: the elements in this order, each in the order of the variables.
     x.push_str("  <ModelStructure>\n");
+    if let Kind::Controller = model.kind {
+        // Its one output is held from the last sample (see the FMI 2.0 description).
+        for v in model.variables.iter().filter(|v| v.causality == Causality::Output) {
+            let _ = writeln!(x, "    <Output valueReference=\"{}\" dependencies=\"\"/>", v.vr);
+        }
+        x.push_str("  </ModelStructure>\n");
+        return;
+    }
     for v in &model.variables {
         if v.causality == Causality::Output {
             // No direct feedthrough: every output is a function of the state (docs/model.md §1),

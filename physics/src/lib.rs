@@ -4,10 +4,12 @@
 //! Data flow: [`PlantParams`] → [`Plant`] (validated generic form, with or without a web span)
 //! → [`Stepper`] (exact stepping, switches located to round-off) and [`SpeedErrorBound`]
 //! (docs/model.md §3 bounds), or for a web line [`WebSpeedBound`] and [`WebTensionBound`];
-//! `vector_field` gives the same plant as z' = f(z, τ) for solvers outside (docs/model.md §6).
+//! `vector_field` gives the same plant as z' = f(z, τ) for solvers outside (docs/model.md §6);
+//! [`SampledPi`] is the sampled controller that closes the loops around it (§3, §8).
 
 pub mod bound;
 pub mod closed_loop;
+pub mod controller;
 pub mod kernel;
 pub mod linear;
 pub mod mode;
@@ -20,6 +22,7 @@ pub mod vector_field;
 pub use bound::{
     BoundError, BoundState, PiGains, SpeedErrorBound, Trajectory, Unbounded, WebSpeedBound, WebTensionBound,
 };
+pub use controller::{ControllerParams, Reference, SampleError, SampledPi};
 pub use mode::{contact_indicator, damped_mode_at, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, ContactLaw, Damping, Geometry, ParamError, Plant, PlantParams, WebSpan};
 pub use stepper::{max_step, Inputs, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP};

@@ -215,6 +215,43 @@ def references(f_ref: float, amplitude: float = SPEED) -> dict[str, Callable[[fl
     }
 
 
+def trapezoid(amplitude: float, ramp: float, hold: float) -> Callable[[float], float]:
+    """The trapezoid reference: from 0 up to `amplitude` in `ramp` seconds, held for `hold`, back to
+    0 in `ramp`, then 0."""
+    def at(t: float) -> float:
+        if t < ramp:
+            return amplitude * t / ramp
+        if t < ramp + hold:
+            return amplitude
+        if t < ramp + hold + ramp:
+            return amplitude * (ramp + hold + ramp - t) / ramp
+        return 0.0
+    return at
+
+
+class SampledPi:
+    """The sampled speed PI with the tension PI that trims its reference (docs/model.md §3, §8):
+    at each sample, from the measured motor speed and tension,
+        e_T = t_ref - T,   e = ref(t) + kp_t e_T + ki_t x_T - omega_m,   tau_m = kp e + ki x_c,
+        x_c += h e,   x_T += h e_T      (x_c = x_T = 0 at the start; the tension loop off with
+    kp_t = ki_t = 0). The law of the twin web run, and of a system's controller closed here."""
+
+    def __init__(self, kp: float, ki: float, ref: Callable[[float], float], h: float, *,
+                 kp_t: float = 0.0, ki_t: float = 0.0, t_ref: float = 0.0):
+        self.kp, self.ki, self.ref, self.h = kp, ki, ref, h
+        self.kp_t, self.ki_t, self.t_ref = kp_t, ki_t, t_ref
+        self.x_c = self.x_t = 0.0
+
+    def torque(self, t: float, omega_m: float, tension: float = 0.0) -> float:
+        """The sample at time t: the torque, and the integrators' update."""
+        e_t = self.t_ref - tension
+        e = self.ref(t) + self.kp_t * e_t + self.ki_t * self.x_t - omega_m
+        tau = self.kp * e + self.ki * self.x_c
+        self.x_c += self.h * e
+        self.x_t += self.h * e_t
+        return tau
+
+
 # ------------------------------------------------------------------------------------------
 # The web line: speed loop and tension loop
 # ------------------------------------------------------------------------------------------
@@ -309,8 +346,7 @@ def twin_web_run(archive: fmu.Archive, params: dict[str, float], kp: float, ki: 
         n = int(round(horizon / h))
         cols = np.zeros((n + 1, 2, len(WEB_OUTPUTS)))
         contact = np.zeros(n + 1, dtype=int)
-        x_c = [0.0, 0.0]  # speed PI integrators
-        x_T = [0.0, 0.0]  # tension PI integrators
+        pis = [SampledPi(kp, ki, ref, h, kp_t=kp_t, ki_t=ki_t, t_ref=t_ref) for _ in twins]
         for i in range(n + 1):
             t = i * h
             outs = [inst.outputs(WEB_OUTPUTS) for inst in twins]
@@ -319,12 +355,8 @@ def twin_web_run(archive: fmu.Archive, params: dict[str, float], kp: float, ki: 
             contact[i] = outs[0]["contact"]
             if i == n:
                 break
-            for j, (inst, out) in enumerate(zip(twins, outs)):
-                e_T = t_ref - out["T"]
-                e = ref(t) + kp_t * e_T + ki_t * x_T[j] - out["omega_m"]
-                inst.step(t, h, tau_m=kp * e + ki * x_c[j])
-                x_c[j] += h * e
-                x_T[j] += h * e_T
+            for inst, out, pi in zip(twins, outs, pis):
+                inst.step(t, h, tau_m=pi.torque(t, out["omega_m"], out["T"]))
         t_sup, sup = twins[0].get("bound_T_sup", "bound_sup")
     finally:
         for inst in twins:

@@ -69,6 +69,9 @@ pub(crate) unsafe fn instantiate(request: Request) -> *mut c_void {
         Ok(model) => model,
         Err(why) => return refuse(why),
     };
+    if let Err(why) = Instance::offered(model, flavour, options) {
+        return refuse(why);
+    }
     keep_loaded();
     let mut instance = Instance::with(model, flavour, options, sink, logging_on);
     instance.log(Status::Ok, LogCategory::Calls, || {

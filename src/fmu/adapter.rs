@@ -8,7 +8,7 @@
 //! mapping ([`ModelInfo::plant_params`]).
 
 use super::simulation::Simulation;
-use super::variables::{ModelInfo, Symbol, MODELS};
+use super::variables::{Kind, ModelInfo, Symbol, MODELS};
 use crate::physics::vector_field::EVENT_INDICATORS;
 use crate::physics::{Inputs, PiGains, Plant, PlantParams, PlantState};
 
@@ -34,6 +34,11 @@ pub enum Source {
     Derivative(StateEntry),
     /// The `contact` output: the sign of ψ in the mode in force (Integer; docs/model.md §4).
     Contact,
+    /// A controller's input, stored; read at each sample (docs/model.md §10).
+    Sampled,
+    /// A controller's output: the command of its last sample, held (before the first sample,
+    /// stored as its start value).
+    Command,
 }
 
 /// The entries of the state z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1), and T on a web line
@@ -208,8 +213,14 @@ pub fn start_values(model: &ModelInfo) -> Values {
 /// The plant parameters of `model` from the stored values (validated by [`Plant::new`]), by the
 /// model's own mapping. A name the model lacks reads NaN, which [`Plant::new`] refuses; the
 /// description's build computes every model's plant, so none does.
-pub fn plant_params(model: &ModelInfo, v: &Values) -> PlantParams {
-    (model.plant_params)(&|name| model.by_name(name).map_or(f64::NAN, |var| v[var.symbol.index()]))
+/// `None` for a controller, which has no plant.
+pub fn plant_params(model: &ModelInfo, v: &Values) -> Option<PlantParams> {
+    let Kind::Plant(mapping) = model.kind else {
+        return None;
+    };
+    Some(mapping(&|name| {
+        model.by_name(name).map_or(f64::NAN, |var| v[var.symbol.index()])
+    }))
 }
 
 /// The plant of the start values of the model `identifier`: its default parameters

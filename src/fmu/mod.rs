@@ -19,8 +19,8 @@ pub use logging::{Collected, LogCategory, LogSink};
 pub use snapshot::Snapshot;
 pub use state_machine::{Flavour, Function, Interface, Phase, Standard};
 pub use variables::{
-    model_by_guid, model_by_identifier, model_by_instantiation_token, model_for_instantiation, ModelInfo, Symbol,
-    Variable, MODELS,
+    model_by_guid, model_by_identifier, model_by_instantiation_token, model_for_instantiation, served, ModelInfo,
+    Symbol, Variable, CONTROLLERS, MODELS,
 };
 
 #[cfg(test)]

@@ -410,7 +410,9 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         return Ok(sim.clone());
     }
     // Built outside the lock: other instances need not wait for it.
-    let plant = Plant::new(adapter::plant_params(model, v))?;
+    let params = adapter::plant_params(model, v)
+        .ok_or_else(|| FmuError::InvalidArgument(format!("{} is a controller: it has no plant", model.identifier)))?;
+    let plant = Plant::new(params)?;
     let (speed, tension) = adapter::gains(v);
     let bound = Bounds::new(&plant, speed, tension)?;
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);

@@ -654,7 +654,9 @@ fn a_negative_or_nan_damping_is_refused_by_its_name() {
         }
         let mut values = crate::fmu::adapter::start_values(&MODELS[model]);
         values[MODELS[model].by_name(damping).unwrap().symbol.index()] = -1.0;
-        let err = crate::physics::Plant::new(crate::fmu::adapter::plant_params(&MODELS[model], &values)).unwrap_err();
+        let err =
+            crate::physics::Plant::new(crate::fmu::adapter::plant_params(&MODELS[model], &values).expect("a plant"))
+                .unwrap_err();
         assert!(err.to_string().contains(damping), "{err}");
         // A valid one is taken, and initialization goes through.
         let (mut inst, _) = instance_of(model, Standard::Fmi2);

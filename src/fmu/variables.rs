@@ -5,7 +5,7 @@
 // The kinds of variables are those the description is written with: one definition.
 use super::adapter::{Calculated, Source, StateEntry};
 use super::state_machine::Standard;
-pub use model_description::{Causality, DefaultExperiment, Initial, PlantMapping, Range, Type as VarType, Variability};
+pub use model_description::{Causality, DefaultExperiment, Initial, Kind, Range, Type as VarType, Variability};
 
 /// One scalar variable of a model, with the [`Symbol`] that says what it is.
 pub type Variable = model_description::Variable<Symbol>;
@@ -19,9 +19,9 @@ pub struct ModelInfo {
     /// The `instantiationToken` of the model's FMI 3.0 description (a hash of that description,
     /// as the guid is of the FMI 2.0 one).
     pub instantiation_token: &'static str,
-    /// Its physics mapping (its module in the description): its plant parameters from its
-    /// parameters' values by name.
-    pub plant_params: PlantMapping,
+    /// A plant, with its physics mapping (its module in the description: its plant parameters
+    /// from its parameters' values by name), or a controller.
+    pub kind: Kind,
     /// Whether its load pulls a web span (its plant has one, docs/model.md §8): the span's
     /// tension is a fifth state, and its bounds are those of the web line.
     pub web: bool,
@@ -60,7 +60,7 @@ impl ModelInfo {
     }
 }
 
-// `Symbol` (with `COUNT`, `index` and `source`), `INPUT_SYMBOLS` and `MODELS`.
+// `Symbol` (with `COUNT`, `index` and `source`), `INPUT_SYMBOLS`, `MODELS` and `CONTROLLERS`.
 include!(concat!(env!("OUT_DIR"), "/model_variables.rs"));
 
 impl PartialEq for ModelInfo {
@@ -69,14 +69,26 @@ impl PartialEq for ModelInfo {
     }
 }
 
+impl ModelInfo {
+    /// Whether it is a controller (Co-Simulation only, [`Kind::Controller`]).
+    pub fn is_controller(&self) -> bool {
+        matches!(self.kind, Kind::Controller)
+    }
+}
+
+/// Every model this library serves: the plants, then the controllers.
+pub fn served() -> impl Iterator<Item = &'static ModelInfo> {
+    MODELS.iter().chain(CONTROLLERS.iter())
+}
+
 /// The model whose description carries `guid`.
 pub fn model_by_guid(guid: &str) -> Option<&'static ModelInfo> {
-    MODELS.iter().find(|m| m.guid == guid)
+    served().find(|m| m.guid == guid)
 }
 
 /// The model whose FMI 3.0 description carries `token`.
 pub fn model_by_instantiation_token(token: &str) -> Option<&'static ModelInfo> {
-    MODELS.iter().find(|m| m.instantiation_token == token)
+    served().find(|m| m.instantiation_token == token)
 }
 
 /// The model whose description carries `key`: its guid for FMI 2.0 (`fmi2Instantiate`'s
@@ -86,11 +98,8 @@ pub fn model_for_instantiation(standard: Standard, key: &str) -> Result<&'static
         Standard::Fmi2 => ("fmuGUID", |m| m.guid),
         Standard::Fmi3 => ("instantiationToken", |m| m.instantiation_token),
     };
-    MODELS.iter().find(|m| key_of(m) == key).ok_or_else(|| {
-        let served: Vec<String> = MODELS
-            .iter()
-            .map(|m| format!("{} {}", m.identifier, key_of(m)))
-            .collect();
+    served().find(|m| key_of(m) == key).ok_or_else(|| {
+        let served: Vec<String> = served().map(|m| format!("{} {}", m.identifier, key_of(m))).collect();
         format!(
             "{argument} {key:?} is not that of any model of this binary ({}): the modelDescription.xml and the \
              binary come from different builds",
@@ -100,7 +109,7 @@ pub fn model_for_instantiation(standard: Standard, key: &str) -> Result<&'static
 }
 
 pub fn model_by_identifier(identifier: &str) -> Option<&'static ModelInfo> {
-    MODELS.iter().find(|m| m.identifier == identifier)
+    served().find(|m| m.identifier == identifier)
 }
 
 #[cfg(test)]
@@ -109,7 +118,7 @@ mod tests {
 
     #[test]
     fn value_references_are_unique_and_every_symbol_fits_the_store() {
-        for m in &MODELS {
+        for m in served() {
             for (i, v) in m.variables.iter().enumerate() {
                 assert!(v.symbol.index() < Symbol::COUNT);
                 for w in &m.variables[i + 1..] {
@@ -158,7 +167,7 @@ mod tests {
     fn a_key_of_no_model_is_refused_naming_every_model() {
         for standard in [Standard::Fmi2, Standard::Fmi3] {
             let why = model_for_instantiation(standard, "{0}").unwrap_err();
-            for m in &MODELS {
+            for m in served() {
                 assert!(why.contains(m.identifier), "{why}");
             }
         }

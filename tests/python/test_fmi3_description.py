@@ -35,11 +35,13 @@ def model(request) -> str:
 
 def test_the_manifests_list_the_archives_of_both_standards():
     """The models the tests run (archives.MODELS, FMI 2.0's manifest) are those packaged: each
-    standard's manifest names them, in the same order, and its folder holds their archives and no
-    other."""
+    standard's manifest names them, in the same order, and its folder holds their archives and
+    those of the controllers its second manifest names, and no other."""
     for folder in (archive_dir(), archive_dir() / "fmi3"):
         assert tuple((folder / "models.txt").read_text().split()) == archives.MODELS, folder
-        assert sorted(path.stem for path in folder.glob("*.fmu")) == sorted(archives.MODELS), folder
+        controllers = tuple((folder / "controllers.txt").read_text().split())
+        assert controllers == ("BacklashController",), folder
+        assert sorted(path.stem for path in folder.glob("*.fmu")) == sorted(archives.MODELS + controllers), folder
 
 
 def test_fmpy_validation_finds_no_problem(model):

@@ -23,10 +23,16 @@ fn source_dir() -> PathBuf {
 pub fn render(id: &str, xml: &str) -> Result<String, String> {
     let dir = source_dir();
     let read = |path: PathBuf| fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", util::shown(&path)));
-    let template = read(dir.join("template.html"))?;
-    // The belt drive's generic form, shared by BacklashBelt's page and BacklashWeb's.
-    let drive_train =
-        read(dir.join(id).join("drive_train.html"))?.replace("{{BELT_DRIVE}}", &read(dir.join("belt_drive.html"))?);
+    // A controller's page is its own (`<id>/page.html`); a plant's is the shared page with its
+    // drive train, where the belt drive's generic form is shared by BacklashBelt and BacklashWeb.
+    let own_page = dir.join(id).join("page.html");
+    let (template, drive_train) = if own_page.is_file() {
+        (read(own_page)?, String::new())
+    } else {
+        let drive_train =
+            read(dir.join(id).join("drive_train.html"))?.replace("{{BELT_DRIVE}}", &read(dir.join("belt_drive.html"))?);
+        (read(dir.join("template.html"))?, drive_train)
+    };
 
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("{id}: model description is not XML: {e}"))?;
     let root = doc.root_element();

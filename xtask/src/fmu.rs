@@ -22,7 +22,7 @@ use zip::CompressionMethod;
 
 use crate::platform::{self, Built, Platform};
 use crate::util::{self, step};
-use crate::{cross, kit};
+use crate::{cross, kit, systems};
 
 /// Name of the cdylib that cargo writes for the `backlash_fmu` library.
 pub const LIBRARY_FILE: &str = platform::LINUX64.library_file;
@@ -85,9 +85,13 @@ pub const FMI3: Standard = Standard {
 /// The archives `cargo xtask fmu` writes for every model, in this order.
 pub const STANDARDS: [&Standard; 2] = [&FMI2, &FMI3];
 
-/// The manifest written beside each standard's archives: every model identifier, one a line,
+/// The manifest written beside each standard's archives: every plant's identifier, one a line,
 /// in the order of `model_identifiers()`.
 pub const MANIFEST: &str = "models.txt";
+
+/// Its counterpart for the controllers (`controller_identifiers()`), whose archives lie beside
+/// the plants'.
+pub const CONTROLLER_MANIFEST: &str = "controllers.txt";
 
 /// The release cdylib, as built by [`build_library`].
 pub fn library_path() -> PathBuf {
@@ -189,10 +193,12 @@ pub fn package_into(platforms: &[&'static Platform], base: &Path) -> Result<Vec<
     if ids.is_empty() {
         return Err("the model-description crate lists no model identifiers".into());
     }
+    // The controllers' archives beside the plants'; the manifest lists the plants only.
+    let controllers = model_description::controller_identifiers();
     for standard in STANDARDS {
         let out_dir = standard.out_dir_in(base);
         fs::create_dir_all(&out_dir).map_err(|e| format!("creating {}: {e}", out_dir.display()))?;
-        for &id in ids {
+        for &id in ids.iter().chain(controllers) {
             let xml = (standard.description)(id);
             check_description(standard, id, &xml)?;
             let kit = kit::entries(standard, id, &xml)?;
@@ -207,7 +213,10 @@ pub fn package_into(platforms: &[&'static Platform], base: &Path) -> Result<Vec<
             );
         }
         write_manifest(&out_dir.join(MANIFEST), ids)?;
+        write_manifest(&out_dir.join(CONTROLLER_MANIFEST), controllers)?;
     }
+    // The systems use the FMI 2.0 archives, which every master here reads.
+    systems::pack_into(&STANDARDS[0].out_dir_in(base))?;
     Ok(built)
 }
 
@@ -264,7 +273,12 @@ fn check_description(standard: &Standard, id: &str, xml: &str) -> Result<(), Str
             standard.fmi_version
         ));
     }
-    for interface in ["ModelExchange", "CoSimulation"] {
+    // A controller is Co-Simulation only.
+    let interfaces: &[&str] = match model_description::controller_identifiers().contains(&id) {
+        true => &["CoSimulation"],
+        false => &["ModelExchange", "CoSimulation"],
+    };
+    for &interface in interfaces {
         let element = root
             .children()
             .find(|n| n.has_tag_name(interface))

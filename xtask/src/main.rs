@@ -11,6 +11,7 @@ mod platform;
 mod python;
 mod rigs;
 mod sweep;
+mod systems;
 mod test;
 mod util;
 

@@ -7,7 +7,7 @@ use super::Transmission;
 use super::{
     common_head, drive_train, event_indicators, parameter, pi_gains, state_derivatives, with_state_nominals, ModelDef,
 };
-use crate::{DefaultExperiment, Model, Range, SquareWave, Var};
+use crate::{DefaultExperiment, Kind, Model, Range, SquareWave, Var};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -44,7 +44,7 @@ const BELT: Transmission = Transmission {
 fn model() -> Model {
     with_state_nominals(Model {
         identifier: "BacklashBelt",
-        plant_params,
+        kind: Kind::Plant(plant_params),
         description: "Belt-pulley drive and gear backlash in series (paper Fig. 7, eqs. 20-21), exact stepping with located contact switches",
         default_experiment: DefaultExperiment {
             start_time: 0.0,

@@ -5,12 +5,13 @@
 //! variables every model has. [`MODELS`] is the one list of the models.
 
 mod belt;
+mod controller;
 mod shaft;
 mod web;
 
 use backlash_physics::{ContactLaw, Damping, Geometry, Plant, PlantParams};
 
-use crate::{Causality, Initial, Model, PlantMapping, Range, Type, Var, Variability};
+use crate::{Causality, Initial, Kind, Model, PlantMapping, Range, Type, Var, Variability};
 
 /// What a model's drive says of its transmission coordinate u, of the force ψ in its compliant
 /// member and of the damper in that member: their units, ψ's quantity and text, and the
@@ -490,7 +491,10 @@ pub(crate) fn plant_of(model: &Model, values: &[(&'static str, f64)]) -> Plant {
             .map(|(_, x)| *x)
             .unwrap_or_else(|| panic!("{}: its physics reads {name}, which is no parameter", model.identifier))
     };
-    Plant::new((model.plant_params)(&at)).unwrap_or_else(|e| panic!("{}: {e}", model.identifier))
+    let Kind::Plant(mapping) = model.kind else {
+        panic!("{} is a controller: it has no plant", model.identifier)
+    };
+    Plant::new(mapping(&at)).unwrap_or_else(|e| panic!("{}: {e}", model.identifier))
 }
 
 /// The plant of a drive train of `geometry` whose inertias and viscous frictions are the
@@ -523,8 +527,8 @@ fn contact_law(value: f64) -> ContactLaw {
     }
 }
 
-/// One model: the function that describes it and its physics mapping (also in its description,
-/// [`Model::plant_params`]; here for the library's static tables).
+/// One plant: the function that describes it and its physics mapping (also in its description,
+/// [`Model::kind`]; here for the library's static tables).
 #[derive(Clone, Copy)]
 pub struct ModelDef {
     pub describe: fn() -> Model,
@@ -535,16 +539,23 @@ pub struct ModelDef {
 /// identifier is in its description, nowhere else.
 pub const MODELS: [ModelDef; 3] = [shaft::MODEL, belt::MODEL, web::MODEL];
 
-/// The description of `identifier`. Panics on an identifier of no model in [`MODELS`].
+/// Every controller, in a fixed order: a module here and a line in this list, as a plant.
+pub const CONTROLLERS: [fn() -> Model; 1] = [controller::model];
+
+/// The description of `identifier`. Panics on an identifier of no model in [`MODELS`] or
+/// [`CONTROLLERS`].
 pub fn model(identifier: &str) -> Model {
     MODELS
         .iter()
-        .map(|m| (m.describe)())
+        .map(|m| m.describe)
+        .chain(CONTROLLERS)
+        .map(|describe| describe())
         .find(|m| m.identifier == identifier)
         .unwrap_or_else(|| {
             panic!(
-                "unknown model identifier {identifier:?}; known: {:?}",
-                crate::model_identifiers()
+                "unknown model identifier {identifier:?}; known: {:?} and {:?}",
+                crate::model_identifiers(),
+                crate::controller_identifiers()
             )
         })
 }

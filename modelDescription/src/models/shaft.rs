@@ -8,7 +8,7 @@ use super::{
     common_head, damper_variables, drive_train, event_indicators, parameter, pi_gains, state_derivatives,
     with_state_nominals, ModelDef,
 };
-use crate::{DefaultExperiment, Model, Range, SquareWave};
+use crate::{DefaultExperiment, Kind, Model, Range, SquareWave};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -110,7 +110,7 @@ fn model() -> Model {
     v.extend(damper_variables(&SHAFT));
     with_state_nominals(Model {
         identifier: "BacklashShaft",
-        plant_params,
+        kind: Kind::Plant(plant_params),
         description: "Compliant shaft and gear backlash in series (paper Fig. 5, eqs. 11-12), exact stepping with located contact switches; defaults are the paper's rig",
         default_experiment: DefaultExperiment {
             start_time: 0.0,

@@ -5,7 +5,7 @@ use backlash_physics::{PlantParams, WebSpan};
 
 use super::belt::{self, belt_variables, damper_variables};
 use super::{parameter, quantity_input, state_derivative, state_output, var, with_state_nominals, ModelDef};
-use crate::{Causality, DefaultExperiment, Initial, Model, Range, SquareWave, Type, Var, Variability};
+use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWave, Type, Var, Variability};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -28,7 +28,7 @@ fn plant_params(at: &dyn Fn(&str) -> f64) -> PlantParams {
 fn model() -> Model {
     with_state_nominals(Model {
         identifier: "BacklashWeb",
-        plant_params,
+        kind: Kind::Plant(plant_params),
         description: "BacklashBelt's drive whose load roller pulls one web span (the paper's future work): span tension T as a fifth state, bounds on load speed and tension, exact stepping with located contact switches",
         default_experiment: DefaultExperiment {
             start_time: 0.0,

@@ -1,11 +1,13 @@
 //! Where an instance is in its state machine, with what it holds there: before initialization
-//! has ended its values only, from then on the simulation too. Holding the simulation in the
+//! has ended its values only, from then on the simulation too (a controller's: the sampled
+//! controller). Holding the simulation in the
 //! variant of the states that have one, rather than beside the phase, makes "this state has a
 //! simulation" a fact of the type.
 
 use crate::fmu::error::FmuError;
 use crate::fmu::simulation::Simulation;
 use crate::fmu::state_machine::Phase;
+use crate::physics::SampledPi;
 
 pub(super) enum Lifecycle {
     /// Instantiated or Initialization Mode, or Error entered from them: the values, and the
@@ -15,6 +17,8 @@ pub(super) enum Lifecycle {
     /// Exchange its plant state is the one the importer set, and its bound is brought to the
     /// instance's time when read.
     Running { phase: Phase, sim: Simulation },
+    /// A controller's every state from fmi2ExitInitializationMode on: the sampled controller.
+    Sampling { phase: Phase, pi: SampledPi },
 }
 
 impl Lifecycle {
@@ -28,35 +32,44 @@ impl Lifecycle {
 
     pub(super) fn phase(&self) -> Phase {
         match self {
-            Lifecycle::Setup { phase, .. } | Lifecycle::Running { phase, .. } => *phase,
+            Lifecycle::Setup { phase, .. } | Lifecycle::Running { phase, .. } | Lifecycle::Sampling { phase, .. } => {
+                *phase
+            }
         }
     }
 
     /// Moves to `next`, a state of the same stage (a state table's transition).
     pub(super) fn enter(&mut self, next: Phase) {
         match self {
-            Lifecycle::Setup { phase, .. } | Lifecycle::Running { phase, .. } => *phase = next,
+            Lifecycle::Setup { phase, .. } | Lifecycle::Running { phase, .. } | Lifecycle::Sampling { phase, .. } => {
+                *phase = next
+            }
         }
     }
 
     pub(super) fn sim(&self) -> Option<&Simulation> {
         match self {
             Lifecycle::Running { sim, .. } => Some(sim),
-            Lifecycle::Setup { .. } => None,
+            Lifecycle::Setup { .. } | Lifecycle::Sampling { .. } => None,
         }
     }
 
     pub(super) fn sim_mut(&mut self) -> Option<&mut Simulation> {
         match self {
             Lifecycle::Running { sim, .. } => Some(sim),
-            Lifecycle::Setup { .. } => None,
+            Lifecycle::Setup { .. } | Lifecycle::Sampling { .. } => None,
         }
     }
 
     /// The simulation, for the calls that are legal only after initialization (the state table
     /// lets no other call through; the refusal is there instead of a panic).
     pub(super) fn running(&mut self) -> Result<&mut Simulation, FmuError> {
-        self.sim_mut()
-            .ok_or_else(|| FmuError::InvalidArgument("no simulation before initialization has ended".into()))
+        match self {
+            Lifecycle::Running { sim, .. } => Ok(sim),
+            Lifecycle::Setup { .. } => Err(FmuError::InvalidArgument(
+                "no simulation before initialization has ended".into(),
+            )),
+            Lifecycle::Sampling { .. } => Err(FmuError::InvalidArgument("a controller has no plant".into())),
+        }
     }
 }

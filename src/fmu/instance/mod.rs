@@ -9,6 +9,7 @@
 mod fmu_state;
 mod lifecycle;
 mod model_exchange;
+mod sampling;
 mod status;
 mod stepping;
 mod values;
@@ -178,7 +179,7 @@ impl Instance {
     /// Inlined, so that the mask of a known `function` is a constant.
     #[inline]
     pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
-        if function.is_legal_in(self.flavour, self.phase()) {
+        if function.is_legal_in(self.flavour, self.phase()) && !self.model.is_controller() {
             return Ok(());
         }
         self.illegal(function)
@@ -187,6 +188,9 @@ impl Instance {
     #[cold]
     #[inline(never)]
     fn illegal(&self, function: Function) -> Result<(), FmuError> {
+        if self.model.is_controller() && function.is_legal_in(self.flavour, self.phase()) {
+            return Self::offered_by_controller(function);
+        }
         match function.only_for(self.flavour.standard) {
             Some(other) if other != self.flavour.interface => Err(FmuError::OtherInterface {
                 function: self.name_of(function),
@@ -406,9 +410,12 @@ impl Instance {
     }
 
     pub(crate) fn exit_initialization_mode_body(&mut self) -> Result<Status, FmuError> {
+        if self.model.is_controller() {
+            return self.exit_sampling_initialization();
+        }
         let preview = match &mut self.life {
             Lifecycle::Setup { preview, .. } => preview.take(),
-            Lifecycle::Running { .. } => None,
+            Lifecycle::Running { .. } | Lifecycle::Sampling { .. } => None,
         };
         let sim = match preview {
             Some(sim) => sim,
@@ -429,11 +436,10 @@ impl Instance {
             sim.events = EventTerms::start(&sim.state);
         }
         self.start_clock(self.experiment.start_time);
-        let phase = match self.flavour.interface {
-            Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,
-            Interface::CoSimulation | Interface::ModelExchange => Phase::EventMode,
+        self.life = Lifecycle::Running {
+            phase: self.initialized_phase(),
+            sim,
         };
-        self.life = Lifecycle::Running { phase, sim };
         match unbounded {
             None if slack > SUP_SLACK_WARNING => {
                 self.log.emit(Status::Warning, LogCategory::Warnings, || {
@@ -452,6 +458,15 @@ impl Instance {
                 });
                 Ok(Status::Warning)
             }
+        }
+    }
+
+    /// The state initialization ends in: Event Mode in Model Exchange and where the importer uses
+    /// it, else Step Mode (FMI 2.0's stepComplete).
+    fn initialized_phase(&self) -> Phase {
+        match self.flavour.interface {
+            Interface::CoSimulation if !self.options.event_mode_used => Phase::StepComplete,
+            Interface::CoSimulation | Interface::ModelExchange => Phase::EventMode,
         }
     }
 

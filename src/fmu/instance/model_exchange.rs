@@ -270,7 +270,12 @@ impl Instance {
             match v.symbol.source() {
                 Source::State(entry) => dz[entry.index()] += dv,
                 Source::Input(slot) => dinput[slot] += dv,
-                Source::Parameter | Source::Calculated(_) | Source::Derivative(_) | Source::Contact => {
+                Source::Parameter
+                | Source::Calculated(_)
+                | Source::Derivative(_)
+                | Source::Contact
+                | Source::Sampled
+                | Source::Command => {
                     return Err(FmuError::InvalidArgument(format!(
                         "{} is not a known of the Jacobian: the knowns are the continuous states and the inputs",
                         v.name
@@ -356,7 +361,7 @@ impl Unknown {
                 Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
                 Calculated::BoundSup | Calculated::BoundTSup => None,
             },
-            Source::Input(_) | Source::Parameter | Source::Contact => None,
+            Source::Input(_) | Source::Parameter | Source::Contact | Source::Sampled | Source::Command => None,
         }
     }
 }

@@ -9,7 +9,7 @@ use crate::physics::{finite, Inputs, StepError, MAX_PERIODS_PER_STEP};
 
 /// Relative tolerance for "the communication point equals the current time": steps are
 /// accumulated by the importer in floating point, so they drift by a few ulps per step.
-const TIME_TOLERANCE: f64 = 1e-9;
+pub(super) const TIME_TOLERANCE: f64 = 1e-9;
 
 /// What fmi3DoStep reports besides its status.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,6 +42,9 @@ impl Instance {
     /// The step; returns whether it stopped early at a contact switch (only when `early_return`).
     #[inline]
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
+        if self.model.is_controller() {
+            return self.sample_step(communication_point, h);
+        }
         let end = communication_point + h;
         let now = self.time;
         // Where steps must end: finite, so that time stays finite.
@@ -87,7 +90,7 @@ impl Instance {
     /// Why `do_step_body` refuses its arguments (called only when it does).
     #[cold]
     #[inline(never)]
-    fn step_refusal(&self, communication_point: f64, h: f64, lines_end: &[f64; MAX_INPUTS]) -> FmuError {
+    pub(super) fn step_refusal(&self, communication_point: f64, h: f64, lines_end: &[f64; MAX_INPUTS]) -> FmuError {
         let bad = FmuError::InvalidArgument;
         if !communication_point.is_finite() {
             return bad(format!("currentCommunicationPoint {communication_point} is not finite"));

@@ -52,6 +52,10 @@ impl Instance {
     pub(super) fn physics(&mut self) -> Result<&Simulation, FmuError> {
         match &mut self.life {
             Lifecycle::Running { sim, .. } => Ok(sim),
+            Lifecycle::Sampling { .. } => Err(FmuError::InvalidArgument(format!(
+                "{} is a controller: it has no plant",
+                self.model.identifier
+            ))),
             Lifecycle::Setup { preview, .. } => {
                 let sim = match preview.take() {
                     Some(sim) => sim,
@@ -86,7 +90,11 @@ impl Instance {
 
     fn real_value(&mut self, v: &Variable) -> Result<f64, FmuError> {
         Ok(match v.symbol.source() {
-            Source::Input(_) | Source::Parameter => self.values[v.symbol.index()],
+            Source::Input(_) | Source::Parameter | Source::Sampled => self.values[v.symbol.index()],
+            Source::Command => match &self.life {
+                Lifecycle::Sampling { pi, .. } => pi.torque,
+                _ => self.values[v.symbol.index()],
+            },
             Source::State(entry) => match self.life.sim() {
                 Some(sim) => entry.of(&sim.state),
                 None => self.values[v.symbol.index()],
@@ -302,7 +310,7 @@ impl Instance {
         }
         match (&mut self.life, state) {
             (Lifecycle::Running { sim, .. }, Some(state)) => sim.state = state,
-            (Lifecycle::Running { .. }, None) => {}
+            (Lifecycle::Running { .. }, None) | (Lifecycle::Sampling { .. }, _) => {}
             (Lifecycle::Setup { preview, .. }, _) => *preview = None,
         }
         Ok(Status::Ok)
@@ -393,7 +401,12 @@ impl Instance {
             let rate = match v.symbol.source() {
                 Source::State(entry) => Some(z_dot[entry.index()]),
                 Source::Calculated(quantity) => quantity.rate(sim, &z_dot),
-                Source::Input(_) | Source::Parameter | Source::Contact | Source::Derivative(_) => None,
+                Source::Input(_)
+                | Source::Parameter
+                | Source::Contact
+                | Source::Derivative(_)
+                | Source::Sampled
+                | Source::Command => None,
             };
             *slot = rate.ok_or_else(|| FmuError::InvalidArgument(format!("{} has no output derivative", v.name)))?;
             if !slot.is_finite() {

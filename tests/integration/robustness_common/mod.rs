@@ -437,7 +437,10 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
 /// parameters, read by `at`, through its plant: 1 and 1 on the shaft, R_1 and R_2 R_g2/R_g1 on
 /// the belt drives.
 pub fn transmission(model: &ModelInfo, at: impl Fn(&str) -> f64) -> (f64, f64) {
-    let plant = backlash_fmu::physics::Plant::new((model.plant_params)(&at)).expect("a valid plant");
+    let backlash_fmu::fmu::variables::Kind::Plant(mapping) = model.kind else {
+        panic!("{} is a controller", model.identifier)
+    };
+    let plant = backlash_fmu::physics::Plant::new(mapping(&at)).expect("a valid plant");
     (plant.r_m(), plant.r_l())
 }
 
