@@ -186,3 +186,20 @@ def test_web_line_png_is_written(web_run):
     out, _ = web_run
     data = (out / "web_line.png").read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
+
+
+def test_the_sine_experiment_runs_in_ecos_beside_the_fmpy_closed_run(demo):
+    """backlash_fmu.demo.master: ecos runs the shipped system `sine` equal to the bit to the loop
+    closed here with ecos's timing; beside the fmpy-closed run, the master's sample of delay moves
+    omega_L far less than the backlash does, and not by nothing."""
+    out, stdout = demo
+    assert "ecos against the loop closed here with ecos's timing: equal to the bit (1500 steps" in stdout
+    with (out / "master_sine.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 1500 and float(rows[0]["t_s"]) == 0.001
+    ecos = np.array([float(r["omega_L_ecos"]) for r in rows])
+    closed = np.array([float(r["omega_L_python_closed"]) for r in rows])
+    delay = np.max(np.abs(ecos - closed))
+    backlash = float(re.search(r"the backlash's own max \|omega_L\^b - omega_L\^0\| = (\S+)", stdout).group(1))
+    assert 0 < delay < backlash / 10
+    assert (out / "master_sine.png").stat().st_size > 10_000

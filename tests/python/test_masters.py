@@ -1,215 +1,182 @@
-"""The archives in real co-simulation masters: ecos (PyPI ecospy) and fmpy's SSP runner from an
-SSP 1.0 system, and libcosim (PyPI libcosimpy) from an OSP system structure, each running two BacklashShaft
-components of ONE archive file: a plant under a constant motor torque, and a follower whose motor
-torque is the plant's motor speed (1 N.m per rad/s), through a connection.
+"""The shipped systems (systems/, packed beside the archives by `cargo xtask fmu`) in real
+co-simulation masters: (a) `sine`, the paper's sine experiment on BacklashShaft; (b) `twin`, twin
+drives with and without backlash under the same reference; (c) `web_line`, the web line under
+the speed and tension PI. ecos (PyPI ecospy) and libcosim (PyPI libcosimpy) run all three from
+the files, and so does fmpy's SSP runner from the zipped .ssp files (it does not apply the files'
+parameter bindings itself: backlash_fmu.systems.run_fmpy hands it the files' own sets).
 
-What is checked, against a loop closed here through the same archive (backlash_fmu.fmu):
-- every master transfers values Jacobi-style: over the step [t_k, t_k+1) the follower's input is
-  the plant's output at t_k; before the first step ecos and libcosim pass the plant's initial
-  output to the follower (in Initialization Mode), fmpy's SSP runner passes 0;
-- ecos and fmpy count time as a sum of steps (t += h) and hand each fmi2DoStep the step size h
-  as given; libcosim counts integer nanoseconds and hands each fmi2DoStep the difference of two such
-  times in seconds (k h_ns / 1e9): the loop here does each master's arithmetic, so the values
-  agree to the bit;
-- two components of one archive file: ecos closes and reopens the library for the second one,
-  which the library survives (it stays loaded, tests/python/test_reload.py); libcosim loads the
-  file once, fmpy unpacks it once per component.
+What is checked, against the loop closed here in Python (backlash_fmu.systems.python_loop: the
+plants through the same archives, each BacklashController replaced by twin.SampledPi, the PI law
+written a second time):
+- every master passes values after each step (Jacobi): before step k an input takes its source
+  output after step k-1; the controller's torque of the sample at t_k is out after that step,
+  so the drive receives it over [t_(k+1), t_(k+2)). ecos and libcosim pass the outputs after
+  initialization before the first step, fmpy's runner passes 0: every system starts at rest, so
+  both are 0 (checked);
+- ecos and fmpy count time as t += h and hand every step h; libcosim counts integer nanoseconds
+  and hands every step the difference of two such times in seconds. The loop here is given each
+  master's times and sizes, so the values agree to the bit;
+- the masters agree with one another: ecos and fmpy to the bit (the same timing), libcosim with
+  ecos to 1e-12 of each output's largest magnitude (its steps differ from h by round-off);
+- the files say what they claim: the OSP file is the SSD's system with the same values, and the
+  gains and frequency are the design answer's.
 libcosim refuses FMI 3.0 archives ("Unsupported FMI version", its own limit, libcosim 0.11); ecos
-runs them, and does here; fmpy's SSP runner looks for FMI 2.0's binaries/linux64 only.
+runs them, and runs (a) with them here; fmpy's SSP runner looks for FMI 2.0's binaries/linux64
+only.
 """
 
 from __future__ import annotations
 
 import ctypes
+import math
 import shutil
-import sys
-import zipfile
-from pathlib import Path
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from backlash_fmu import design, systems, twin
 from backlash_fmu.fmu import fmu_path
 
-from archives import shared
-
-# ecos's library needs libtbb.so.12: the venv's (PyPI tbb), loaded first and globally, so that
-# no system package is needed.
-ctypes.CDLL(str(Path(sys.prefix) / "lib" / "libtbb.so.12"), mode=ctypes.RTLD_GLOBAL)
-
-from ecospy import EcosLib, EcosSimulation  # noqa: E402
-from libcosimpy.CosimExecution import CosimExecution  # noqa: E402
-from libcosimpy.CosimLogging import CosimLogLevel, log_output_level  # noqa: E402
-from libcosimpy.CosimObserver import CosimObserver  # noqa: E402
-
-H = 0.01
-STEPS = 300
-NS = 1_000_000_000
-PLANT = {"tau_m": 10.0, "omega_m": 0.5, "Delta": 0.001}
-FOLLOWER = {"J_m": 1.0}
+SYSTEMS = ("sine", "twin", "web_line")
+# How far libcosim's run may stray from ecos's, relative to each output's largest magnitude:
+# measured 2e-14 (sine, twin) and 7e-14 (web line) over the whole horizon.
+MASTERS_AGREE = 1e-12
 
 
-def reference(fmi: int, times: list[float], sizes: list[float], first: float | None = None) -> np.ndarray:
-    """(plant omega_m, follower tau_m, follower omega_m) after each step, the loop closed here:
-    the follower's input over [t_k, t_k+1) is the plant's output at t_k, but over the first step
-    `first` if given; step k starts at times[k] with the size sizes[k]."""
-    archive = shared("BacklashShaft", fmi)
-    plant = archive.co_simulation("plant", PLANT)
-    follower = archive.co_simulation("follower", {**FOLLOWER, "tau_m": plant.get("omega_m")[0]})
-    rows = []
-    try:
-        for k in range(STEPS):
-            w = first if k == 0 and first is not None else plant.get("omega_m")[0]
-            follower.set_inputs(tau_m=w)
-            plant.step(times[k], sizes[k])
-            follower.step(times[k], sizes[k])
-            rows.append((plant.get("omega_m")[0], w, follower.get("omega_m")[0]))
-    finally:
-        plant.free()
-        follower.free()
-    return np.array(rows)
+@pytest.fixture(scope="module")
+def runs() -> dict:
+    """Each master's run of each system it runs, and the Python loop under that master's
+    timing; computed once."""
+    out = {}
+    for name in SYSTEMS:
+        folder = systems.system_dir(name)
+        system = systems.System.read(folder)
+        out[name, "ecos"] = systems.run_ecos(folder)
+        out[name, "libcosim"] = systems.run_libcosim(folder)
+        out[name, "fmpy"] = systems.run_fmpy(folder.parent / f"{name}.ssp")
+        for master in ("ecos", "libcosim", "fmpy"):
+            run = out[name, master]
+            out[name, master, "python"] = systems.python_loop(system, run.times, run.sizes)
+    return out
 
 
-def ssp_system(folder: Path, archive: Path) -> Path:
-    """An SSP 1.0 system folder: both components of `archive`, copied once to resources/."""
-    (folder / "resources").mkdir(parents=True)
-    shutil.copy(archive, folder / "resources" / "BacklashShaft.fmu")
-
-    def values(params: dict) -> str:
-        return "".join(f'<ssv:Parameter name="{n}"><ssv:Real value="{v!r}"/></ssv:Parameter>' for n, v in params.items())
-
-    def component(name: str, params: dict, connectors: str) -> str:
-        return f"""
-      <ssd:Component name="{name}" source="resources/BacklashShaft.fmu">
-        <ssd:Connectors>{connectors}</ssd:Connectors>
-        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
-          <ssv:ParameterSet version="1.0" name="values"><ssv:Parameters>{values(params)}</ssv:Parameters></ssv:ParameterSet>
-        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
-      </ssd:Component>"""
-
-    output = '<ssd:Connector name="omega_m" kind="output"><ssc:Real/></ssd:Connector>'
-    inputs = '<ssd:Connector name="tau_m" kind="input"><ssc:Real/></ssd:Connector>'
-    (folder / "SystemStructure.ssd").write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" name="pair" version="1.0">
-  <ssd:System name="pair">
-    <ssd:Elements>{component("plant", PLANT, output)}{component("follower", FOLLOWER, inputs + output)}
-    </ssd:Elements>
-    <ssd:Connections>
-      <ssd:Connection startElement="plant" startConnector="omega_m" endElement="follower" endConnector="tau_m"/>
-    </ssd:Connections>
-  </ssd:System>
-</ssd:SystemStructureDescription>
-""")
-    return folder
+def clock_sum(h: float, n: int) -> list[float]:
+    """t_0 = 0, t_k+1 = t_k + h: ecos's and fmpy's clock."""
+    times = [0.0]
+    for _ in range(n - 1):
+        times.append(times[-1] + h)
+    return times
 
 
-@pytest.mark.parametrize("fmi", [2, 3])
-def test_ecos_runs_two_components_of_one_archive_jacobi(fmi, tmp_path):
-    system = ssp_system(tmp_path / "system", fmu_path("BacklashShaft", fmi))
-    EcosLib.set_log_level("warn")
-    rows, times = [], [0.0]
-    with EcosSimulation(ssp_path=str(system), step_size=H) as sim:
-        sim.init(parameter_set="values")
-        for _ in range(STEPS):
-            times.append(sim.step())
-            rows.append((sim.get_real("plant::omega_m"), 0.0, sim.get_real("follower::omega_m")))
-        sim.terminate()
-    ran = np.array(rows)
-    # ecos's clock: t += h.
-    clock = [0.0]
-    for _ in range(STEPS):
-        clock.append(clock[-1] + H)
-    assert times == clock
-    expected = reference(fmi, times, [H] * STEPS)
-    assert np.ptp(expected[:, 2]) > 0.1, "the follower must move"
-    assert np.array_equal(ran[:, 0], expected[:, 0]) and np.array_equal(ran[:, 2], expected[:, 2])
+@pytest.mark.parametrize("name", SYSTEMS)
+@pytest.mark.parametrize("master", ("ecos", "libcosim", "fmpy"))
+def test_a_master_runs_the_shipped_system_as_the_loop_closed_here(runs, name, master):
+    system = systems.System.read(systems.system_dir(name))
+    run, here = runs[name, master], runs[name, master, "python"]
+    n, h = system.steps, system.step_size
+    assert len(run.times) == n
+    if master == "libcosim":
+        h_ns = round(h * systems.NANOSECONDS)
+        assert run.times == [k * h_ns / systems.NANOSECONDS for k in range(n)]
+        assert run.sizes == [(k + 1) * h_ns / systems.NANOSECONDS - k * h_ns / systems.NANOSECONDS
+                             for k in range(n)]
+    else:
+        assert run.times == clock_sum(h, n) and run.sizes == [h] * n
+    assert set(run.record) == set(system.outputs())
+    for key, values in run.record.items():
+        assert np.ptp(values) > 0, f"{key} must move"
+        assert np.array_equal(values, here.record[key]), f"{name} in {master}: {key}"
 
 
-def test_libcosim_runs_two_components_of_one_archive_jacobi(tmp_path):
-    (tmp_path / "fmus").mkdir()
-    shutil.copy(fmu_path("BacklashShaft", 2), tmp_path / "fmus" / "BacklashShaft.fmu")
+@pytest.mark.parametrize("name", SYSTEMS)
+def test_the_masters_agree_with_one_another(runs, name):
+    ecos, libcosim = runs[name, "ecos"], runs[name, "libcosim"]
+    for key, values in ecos.record.items():
+        scale = np.max(np.abs(values))
+        assert np.max(np.abs(libcosim.record[key] - values)) <= MASTERS_AGREE * scale, key
+        assert np.array_equal(runs[name, "fmpy"].record[key], values), key
 
-    def initial(params: dict) -> str:
-        return "".join(f'<InitialValue variable="{n}"><Real value="{v!r}"/></InitialValue>' for n, v in params.items())
 
-    osp = tmp_path / "OspSystemStructure.xml"
-    osp.write_text(f"""<?xml version="1.0" encoding="utf-8" ?>
-<OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
-  <StartTime>0.0</StartTime>
-  <BaseStepSize>{H!r}</BaseStepSize>
-  <Algorithm>fixedStep</Algorithm>
-  <Simulators>
-    <Simulator name="plant" source="fmus/BacklashShaft.fmu"><InitialValues>{initial(PLANT)}</InitialValues></Simulator>
-    <Simulator name="follower" source="fmus/BacklashShaft.fmu"><InitialValues>{initial(FOLLOWER)}</InitialValues></Simulator>
-  </Simulators>
-  <Connections>
-    <VariableConnection><Variable simulator="plant" name="omega_m"/><Variable simulator="follower" name="tau_m"/></VariableConnection>
-  </Connections>
-</OspSystemStructure>
-""")
-    log_output_level(CosimLogLevel.ERROR)
-    execution = CosimExecution.from_osp_config_file(str(osp))
-    index = {s.name.decode(): s.index for s in execution.slave_infos()}
-    vr = {(name, v.name.decode()): v.reference for name, i in index.items() for v in execution.slave_variables(i)}
-    last = CosimObserver.create_last_value()
-    execution.add_observer(last)
-    rows, nanoseconds = [], [0]
-    for _ in range(STEPS):
-        assert execution.step(1)
-        nanoseconds.append(execution.status().current_time)
-        plant = last.last_real_values(index["plant"], [vr["plant", "omega_m"]])[0]
-        follower = last.last_real_values(index["follower"], [vr["follower", "omega_m"]])[0]
-        rows.append((plant, 0.0, follower))
-    ran = np.array(rows)
-    h_ns = round(H * NS)
-    assert nanoseconds == [k * h_ns for k in range(STEPS + 1)]
-    seconds = [t / NS for t in nanoseconds]
-    expected = reference(2, seconds, [b - a for a, b in zip(seconds, seconds[1:])])
-    assert np.ptp(expected[:, 2]) > 0.1, "the follower must move"
-    assert np.array_equal(ran[:, 0], expected[:, 0]) and np.array_equal(ran[:, 2], expected[:, 2])
+def test_every_system_starts_at_rest_so_the_masters_first_inputs_agree():
+    """ecos and libcosim pass the outputs after initialization before the first step, fmpy's
+    runner passes 0: the same when every connected output starts at 0 (the controllers' tau_m,
+    the plants' omega_m and T, start values of their descriptions that no parameter set changes)."""
+    from fmpy import read_model_description
+
+    for name in SYSTEMS:
+        system = systems.System.read(systems.system_dir(name))
+        sources = {(a, out) for a, out, _, _ in system.connections}
+        for c in system.components:
+            md = read_model_description(str(system.folder / "resources" / f"{c.model}.fmu"))
+            starts = {v.name: float(v.start) for v in md.modelVariables if v.start is not None}
+            for component, output in sources:
+                if component == c.name:
+                    assert c.params.get(output, starts[output]) == 0.0, (name, component, output)
+
+
+def test_ecos_runs_the_sine_system_with_the_fmi3_archives_alike(runs, tmp_path):
+    """The same system with FMI 3.0 archives under resources/: ecos runs it to the same values."""
+    folder = tmp_path / "sine"
+    shutil.copytree(systems.system_dir("sine"), folder)
+    for model in ("BacklashShaft", "BacklashController"):
+        shutil.copy(fmu_path(model, 3), folder / "resources" / f"{model}.fmu")
+    fmi3 = systems.run_ecos(folder)
+    for key, values in runs["sine", "ecos"].record.items():
+        assert np.array_equal(fmi3.record[key], values), key
+
+
+def test_the_osp_files_are_the_ssd_systems_with_the_same_values():
+    for name in SYSTEMS:
+        folder = systems.system_dir(name)
+        system = systems.System.read(folder)
+        ns = {"osp": "http://opensimulationplatform.com/MSMI/OSPSystemStructure"}
+        root = ET.parse(folder / systems.OSP).getroot()
+        simulators = {}
+        for s in root.iterfind("osp:Simulators/osp:Simulator", ns):
+            values = {v.get("variable"): float(list(v)[0].get("value"))
+                      for v in s.iterfind("osp:InitialValues/osp:InitialValue", ns)}
+            simulators[s.get("name")] = (s.get("source"), values)
+        assert simulators == {c.name: (f"resources/{c.model}.fmu", c.params) for c in system.components}, name
+        connections = [tuple(x for v in c.iterfind("osp:Variable", ns) for x in (v.get("simulator"), v.get("name")))
+                       for c in root.iterfind("osp:Connections/osp:VariableConnection", ns)]
+        assert connections == system.connections, name
+        assert float(root.find("osp:BaseStepSize", ns).text) == system.step_size, name
+
+
+def test_the_shipped_gains_are_the_design_answers():
+    """The sine systems' gains and reference frequency are the design answer for the paper's rig
+    (the demonstration's, backlash_fmu.demo.shaft_design); the web line's speed gains its design
+    answer, its tension loop the web-line demonstration's."""
+    from backlash_fmu.demo import DEMO_ACCURACY, DEMO_DELTA, DEMO_TENSION_ACCURACY
+
+    shaft = design("shaft", accuracy=DEMO_ACCURACY, Delta=DEMO_DELTA)
+    sine = systems.System.read(systems.system_dir("sine"))
+    params = {c.name: c.params for c in sine.components}
+    assert params["controller"]["Kp"] == shaft["Kp"] and params["controller"]["Ki"] == shaft["Ki"]
+    assert params["plant"]["Kp"] == shaft["Kp"] and params["plant"]["Delta"] == DEMO_DELTA
+    assert params["controller"]["frequency"] == twin.reference_frequency(shaft["poles"])
+    assert params["controller"]["amplitude"] == twin.SPEED
+    web = design("web", tension_accuracy=DEMO_TENSION_ACCURACY)
+    line = {c.name: c.params for c in systems.System.read(systems.system_dir("web_line")).components}
+    assert line["controller"]["Kp"] == web["Kp"] and line["controller"]["Ki"] == web["Ki"]
+    assert (line["controller"]["Kp_T"], line["controller"]["Ki_T"], line["controller"]["T_ref"]) == (
+        twin.KP_T, twin.KI_T, twin.T_REF)
+    assert (line["controller"]["amplitude"], line["controller"]["frequency"]) == (
+        twin.SPEED_AMPLITUDE, twin.SPEED_FREQUENCY)
+    assert not math.isnan(line["line"]["Kp"])
 
 
 def test_libcosim_refuses_fmi3_with_its_own_reason(tmp_path):
     """libcosim 0.11 reads FMI 1.0 and 2.0 only: our FMI 3.0 archive is refused by version, before
     anything of ours is loaded."""
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimSlave import CosimLocalSlave
+    from libcosimpy._internal import libcosimc
 
     shutil.copy(fmu_path("BacklashShaft", 3), tmp_path / "BacklashShaft.fmu")
     log_output_level(CosimLogLevel.FATAL)
     slave = CosimLocalSlave(fmu_path=str(tmp_path / "BacklashShaft.fmu"), instance_name="plant")
-    from libcosimpy._internal import libcosimc
-
     get_error = libcosimc().cosim_last_error_message
     get_error.restype = ctypes.c_char_p
     assert not slave.ptr(), "libcosim 0.11 loaded an FMI 3.0 archive"
     assert b"Unsupported FMI version" in get_error()
-
-
-def test_fmpy_ssp_runner_runs_two_components_of_one_archive_jacobi(tmp_path):
-    """fmpy's SSP runner reads a zipped .ssp; it applies no parameter binding of the file, only the
-    `parameter_set` it is given (component.variable), and records each row at the start time of
-    its step with the values after it. It steps while its clock (t += h) is short of the stop
-    time, so a stop time half a step before the last point gives exactly STEPS steps."""
-    from fmpy.ssp.ssd import Parameter, ParameterSet
-    from fmpy.ssp.simulation import simulate_ssp
-
-    system = ssp_system(tmp_path / "system", fmu_path("BacklashShaft", 2))
-    ssp = tmp_path / "pair.ssp"
-    with zipfile.ZipFile(ssp, "w") as z:
-        for path in sorted(system.rglob("*")):
-            if path.is_file():
-                z.write(path, path.relative_to(system).as_posix())
-    values = ParameterSet(parameters=[Parameter(name=f"{c}.{n}", type="Real", value=v)
-                                      for c, params in (("plant", PLANT), ("follower", FOLLOWER))
-                                      for n, v in params.items()])
-    result = simulate_ssp(str(ssp), start_time=0.0, stop_time=STEPS * H - H / 2, step_size=H, parameter_set=values)
-    assert len(result) == STEPS
-    clock = [0.0]
-    for _ in range(STEPS - 1):
-        clock.append(clock[-1] + H)
-    assert list(result["time"]) == clock
-    expected = reference(2, clock, [H] * STEPS, first=0.0)
-    assert np.ptp(expected[:, 2]) > 0.1, "the follower must move"
-    assert np.array_equal(result["plant.omega_m"], expected[:, 0])
-    assert np.array_equal(result["follower.omega_m"], expected[:, 2])

@@ -15,7 +15,10 @@ In order (`main`):
    DIR/design_bound_sup.csv and the figures DIR/fig11-13_*.png, DIR/design_bound_sup.png; and
    one case with a damper in the shaft beside the same case without, against the spring-damper
    twin (DIR/damped.csv, DIR/run_damped_sine.csv);
-3. `web_line.run`: twin BacklashWeb lines (Delta and Delta = 0) under the speed and tension PI
+3. `master.run`: the sine experiment as the shipped system `sine` (BacklashShaft under
+   BacklashController) in the co-simulation master ecos, against the loop closed here with
+   ecos's timing and beside step 2's run: DIR/master_sine.csv, DIR/master_sine.png;
+4. `web_line.run`: twin BacklashWeb lines (Delta and Delta = 0) under the speed and tension PI
    loops: DIR/web_line.csv, DIR/web_line.png, and the web answer read back through the FMU.
 
 DIR defaults to results; `--short` (or CI=true in the environment) shortens the horizons. The
@@ -143,10 +146,14 @@ def main(argv: list[str] | None = None) -> int:
     design_web_json.write_text(web_text + "\n", encoding="utf-8")
     print(f"wrote {_shown(design_web_json)} ({time.perf_counter() - started:.2f} s)")
 
-    from . import paper_experiments, web_line
+    from . import master, paper_experiments, web_line
 
     _step("paper experiments through fmpy")
     status = paper_experiments.run(answer, args.out, short)
+    if status != 0:
+        return status
+    _step("the sine experiment in a co-simulation master: ecos runs the shipped system, beside the run above")
+    status = master.run(args.out, short)
     if status != 0:
         return status
     _step("web line through fmpy: twin runs against bound_T, the design answer through the FMU")
