@@ -20,10 +20,12 @@ from pathlib import Path
 
 from . import fmu
 
-__all__ = ["design", "design_json", "fmu_path", "MODELS"]
+__all__ = ["design", "design_json", "fmu_path", "MODELS", "CONTROLLERS"]
 
-# The models whose archives ship with the package, as their manifest lists them.
+# The plants whose archives ship with the package, as their manifest lists them, and the
+# controllers (BacklashController, docs/model.md §9).
 MODELS: tuple[str, ...] = fmu.models(fmu.PACKAGED)
+CONTROLLERS: tuple[str, ...] = fmu.models(fmu.PACKAGED, fmu.CONTROLLER_MANIFEST)
 
 
 def design(model: str, accuracy: float | None = None, tension_accuracy: float | None = None,
@@ -64,10 +66,11 @@ def _number(name: str, value: object) -> float:
 
 def fmu_path(model: str, fmi: int = 2) -> Path:
     """The FMI 2.0 (`fmi=2`) or FMI 3.0 (`fmi=3`) archive of `model` ("BacklashShaft",
-    "BacklashBelt" or "BacklashWeb") shipped in this package. Raises ValueError for another
-    model or standard, FileNotFoundError if the archive is missing from the installation."""
-    if model not in MODELS:
-        raise ValueError(f"model = {model!r}: choose one of {', '.join(MODELS)}")
+    "BacklashBelt", "BacklashWeb" or "BacklashController") shipped in this package. Raises
+    ValueError for another model or standard, FileNotFoundError if the archive is missing from
+    the installation."""
+    if model not in MODELS + CONTROLLERS:
+        raise ValueError(f"model = {model!r}: choose one of {', '.join(MODELS + CONTROLLERS)}")
     if fmi not in (2, 3):
         raise ValueError(f"fmi = {fmi!r}: choose 2 or 3")
     path = fmu.packaged_path(model, fmi)

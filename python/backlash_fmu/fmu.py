@@ -37,8 +37,10 @@ EVENT_INDICATORS = 6
 # The status every refusal is answered with: fmi2Error and fmi3Error are both 3.
 ERROR = 3
 
-# The manifest beside the archives of each standard: the model identifiers, one a line.
+# The manifest beside the archives of each standard: the plants' identifiers, one a line; and the
+# controllers' (BacklashController), whose archives lie beside them.
 MANIFEST = "models.txt"
+CONTROLLER_MANIFEST = "controllers.txt"
 # The package's own archives (FMI 2.0 here, FMI 3.0 in fmi3/), packed when it was built.
 PACKAGED = Path(__file__).resolve().parent / "archives"
 
@@ -49,11 +51,12 @@ def archive_dir() -> Path:
     return Path(given) if given else PACKAGED
 
 
-def models(folder: Path | None = None) -> tuple[str, ...]:
+def models(folder: Path | None = None, manifest: str = MANIFEST) -> tuple[str, ...]:
     """The model identifiers of the manifest in `folder` (default `archive_dir()`), in the
-    packaging's order; () when there is none."""
+    packaging's order: the plants' (`models.txt`), or with `manifest=CONTROLLER_MANIFEST` the
+    controllers'; () when there is none."""
     try:
-        text = ((folder or archive_dir()) / MANIFEST).read_text()
+        text = ((folder or archive_dir()) / manifest).read_text()
     except FileNotFoundError:
         return ()
     return tuple(line.strip() for line in text.splitlines() if line.strip())

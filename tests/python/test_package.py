@@ -117,6 +117,26 @@ def test_the_six_archives_are_shipped_and_simulate():
         backlash_fmu.fmu_path("BacklashShaft", fmi=1)
 
 
+def test_the_controller_and_the_systems_are_shipped():
+    """The controller's archives, and the systems packed with the archives they use, beside the
+    package's archives."""
+    from backlash_fmu import systems
+
+    assert backlash_fmu.CONTROLLERS == ("BacklashController",)
+    for fmi in (2, 3):
+        md = read_model_description(str(backlash_fmu.fmu_path("BacklashController", fmi)))
+        assert md.coSimulation.modelIdentifier == "BacklashController" and md.modelExchange is None
+    shipped = backlash_fmu.fmu.PACKAGED / "systems"
+    names = sorted(path.parent.name for path in shipped.glob(f"*/{systems.SSD}"))
+    assert names == ["sine", "twin", "web_line"]
+    for name in names:
+        folder = shipped / name
+        system = systems.System.read(folder)
+        for c in system.components:
+            assert (folder / "resources" / f"{c.model}.fmu").read_bytes() == backlash_fmu.fmu_path(c.model).read_bytes()
+        assert (folder.parent / f"{name}.ssp").is_file()
+
+
 def test_the_backlash_command_answers_as_the_build_tools():
     """The command pip installed prints what `cargo xtask design` prints, byte for byte."""
     for _, _, flags in QUESTIONS:
