@@ -1,6 +1,7 @@
 /* Instantiate/free cycles through the C ABI of a packaged FMU, for scripts/leak_check.sh.
  *
  * Usage: leak_driver <model .so> <guid> <cycles> <vr of tau_m> <vr of omega_m> <continuous states>
+ *        <event indicators>
  *
  * Each cycle, for Co-Simulation: fmi2Instantiate, a refused call (NULL array) and recovery by
  * fmi2Reset, setup, initialization, 5 steps, an FMU state serialized and deserialized (freed
@@ -10,6 +11,11 @@
  * fmi2GetDerivatives, fmi2GetEventIndicators and fmi2CompletedIntegratorStep, an FMU state
  * serialized, deserialized and set, one left for fmi2FreeInstance, and fmi2FreeInstance. Every
  * status is checked, so a leak check never passes on a run that did nothing.
+ *
+ * A controller (no continuous state: BacklashController, whose tau_m is its output and omega_m
+ * its input) serves Co-Simulation only: each cycle a refused call and fmi2Reset, initialization,
+ * 5 samples, its torque read, a refused fmi2GetFMUstate (it has no FMU state) and
+ * fmi2FreeInstance, then a refused Model Exchange instantiation.
  *
  * Without valgrind the driver also measures the heap (mallinfo2) after a warm-up of a tenth of
  * the cycles and at the end, and fails if it grew by more than GROWTH_LIMIT bytes. */
@@ -50,6 +56,44 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
         }                                                                     \
     } while (0)
 
+/* One cycle of a controller (see the top of this file); non-zero on a failure, reported. */
+static int controller_cycle(long k, fmi2InstantiateTYPE *fmi2Instantiate, fmi2FreeInstanceTYPE *fmi2FreeInstance,
+                            fmi2SetupExperimentTYPE *fmi2SetupExperiment,
+                            fmi2EnterInitializationModeTYPE *fmi2EnterInitializationMode,
+                            fmi2ExitInitializationModeTYPE *fmi2ExitInitializationMode, fmi2ResetTYPE *fmi2Reset,
+                            fmi2DoStepTYPE *fmi2DoStep, fmi2SetRealTYPE *fmi2SetReal, fmi2GetRealTYPE *fmi2GetReal,
+                            fmi2GetFMUstateTYPE *fmi2GetFMUstate, const char *guid,
+                            const fmi2CallbackFunctions *cb, fmi2ValueReference tau_m, fmi2ValueReference omega_m) {
+    fmi2Component c =
+        fmi2Instantiate("leak check", fmi2CoSimulation, guid, "file:///tmp/a%20b", cb, fmi2False, fmi2False);
+    if (!c) {
+        fprintf(stderr, "cycle %ld: fmi2Instantiate returned NULL\n", k);
+        return 1;
+    }
+    CHECK(fmi2SetReal(c, &omega_m, 1, NULL), fmi2Error);
+    CHECK(fmi2Reset(c), fmi2OK);
+    CHECK(fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), fmi2OK);
+    CHECK(fmi2EnterInitializationMode(c), fmi2OK);
+    CHECK(fmi2ExitInitializationMode(c), fmi2OK);
+    /* The default experiment's step, the controller's sample period: 1 ms. */
+    fmi2Real w = 0.01 * (1 + k % 7), u = 0.0;
+    CHECK(fmi2SetReal(c, &omega_m, 1, &w), fmi2OK);
+    for (int i = 0; i < 5; i++) CHECK(fmi2DoStep(c, i * 1e-3, 1e-3, fmi2True), fmi2OK);
+    CHECK(fmi2GetReal(c, &tau_m, 1, &u), fmi2OK);
+    if (!(u < 0.0)) {
+        fprintf(stderr, "cycle %ld: tau_m = %g after 5 samples of omega_m = %g from rest\n", k, u, w);
+        return 1;
+    }
+    fmi2FMUstate state = NULL;
+    CHECK(fmi2GetFMUstate(c, &state), fmi2Error);
+    fmi2FreeInstance(c);
+    if (fmi2Instantiate("leak check ME", fmi2ModelExchange, guid, "file:///tmp/a%20b", cb, fmi2False, fmi2False)) {
+        fprintf(stderr, "cycle %ld: a controller was instantiated for Model Exchange\n", k);
+        return 1;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv) {
     if (argc != 8) {
         fprintf(stderr,
@@ -75,8 +119,8 @@ int main(int argc, char **argv) {
     const fmi2ValueReference tau_m = (fmi2ValueReference)atol(argv[4]), omega_m = (fmi2ValueReference)atol(argv[5]);
     /* 4, or 5 with a web span's tension. */
     const size_t nx = (size_t)atol(argv[6]);
-    if (nx < 1 || nx > MAX_STATES) {
-        fprintf(stderr, "%zu continuous states: expected 1 to %d\n", nx, MAX_STATES);
+    if (nx > MAX_STATES) {
+        fprintf(stderr, "%zu continuous states: expected at most %d\n", nx, MAX_STATES);
         return 2;
     }
     /* numberOfEventIndicators of the model description. */
@@ -88,6 +132,13 @@ int main(int argc, char **argv) {
     size_t heap_after_warmup = 0;
     for (long k = 0; k < cycles; k++) {
         if (k == cycles / 10) heap_after_warmup = mallinfo2().uordblks;
+        if (nx == 0) {
+            if (controller_cycle(k, fmi2Instantiate, fmi2FreeInstance, fmi2SetupExperiment, fmi2EnterInitializationMode,
+                                 fmi2ExitInitializationMode, fmi2Reset, fmi2DoStep, fmi2SetReal, fmi2GetReal,
+                                 fmi2GetFMUstate, argv[2], &cb, tau_m, omega_m))
+                return 1;
+            continue;
+        }
         fmi2Component c = fmi2Instantiate("leak check", fmi2CoSimulation, argv[2], "file:///tmp/a%20b", &cb,
                                           fmi2False, fmi2False);
         if (!c) {

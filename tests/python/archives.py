@@ -11,13 +11,15 @@ import functools
 from pathlib import Path
 
 import pytest
-from backlash_fmu.fmu import Archive, fmu_path, models
+from backlash_fmu.fmu import CONTROLLER_MANIFEST, Archive, fmu_path, models
 
 REPO = Path(__file__).resolve().parents[2]
 
 # Every packaged model, as the FMI 2.0 manifest lists them; () without a manifest (conftest.py then
 # stops the run before any test).
 MODELS = models()
+# The controllers packaged beside them (controllers.txt).
+CONTROLLERS = models(manifest=CONTROLLER_MANIFEST)
 
 _extracted: list[Archive] = []
 

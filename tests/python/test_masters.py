@@ -156,6 +156,13 @@ def test_the_shipped_gains_are_the_design_answers():
     assert params["plant"]["Kp"] == shaft["Kp"] and params["plant"]["Delta"] == DEMO_DELTA
     assert params["controller"]["frequency"] == twin.reference_frequency(shaft["poles"])
     assert params["controller"]["amplitude"] == twin.SPEED
+    # BacklashController's defaults are this experiment's.
+    from fmpy import read_model_description
+
+    md = read_model_description(str(fmu_path(systems.CONTROLLER)))
+    start = {v.name: float(v.start) for v in md.modelVariables if v.causality == "parameter"}
+    for name, value in params["controller"].items():
+        assert start[name] == value, name
     web = design("web", tension_accuracy=DEMO_TENSION_ACCURACY)
     line = {c.name: c.params for c in systems.System.read(systems.system_dir("web_line")).components}
     assert line["controller"]["Kp"] == web["Kp"] and line["controller"]["Ki"] == web["Ki"]

@@ -8,6 +8,9 @@ Tolerances:
   t_k+1 - t_k) with the same held inputs (a row at every communication point, which fmpy's
   interpolation w0 v0 + w1 v1 reproduces exactly; each flip a time event there): the same
   arithmetic, so the same bits, the time column aside.
+- the controller's outputs against its law written in Python (twin.SampledPi): the same
+  operations in the same order on the same doubles (sin from the C library in both), so the same
+  bits.
 - the independent reference (reference.py: DOP853 at rtol 1e-13 with located switches;
   reference_web.py: matrix exponentials with brentq-located switches): 1e-9 relative per signal
   as in test_open_loop.py, over runs whose inputs were chosen so that a difference of 1e-12 in
@@ -28,7 +31,7 @@ from backlash_fmu.fmu import fmu_path
 
 import reference
 import reference_web
-from archives import MODELS, require
+from archives import CONTROLLERS, MODELS, require
 from rigs import plant_of
 from signals import rel_err
 
@@ -56,7 +59,7 @@ def kit(model: str, fmi: int) -> tuple[etree._Element, np.ndarray, np.ndarray, l
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", MODELS + CONTROLLERS)
 def test_the_manifest_names_the_files_the_archive_holds(model, fmi):
     manifest, inputs, outputs, names = kit(model, fmi)
     ns = "{http://fmi-standard.org/fmi-ls-manifest}"
@@ -84,7 +87,7 @@ def test_the_manifest_names_the_files_the_archive_holds(model, fmi):
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", MODELS + CONTROLLERS)
 def test_fmpy_replaying_the_inputs_gets_the_outputs(model, fmi):
     _, inputs, outputs, _ = kit(model, fmi)
     experiment = require(model, fmi).md.defaultExperiment
@@ -134,3 +137,25 @@ def test_the_outputs_agree_with_the_independent_reference(model):
     assert len(solver.switches) >= 20, "the reference experiment must cross the gap again and again"
     errors = {name: rel_err(outputs[name], values) for name, values in expected.items()}
     assert max(errors.values()) <= 1e-9, errors
+
+
+def test_the_controllers_outputs_are_its_law_one_sample_late():
+    """BacklashController's reference run: after step k its torque is the law's sample k of the
+    held measured speed, at its own time k h (twin.SampledPi, at the description's start values)."""
+    from backlash_fmu import twin
+
+    _, inputs, outputs, _ = kit("BacklashController", 2)
+    md = require("BacklashController", 2).md
+    start = {v.name: float(v.start) for v in md.modelVariables if v.causality == "parameter"}
+    assert start["reference"] == 3
+    h = float(md.defaultExperiment.stepSize)
+    assert h == start["h"]
+    n = round(float(md.defaultExperiment.stopTime) / h)
+    every = round((outputs["time"][1] - outputs["time"][0]) / h)
+    omega = held(inputs, ("omega_m",), np.arange(n) * h)["omega_m"]
+    law = twin.SampledPi(start["Kp"], start["Ki"], twin.references(start["frequency"], start["amplitude"])["sine"], h,
+                         kp_t=start["Kp_T"], ki_t=start["Ki_T"], t_ref=start["T_ref"])
+    torques = np.array([law.torque(k * h, omega[k]) for k in range(n)])
+    assert np.ptp(omega) > 0 and np.ptp(torques) > 1.0
+    assert outputs["tau_m"][0] == 0.0
+    assert np.array_equal(outputs["tau_m"][1:], torques[every - 1::every])

@@ -13,7 +13,15 @@
 use backlash_physics::Reference;
 
 use super::{parameter, pi_gains, quantity_input, var};
-use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, Type, Variability};
+use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWave, Type, Variability};
+
+/// The defaults are the paper's sine experiment on BacklashShaft's defaults (systems/sine): the
+/// gains of the design answer for the paper's rig (`backlash design --accuracy 0.02`, the
+/// best-damped PI) and the reversing sine of 0.05 at the mean natural frequency of its closed-loop
+/// poles; tests/python/test_masters.py checks them against the design answer.
+const PAPER_RIG_KP: f64 = 42.70304505387717;
+const PAPER_RIG_KI: f64 = 179.2424837177854;
+const PAPER_RIG_FREQUENCY: f64 = 1.4103246998179486;
 
 pub(super) fn model() -> Model {
     use Range::*;
@@ -51,11 +59,13 @@ pub(super) fn model() -> Model {
         ),
         crate::Var {
             vr: 4,
+            start: Some(PAPER_RIG_KP),
             description: "Proportional gain of the speed PI",
             ..kp
         },
         crate::Var {
             vr: 5,
+            start: Some(PAPER_RIG_KI),
             description: "Integral gain of the speed PI",
             ..ki
         },
@@ -121,7 +131,7 @@ pub(super) fn model() -> Model {
             "frequency",
             "Frequency",
             12,
-            1.4,
+            PAPER_RIG_FREQUENCY,
             NonNegative,
             "Hz",
             "Frequency",
@@ -152,13 +162,19 @@ pub(super) fn model() -> Model {
     Model {
         identifier: "BacklashController",
         kind: Kind::Controller,
-        description: "Sampled speed PI (and web tension PI) with the paper's speed references, to close the loop around BacklashShaft, BacklashBelt or BacklashWeb in a co-simulation master; Co-Simulation only",
+        description: "Sampled speed PI (and web tension PI) with the paper's speed references, to close the loop around BacklashShaft, BacklashBelt or BacklashWeb in a co-simulation master; Co-Simulation only; defaults are the paper's sine experiment",
         default_experiment: DefaultExperiment {
             start_time: 0.0,
             stop_time: 8.0,
             step_size: 1e-3,
         },
-        reference_inputs: &[],
+        // The measured speed steps between +-0.02 every half second, against the sine reference.
+        reference_inputs: &[SquareWave {
+            input: "omega_m",
+            level: 0.0,
+            amplitude: 0.02,
+            half_period: 500,
+        }],
         variables: v,
     }
 }

@@ -22,12 +22,11 @@ pub fn entries(standard: &Standard, id: &str, xml: &str) -> Result<Vec<Entry>, S
         name: "documentation/index.html".into(),
         bytes: documentation::render(id, xml)?.into_bytes(),
     }];
-    // A controller's reference run is a system's (systems/, run by tests/python/test_masters.py),
-    // and it has no flanges to draw.
+    kit.extend(reference::entries(id)?);
+    // A controller has no flanges to draw.
     if model_description::controller_identifiers().contains(&id) {
         return Ok(kit);
     }
-    kit.extend(reference::entries(id)?);
     kit.extend(icon::entries(standard.fmi_version, id, xml)?);
     Ok(kit)
 }
