@@ -181,3 +181,21 @@ def test_a_positive_flange_torque_flows_into_the_fmu(model):
 @pytest.mark.parametrize("fmi", (2, 3))
 def test_fmpy_still_validates_the_archive(model, fmi):
     assert validate_fmu(str(fmu_path(model, fmi))) == []
+
+
+# --- the controller ---------------------------------------------------------------------------------
+
+
+def test_the_controller_has_its_own_icon_and_no_terminal():
+    """BacklashController: its own picture (not the drive train's) in both archives, and a
+    terminalsAndIcons.xml with the icon and no <Terminals>: its inputs and output are signals,
+    connected one by one."""
+    two, three = entries(fmu_path("BacklashController", 2)), entries(fmu_path("BacklashController", 3))
+    check_png(two["model.png"], "BacklashController model.png")
+    assert three[ICON] == two["model.png"]
+    assert three[ICON] != entries(fmu_path(archives.MODELS[0], 3))[ICON]
+    schema = etree.XMLSchema(file=str(SCHEMA))
+    document = etree.fromstring(three[TERMINALS])
+    assert schema.validate(document), schema.error_log
+    assert document.find("Terminals") is None and document.find("GraphicalRepresentation/Icon") is not None
+    assert not any(name.startswith("terminalsAndIcons/flange") for name in three)

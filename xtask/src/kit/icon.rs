@@ -4,8 +4,10 @@
 //! and the load-side flange as terminals, and one image per flange terminal.
 //!
 //! The images are drawn here at packaging time (with [`super::image`]), so the repository holds
-//! no binary file. One picture serves every model: all three share the drive train of
-//! docs/model.md §1 (motor inertia, compliant member, backlash, load inertia).
+//! no binary file. One picture serves every plant: all three share the drive train of
+//! docs/model.md §1 (motor inertia, compliant member, backlash, load inertia). A controller
+//! (docs/model.md §9) has its own picture, a sampled signal following a sine, and no terminal:
+//! its inputs and output are signals, connected one by one.
 
 use model_description::xml::escape;
 
@@ -15,7 +17,12 @@ use super::Entry;
 /// The archive entries of this kit for the standard `fmi_version` ("2.0" or "3.0") of model `id`,
 /// whose model description is `xml`.
 pub fn entries(fmi_version: &str, id: &str, xml: &str) -> Result<Vec<Entry>, String> {
-    let icon = picture(ICON_PIXELS, ICON, draw_drive_train).map_err(|e| format!("{id}: icon: {e}"))?;
+    let controller = model_description::controller_identifiers().contains(&id);
+    let (draw, flanges): (fn(&mut Canvas), &[Flange]) = match controller {
+        true => (draw_controller, &[]),
+        false => (draw_drive_train, &FLANGES),
+    };
+    let icon = picture(ICON_PIXELS, ICON, draw).map_err(|e| format!("{id}: icon: {e}"))?;
     match fmi_version {
         "2.0" => Ok(vec![Entry {
             name: "model.png".into(),
@@ -38,12 +45,12 @@ pub fn entries(fmi_version: &str, id: &str, xml: &str) -> Result<Vec<Entry>, Str
                 },
                 Entry {
                     name: "terminalsAndIcons/terminalsAndIcons.xml".into(),
-                    bytes: terminals_and_icons(fmi_version, &doc)
+                    bytes: terminals_and_icons(fmi_version, &doc, flanges)
                         .map_err(|e| format!("{id}: {e}"))?
                         .into_bytes(),
                 },
             ];
-            for flange in &FLANGES {
+            for flange in flanges {
                 kit.push(Entry {
                     name: format!("terminalsAndIcons/{}.png", flange.name),
                     bytes: picture(FLANGE_PIXELS, flange.extent, |canvas| draw_flange(canvas, flange))
@@ -151,8 +158,9 @@ const TORQUE: Member = Member {
 const MEMBER_CAUSALITIES: [&str; 4] = ["input", "output", "parameter", "calculatedParameter"];
 
 /// `terminalsAndIcons/terminalsAndIcons.xml` for the parsed model description `doc`: the icon's
-/// extent and the two flange terminals, each member checked against the description.
-fn terminals_and_icons(fmi_version: &str, doc: &roxmltree::Document) -> Result<String, String> {
+/// extent and the terminals of `flanges` (a plant's two; none: no `<Terminals>`), each member
+/// checked against the description.
+fn terminals_and_icons(fmi_version: &str, doc: &roxmltree::Document, flanges: &[Flange]) -> Result<String, String> {
     let mut xml = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     xml += &format!(
         "<fmiTerminalsAndIcons {}>\n",
@@ -163,8 +171,12 @@ fn terminals_and_icons(fmi_version: &str, doc: &roxmltree::Document) -> Result<S
     coordinates.push(("suggestedScalingFactorTo_mm", SCALING_TO_MM.to_string()));
     xml += &empty_element(4, "CoordinateSystem", &coordinates);
     xml += &empty_element(4, "Icon", &extent_attributes(ICON));
-    xml += "  </GraphicalRepresentation>\n  <Terminals>\n";
-    for flange in &FLANGES {
+    xml += "  </GraphicalRepresentation>\n";
+    if flanges.is_empty() {
+        return Ok(xml + "</fmiTerminalsAndIcons>\n");
+    }
+    xml += "  <Terminals>\n";
+    for flange in flanges {
         let terminal = attributes(&[
             ("name", flange.name.into()),
             ("matchingRule", "plug".into()),
@@ -314,6 +326,28 @@ fn draw_drive_train(canvas: &mut Canvas) {
     shaft(canvas, 52.0, 58.0);
     inertia(canvas, 58.0, 92.0, 46.0);
     shaft(canvas, 92.0, 100.0);
+}
+
+/// A controller: a block holding a sine (the reference, thin) and the staircase of its samples
+/// (thick), with a signal arrow in on the left and out on the right.
+fn draw_controller(canvas: &mut Canvas) {
+    let block = rect(-78.0, -62.0, 78.0, 62.0, 8.0);
+    canvas.fill(&block, Rgb(240, 244, 250));
+    canvas.fill(outline(block, 1.4), BLACK);
+    let sine = |x: f64| 40.0 * (std::f64::consts::PI * (x + 60.0) / 60.0).sin();
+    let curve: Vec<(f64, f64)> = (0..=120).map(|i| -60.0 + f64::from(i)).map(|x| (x, sine(x))).collect();
+    canvas.fill(polyline(&curve, 0.8), SHAFT_GREY);
+    // Each sample held until the next: steps of 12 units.
+    let mut stairs = Vec::new();
+    for k in 0..10 {
+        let (from, to) = (-60.0 + 12.0 * f64::from(k), -48.0 + 12.0 * f64::from(k));
+        stairs.extend([(from, sine(from)), (to, sine(from))]);
+    }
+    canvas.fill(polyline(&stairs, 2.0), Rgb(30, 70, 150));
+    for (from, to) in [(-100.0, -78.0), (78.0, 100.0)] {
+        canvas.fill(segment((from, 0.0), (to - 6.0, 0.0), 1.4), BLACK);
+        canvas.fill(polyline(&[(to - 8.0, -5.0), (to, 0.0), (to - 8.0, 5.0)], 1.4), BLACK);
+    }
 }
 
 /// An inertia between `left` and `right`, `half_height` above and below the axis, shaded as

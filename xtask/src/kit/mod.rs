@@ -23,10 +23,6 @@ pub fn entries(standard: &Standard, id: &str, xml: &str) -> Result<Vec<Entry>, S
         bytes: documentation::render(id, xml)?.into_bytes(),
     }];
     kit.extend(reference::entries(id)?);
-    // A controller has no flanges to draw.
-    if model_description::controller_identifiers().contains(&id) {
-        return Ok(kit);
-    }
     kit.extend(icon::entries(standard.fmi_version, id, xml)?);
     Ok(kit)
 }
