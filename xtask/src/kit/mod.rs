@@ -1,7 +1,7 @@
 //! What every archive carries beside its description and binaries, so that a user can check an
 //! importer against it: the documentation page (`documentation/index.html`), the reference
-//! results of FMI-LS-REF ([`reference`]), and the model's icon with, in FMI 3.0, its two flanges
-//! as terminals ([`icon`]).
+//! results of FMI-LS-REF ([`reference`]), and the model's icon with, in FMI 3.0, a plant's two
+//! flanges as terminals ([`icon`]).
 
 mod icon;
 mod image;
