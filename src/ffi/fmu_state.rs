@@ -73,7 +73,7 @@ pub(super) unsafe fn get_state(
 ) -> Result<Status, FmuError> {
     // SAFETY: the caller's contract.
     let slot = unsafe { output_pointer(slot, "FMUstate") }?;
-    let snapshot = inst.snapshot();
+    let snapshot = inst.snapshot()?;
     if slot.is_null() {
         *slot = store(owner, snapshot);
     } else {

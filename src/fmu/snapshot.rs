@@ -163,6 +163,11 @@ impl Snapshot {
     /// Parses and validates bytes written by [`Snapshot::to_bytes`] for `model`: the frame
     /// (length, magic, version, guid, checksum) first, then every field in order.
     pub fn from_bytes(model: &'static ModelInfo, bytes: &[u8]) -> Result<Snapshot, FmuError> {
+        if model.is_controller() {
+            return Err(FmuError::NotProvided(
+                "a controller's FMU state (canGetAndSetFMUstate = false)",
+            ));
+        }
         let (payload, at) = checked_payload(model, bytes)?;
         let mut r = Reader { bytes: payload, at };
         let (phase, flags, flavour) = r.state_machine()?;

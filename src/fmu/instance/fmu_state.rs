@@ -6,10 +6,13 @@ use super::Instance;
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
 use crate::fmu::snapshot::{check_values, PhysicsSnapshot, Snapshot};
+use crate::fmu::state_machine::Function;
 
 impl Instance {
-    pub(crate) fn snapshot(&self) -> Snapshot {
-        Snapshot {
+    /// Refused for a controller, which has no FMU state.
+    pub(crate) fn snapshot(&self) -> Result<Snapshot, FmuError> {
+        self.check_offered(Function::GetFmuState)?;
+        Ok(Snapshot {
             model: self.model,
             flavour: self.flavour,
             phase: self.phase(),
@@ -24,10 +27,11 @@ impl Instance {
                 bounds_behind: sim.bounds_behind,
                 events: sim.events,
             }),
-        }
+        })
     }
 
     pub(crate) fn restore_body(&mut self, snapshot: &Snapshot) -> Result<Status, FmuError> {
+        self.check_offered(Function::SetFmuState)?;
         if snapshot.model.guid != self.model.guid {
             return Err(FmuError::StateRefused(format!(
                 "it belongs to the model with guid {}, this instance is {} ({})",

@@ -179,7 +179,7 @@ impl Instance {
     /// Inlined, so that the mask of a known `function` is a constant.
     #[inline]
     pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
-        if function.is_legal_in(self.flavour, self.phase()) && !self.model.is_controller() {
+        if function.is_legal_in(self.flavour, self.phase()) {
             return Ok(());
         }
         self.illegal(function)
@@ -188,9 +188,6 @@ impl Instance {
     #[cold]
     #[inline(never)]
     fn illegal(&self, function: Function) -> Result<(), FmuError> {
-        if self.model.is_controller() && function.is_legal_in(self.flavour, self.phase()) {
-            return Self::offered_by_controller(function);
-        }
         match function.only_for(self.flavour.standard) {
             Some(other) if other != self.flavour.interface => Err(FmuError::OtherInterface {
                 function: self.name_of(function),
@@ -350,7 +347,7 @@ impl Instance {
     }
 
     pub fn get_fmu_state(&mut self) -> Result<Snapshot, FmuError> {
-        self.run(Function::GetFmuState, |s| Ok(s.snapshot()))
+        self.run(Function::GetFmuState, |s| s.snapshot())
     }
 
     pub fn set_fmu_state(&mut self, snapshot: &Snapshot) -> Result<Status, FmuError> {

@@ -39,8 +39,12 @@ impl Instance {
     }
 
     /// A controller's refusal of the calls its description does not offer (canGetAndSetFMUstate,
-    /// canInterpolateInputs false; maxOutputDerivativeOrder 0), legal in the state table.
-    pub(super) fn offered_by_controller(function: Function) -> Result<(), FmuError> {
+    /// canInterpolateInputs false; maxOutputDerivativeOrder 0), legal in the state table: checked
+    /// in those calls' bodies, so that the calls every step makes carry no test of the kind.
+    pub(crate) fn check_offered(&self, function: Function) -> Result<(), FmuError> {
+        if !self.model.is_controller() {
+            return Ok(());
+        }
         let feature = match function {
             Function::GetFmuState | Function::SetFmuState | Function::DeSerializeFmuState => {
                 "a controller's FMU state (canGetAndSetFMUstate = false)"

@@ -42,9 +42,6 @@ impl Instance {
     /// The step; returns whether it stopped early at a contact switch (only when `early_return`).
     #[inline]
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
-        if self.model.is_controller() {
-            return self.sample_step(communication_point, h);
-        }
         let end = communication_point + h;
         let now = self.time;
         // Where steps must end: finite, so that time stays finite.
@@ -52,7 +49,12 @@ impl Instance {
             Some(stop) => stop + TIME_TOLERANCE * stop.abs().max(1.0),
             None => f64::MAX,
         };
-        let sim = self.life.running()?;
+        // A controller has no simulation: its step is a sample, off the plants' path.
+        let sim = match self.life.running() {
+            Ok(sim) => sim,
+            Err(_) if self.model.is_controller() => return self.sample_step(communication_point, h),
+            Err(e) => return Err(e),
+        };
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         // The input lines at the end of the step (see below); refused before stepping if they
         // leave f64, so that a refused step changes nothing.

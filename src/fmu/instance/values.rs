@@ -6,7 +6,7 @@ use super::Instance;
 use crate::fmu::adapter::{self, Calculated, Source};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
-use crate::fmu::state_machine::{Interface, Phase, Standard};
+use crate::fmu::state_machine::{Function, Interface, Phase, Standard};
 use crate::fmu::variables::{Causality, VarType, Variable};
 use crate::physics::{contact_indicator, BoundError};
 
@@ -325,6 +325,7 @@ impl Instance {
         orders: &[i32],
         values: &[f64],
     ) -> Result<Status, FmuError> {
+        self.check_offered(Function::SetRealInputDerivatives)?;
         Self::same_length("fmi2SetRealInputDerivatives orders", orders.len(), vrs.len())?;
         Self::same_length("fmi2SetRealInputDerivatives values", values.len(), vrs.len())?;
         let mut targets = Vec::with_capacity(vrs.len());
@@ -363,6 +364,7 @@ impl Instance {
         orders: &[i32],
         out: &mut [f64],
     ) -> Result<Status, FmuError> {
+        self.check_offered(Function::GetRealOutputDerivatives)?;
         Self::same_length("fmi2GetRealOutputDerivatives orders", orders.len(), vrs.len())?;
         Self::same_length("fmi2GetRealOutputDerivatives values", out.len(), vrs.len())?;
         // The bounds' rates at the instance's time, when one is asked for.

@@ -74,6 +74,7 @@ fn each_sample_torque_is_out_after_its_step_worked_by_hand() {
 fn the_tension_loop_trims_the_speed_reference_worked_by_hand() {
     let params = [
         ("Kp", 2.0),
+        ("Ki", 0.0),
         ("Kp_T", 0.5),
         ("Ki_T", 1.0),
         ("T_ref", 10.0),
@@ -98,6 +99,7 @@ fn the_references_are_read_at_the_controllers_own_sample_times() {
         Standard::Fmi2,
         &[
             ("Kp", 1.0),
+            ("Ki", 0.0),
             ("h", 0.5),
             ("amplitude", 4.0),
             ("t_ramp", 2.0),
@@ -115,7 +117,7 @@ fn the_references_are_read_at_the_controllers_own_sample_times() {
     let (h, f, a) = (0.1, 1.25, 2.0);
     let mut inst = controller(
         Standard::Fmi3,
-        &[("Kp", 1.0), ("h", h), ("amplitude", a), ("frequency", f)],
+        &[("Kp", 1.0), ("Ki", 0.0), ("h", h), ("amplitude", a), ("frequency", f)],
         3,
     );
     let mut t = 0.0;
@@ -185,7 +187,7 @@ fn what_a_controller_does_not_offer_is_refused_naming_the_flag() {
 
 #[test]
 fn an_overflowing_sample_is_refused_and_changes_nothing() {
-    let mut inst = controller(Standard::Fmi2, &[("Kp", 1e300), ("h", 1.0)], 1);
+    let mut inst = controller(Standard::Fmi2, &[("Kp", 1e300), ("Ki", 0.0), ("h", 1.0)], 1);
     measure(&mut inst, -1e300, 0.0);
     let err = inst.do_step(0.0, 1.0).unwrap_err();
     assert!(matches!(err, FmuError::Overflow(_)), "{err}");
