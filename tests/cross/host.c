@@ -33,6 +33,11 @@
  *   fmi3 <steps> <every>             the open loop through FMI 3.0 (fmi3DoStep with early return
  *                                    allowed): each step stops at every contact switch inside it
  *                                    (an `early` line) and continues from there to its end
+ *   controller <steps> <every> <guid> <omega_m vr>,<tau_m vr> <parameters>
+ *                                    the loop closed by BacklashController, an instance of the
+ *                                    same library (its guid, the value references of its input
+ *                                    omega_m and output tau_m, its Real parameters as vr=bits,...):
+ *                                    values passed after each step, as a co-simulation master does
  */
 #include <inttypes.h>
 #include <stdarg.h>
@@ -205,23 +210,30 @@ static fmi2Real param_value[MAX_PARAMETERS];
 static size_t n_params;
 static double kp, ki;
 
-static void parse_parameters(const char *list) {
-    int have_kp = 0, have_ki = 0;
-    const char *p = list;
-    while (*p) {
-        if (n_params == MAX_PARAMETERS) die("parameters: more than %d", MAX_PARAMETERS);
+/* Parses "vr=bits,..." (each value as its hexadecimal IEEE-754 bits) into refs and values;
+ * returns how many. */
+static size_t parse_bits(const char *list, fmi2ValueReference refs[MAX_PARAMETERS], fmi2Real values[MAX_PARAMETERS]) {
+    size_t n = 0;
+    for (const char *p = list; *p;) {
+        if (n == MAX_PARAMETERS) die("parameters: more than %d", MAX_PARAMETERS);
         char *eq, *end;
         unsigned long ref = strtoul(p, &eq, 10);
         if (eq == p || *eq != '=') die("parameters: expected vr=bits in `%s`", p);
         uint64_t bits = (uint64_t)strtoull(eq + 1, &end, 16);
         if (end == eq + 1 || (*end && *end != ',')) die("parameters: expected hexadecimal bits in `%s`", p);
-        double value;
-        memcpy(&value, &bits, sizeof value);
-        param_vr[n_params] = (fmi2ValueReference)ref;
-        param_value[n_params++] = value;
-        if (ref == vr[KP]) kp = value, have_kp = 1;
-        if (ref == vr[KI]) ki = value, have_ki = 1;
+        refs[n] = (fmi2ValueReference)ref;
+        memcpy(&values[n++], &bits, sizeof bits);
         p = *end ? end + 1 : end;
+    }
+    return n;
+}
+
+static void parse_parameters(const char *list) {
+    int have_kp = 0, have_ki = 0;
+    n_params = parse_bits(list, param_vr, param_value);
+    for (size_t i = 0; i < n_params; i++) {
+        if (param_vr[i] == vr[KP]) kp = param_value[i], have_kp = 1;
+        if (param_vr[i] == vr[KI]) ki = param_value[i], have_ki = 1;
     }
     if (!have_kp || !have_ki) die("parameters: Kp and Ki must be given");
 }
@@ -599,8 +611,42 @@ static long positive(const char *text, const char *what) {
     return value;
 }
 
+/* The loop closed by the controller model of the same library (docs/model.md §9), values passed
+ * after each step: over step k the drive gets the controller's torque after step k-1, the
+ * controller the drive's motor speed after step k-1; the load torque as in the closed loop. */
+static void controller_loop(long steps, long every, const char *guid, const char *refs, const char *params) {
+    fmi2ValueReference speed_in, torque_out;
+    if (sscanf(refs, "%u,%u", &speed_in, &torque_out) != 2) die("controller: expected <omega_m vr>,<tau_m vr>");
+    fmi2ValueReference pvr[MAX_PARAMETERS];
+    fmi2Real pvalue[MAX_PARAMETERS];
+    size_t n = parse_bits(params, pvr, pvalue);
+    fmi2Component plant = make("drive");
+    fmi2Component pi = api.instantiate("controller", fmi2CoSimulation, guid, "", &callbacks, fmi2False, fmi2False);
+    if (!pi) die("fmi2Instantiate(controller) returned NULL");
+    check(api.set_real(pi, pvr, n, pvalue), "fmi2SetReal(controller parameters)");
+    check(api.setup_experiment(pi, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment(controller)");
+    check(api.enter_init(pi), "fmi2EnterInitializationMode(controller)");
+    check(api.exit_init(pi), "fmi2ExitInitializationMode(controller)");
+    for (long k = 0; k < steps; k++) {
+        fmi2Real w, u;
+        check(api.get_real(plant, &vr[OMEGA_M], 1, &w), "fmi2GetReal(omega_m)");
+        check(api.get_real(pi, &torque_out, 1, &u), "fmi2GetReal(controller tau_m)");
+        const fmi2Real tau[] = {u, k >= 4000 ? -2.0 : 0.0};
+        set_inputs(plant, k, tau);
+        check(api.set_real(pi, &speed_in, 1, &w), "fmi2SetReal(controller omega_m)");
+        check(api.do_step(plant, k * H, H, fmi2True), "fmi2DoStep");
+        check(api.do_step(pi, k * H, H, fmi2True), "fmi2DoStep(controller)");
+        count_switch(plant);
+        if ((k + 1) % every == 0) sample(plant, k + 1);
+    }
+    release(pi);
+    release(plant);
+}
+
 int main(int argc, char **argv) {
-    if (argc < 6) die("usage: host <library> <token> <variables> <parameters> closed|open|save|restore|misuse|fmi3 [args]");
+    if (argc < 6)
+        die("usage: host <library> <token> <variables> <parameters> closed|open|save|restore|misuse|fmi3|controller "
+            "[args]");
     verbose = getenv("CROSS_HOST_VERBOSE") != NULL;
     load(argv[1]);
     token = argv[2];
@@ -619,6 +665,8 @@ int main(int argc, char **argv) {
         misuse();
     } else if (strcmp(scenario, "fmi3") == 0 && argc == 8) {
         fmi3_open_loop(positive(argv[6], "steps"), positive(argv[7], "every"));
+    } else if (strcmp(scenario, "controller") == 0 && argc == 11) {
+        controller_loop(positive(argv[6], "steps"), positive(argv[7], "every"), argv[8], argv[9], argv[10]);
     } else {
         die("unknown scenario or wrong argument count: %s", scenario);
     }

@@ -1,4 +1,5 @@
-//! `documentation/index.html` of each archive: a shared page (`template.html`) with the model's
+//! `documentation/index.html` of each archive: a shared page (`template.html`, its style sheet
+//! `style.css` inlined where it says `{{STYLE}}`, as in a controller's own page) with the model's
 //! drive-train section (where it says `{{BELT_DRIVE}}`, the belt drive's generic form of
 //! `belt_drive.html`) and a variable table taken from the generated model description, so that
 //! the documented names, units and start values cannot drift from the ones the FMU serves.
@@ -49,6 +50,7 @@ pub fn render(id: &str, xml: &str) -> Result<String, String> {
 
     let template = sections(&template, prefix, other).map_err(|e| format!("{id}: template.html: {e}"))?;
     let page = template
+        .replace("{{STYLE}}", &read(dir.join("style.css"))?)
         .replace("{{FMI_VERSION}}", version)
         .replace("{{fmi}}", prefix)
         .replace("{{MODEL}}", id)

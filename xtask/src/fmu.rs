@@ -293,20 +293,30 @@ fn check_description(standard: &Standard, id: &str, xml: &str) -> Result<(), Str
 /// Writes the archive `path`: the description, the `binaries` (archive name and bytes) and the
 /// files of the `kit` (the documentation page and the rest of [`kit::entries`]).
 fn write_archive(path: &Path, xml: &str, binaries: &[(String, &[u8])], kit: &[kit::Entry]) -> Result<(), String> {
-    // Write beside the target and rename, so that an interrupted run never leaves a truncated
-    // archive where the tests look for one.
-    let partial = path.with_extension("fmu.partial");
+    let binary = TEXT.unix_permissions(0o755);
+    let mut entries: Vec<(String, &[u8], SimpleFileOptions)> =
+        vec![("modelDescription.xml".into(), xml.as_bytes(), TEXT)];
+    entries.extend(binaries.iter().map(|(name, bytes)| (name.clone(), *bytes, binary)));
+    entries.extend(kit.iter().map(|e| (e.name.clone(), e.bytes.as_slice(), TEXT)));
+    write_zip(path, &entries)
+}
+
+/// A deflated file readable by all: every entry of an archive but its binaries.
+pub const TEXT: SimpleFileOptions = SimpleFileOptions::DEFAULT
+    .compression_method(CompressionMethod::Deflated)
+    .unix_permissions(0o644);
+
+/// Writes the zip archive `path` of `entries` (name, bytes, options), in their order: beside the
+/// target and renamed, so that an interrupted run never leaves a truncated archive where the
+/// tests look for one.
+pub fn write_zip(path: &Path, entries: &[(String, &[u8], SimpleFileOptions)]) -> Result<(), String> {
+    let extension = path
+        .extension()
+        .map_or(String::new(), |e| e.to_string_lossy().into_owned());
+    let partial = path.with_extension(format!("{extension}.partial"));
     let file = fs::File::create(&partial).map_err(|e| format!("creating {}: {e}", partial.display()))?;
     let mut zip = zip::ZipWriter::new(file);
-    let text = SimpleFileOptions::default()
-        .compression_method(CompressionMethod::Deflated)
-        .unix_permissions(0o644);
-    let binary = text.unix_permissions(0o755);
-    let mut entries: Vec<(String, &[u8], SimpleFileOptions)> =
-        vec![("modelDescription.xml".into(), xml.as_bytes(), text)];
-    entries.extend(binaries.iter().map(|(name, bytes)| (name.clone(), *bytes, binary)));
-    entries.extend(kit.iter().map(|e| (e.name.clone(), e.bytes.as_slice(), text)));
-    for (name, bytes, options) in entries {
+    for (name, bytes, options) in entries.iter().cloned() {
         zip.start_file(name.as_str(), options)
             .and_then(|_| zip.write_all(bytes).map_err(Into::into))
             .map_err(|e| format!("{}: writing {name}: {e}", partial.display()))?;

@@ -2,7 +2,8 @@
 //! beside the archives: for each system folder, `systems/<name>/` under the archives' folder with
 //! its `SystemStructure.ssd` (SSP 1.0: ecos, fmpy's SSP runner), its `OspSystemStructure.xml`
 //! (libcosim), the parameter sets it binds (`parameters/*.ssv`) and the FMI 2.0 archives its
-//! components use (`resources/*.fmu`), and the same SSP zipped as `systems/<name>.ssp`.
+//! components use (`resources/*.fmu`), and the same SSP zipped as `systems/<name>.ssp`
+//! (`SystemStructure.ssd` first, then its resources and parameter sets).
 //!
 //! What a system holds is read from its files: every `source` of the SSD (components and
 //! parameter bindings) and of the OSP file (simulators), so that a new system is a folder and
@@ -10,13 +11,9 @@
 
 use std::collections::BTreeSet;
 use std::fs;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use zip::write::SimpleFileOptions;
-use zip::CompressionMethod;
-
-use crate::util;
+use crate::{fmu, util};
 
 const SSD: &str = "SystemStructure.ssd";
 const OSP: &str = "OspSystemStructure.xml";
@@ -66,7 +63,11 @@ pub fn pack_into(base: &Path) -> Result<(), String> {
                 .map_err(|e| format!("writing {}: {e}", path.display()))?;
         }
         let ssp = out.join(format!("{name}.ssp"));
-        write_ssp(&ssp, &entries)?;
+        let zipped: Vec<(String, &[u8], _)> = entries
+            .iter()
+            .map(|(file, bytes)| (file.clone(), bytes.as_slice(), fmu::TEXT))
+            .collect();
+        fmu::write_zip(&ssp, &zipped)?;
         println!("wrote {} and {}", util::shown(&target), util::shown(&ssp));
     }
     Ok(())
@@ -103,22 +104,4 @@ fn sources(text: &str, what: &str, attribute: &str) -> Result<BTreeSet<String>, 
         .filter_map(|n| n.attribute(attribute))
         .map(str::to_string)
         .collect())
-}
-
-/// The zipped SSP: `SystemStructure.ssd` first, then its resources and parameter sets.
-fn write_ssp(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<(), String> {
-    let partial = path.with_extension("ssp.partial");
-    let file = fs::File::create(&partial).map_err(|e| format!("creating {}: {e}", partial.display()))?;
-    let mut zip = zip::ZipWriter::new(file);
-    let options = SimpleFileOptions::default()
-        .compression_method(CompressionMethod::Deflated)
-        .unix_permissions(0o644);
-    for (name, bytes) in entries {
-        zip.start_file(name.as_str(), options)
-            .and_then(|_| zip.write_all(bytes).map_err(Into::into))
-            .map_err(|e| format!("{}: writing {name}: {e}", partial.display()))?;
-    }
-    zip.finish()
-        .map_err(|e| format!("{}: finishing: {e}", partial.display()))?;
-    fs::rename(&partial, path).map_err(|e| format!("renaming to {}: {e}", path.display()))
 }

@@ -73,6 +73,19 @@ const FMI3_OPEN_LOOP: Sampled = Sampled {
     ..OPEN_LOOP
 };
 
+/// The loop closed by BacklashController, the controller model of the same library: values passed
+/// after each step, as a co-simulation master passes them (docs/model.md §9).
+const CONTROLLER_LOOP: Sampled = Sampled {
+    scenario: "controller",
+    label: "loop closed by the controller",
+    ..CLOSED_LOOP
+};
+
+/// The controller's reference in that loop: a sine reversing the drive (amplitude [rad/s],
+/// frequency [Hz]), the square wave's amplitude of the host's own closed loop; its gains are the
+/// drive's rig's Kp and Ki.
+const CONTROLLER_SINE: [(&str, f64); 2] = [("amplitude", 5.0), ("frequency", 0.5)];
+
 /// A scenario that switches contact fewer times than this would not test the switching.
 const MIN_SWITCHES: u64 = 4;
 
@@ -161,9 +174,10 @@ pub fn test(built: &[Built]) -> Result<(), String> {
                 );
             }
         }
-        scenario(&model, &hosts, &mut timer, &CLOSED_LOOP)?;
-        scenario(&model, &hosts, &mut timer, &OPEN_LOOP)?;
-        scenario(&model3, &hosts, &mut timer, &FMI3_OPEN_LOOP)?;
+        scenario(&model, &hosts, &mut timer, &CLOSED_LOOP, &[])?;
+        scenario(&model, &hosts, &mut timer, &OPEN_LOOP, &[])?;
+        scenario(&model3, &hosts, &mut timer, &FMI3_OPEN_LOOP, &[])?;
+        scenario(&model, &hosts, &mut timer, &CONTROLLER_LOOP, &controller_arguments(id)?)?;
         misuse(&model, &hosts, &mut timer)?;
         fmu_state(&model, &hosts, &mut timer)?;
     }
@@ -310,6 +324,39 @@ fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, S
     Ok((token.to_string(), variables.join(","), parameters.join(",")))
 }
 
+/// The controller scenario's arguments for the drive `id`: BacklashController's guid, the value
+/// references of its omega_m and tau_m, and its Real parameters (the drive's rig's gains and
+/// [`CONTROLLER_SINE`]) as vr=bits.
+fn controller_arguments(id: &str) -> Result<Vec<String>, String> {
+    let controller = model_description::model("BacklashController");
+    let vr = |name: &str| {
+        controller
+            .variables
+            .iter()
+            .find(|v| v.name == name)
+            .map(|v| v.vr)
+            .ok_or_else(|| format!("BacklashController has no variable {name}"))
+    };
+    let rig = rig(id)?;
+    let gain = |name: &str| {
+        rig.iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, x)| *x)
+            .ok_or_else(|| format!("{id}: its rig has no {name}"))
+    };
+    let values = [("Kp", gain("Kp")?), ("Ki", gain("Ki")?)];
+    let parameters = values
+        .iter()
+        .chain(&CONTROLLER_SINE)
+        .map(|(name, value)| vr(name).map(|vr| format!("{vr}={:016x}", value.to_bits())))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(vec![
+        model_description::xml::guid("BacklashController"),
+        format!("{},{}", vr("omega_m")?, vr("tau_m")?),
+        parameters.join(","),
+    ])
+}
+
 fn strings(words: &[&str]) -> Vec<String> {
     words.iter().map(|w| w.to_string()).collect()
 }
@@ -322,8 +369,9 @@ fn report(model: &Model, what: &str, platform: &Platform, agreement: &Agreement)
 }
 
 /// The reference platform's samples must switch contact (and return early as often, where
-/// fmi3DoStep may), and every other platform must agree.
-fn scenario(model: &Model, hosts: &[Host], timer: &mut Timer, run: &Sampled) -> Result<(), String> {
+/// fmi3DoStep may), and every other platform must agree; `extra`: the scenario's arguments after
+/// its steps and sampling interval.
+fn scenario(model: &Model, hosts: &[Host], timer: &mut Timer, run: &Sampled, extra: &[String]) -> Result<(), String> {
     let Sampled {
         scenario: name,
         label,
@@ -331,7 +379,8 @@ fn scenario(model: &Model, hosts: &[Host], timer: &mut Timer, run: &Sampled) -> 
         every,
         early_return,
     } = *run;
-    let args = strings(&[name, &steps.to_string(), &every.to_string()]);
+    let mut args = strings(&[name, &steps.to_string(), &every.to_string()]);
+    args.extend_from_slice(extra);
     let mut reference: Option<Vec<Sample>> = None;
     for host in hosts {
         let samples = compare::samples(&timer.run(model, host, &args)?)
