@@ -53,11 +53,6 @@ def system_dir(name: str) -> Path:
     return fmu.archive_dir() / "systems" / name
 
 
-def system_names() -> tuple[str, ...]:
-    """The systems packed beside the archives."""
-    return tuple(sorted(p.parent.name for p in (fmu.archive_dir() / "systems").glob(f"*/{SSD}")))
-
-
 @dataclass
 class Component:
     name: str
@@ -121,11 +116,22 @@ def parameter_set(path: Path) -> dict[str, float]:
     return values
 
 
-def controller_reference(params: dict[str, float]) -> Callable[[float], float]:
-    """The speed reference r(t) of a BacklashController with these parameters (its defaults
-    where a value is not given: those of its modelDescription.xml)."""
-    defaults = {"reference": SINE, "amplitude": 0.05, "frequency": 1.4, "t_ramp": 1.0, "t_hold": 2.0}
-    p = {**defaults, **params}
+def controller_parameters(archive: Path, given: dict[str, float]) -> dict[str, float]:
+    """Every parameter of the BacklashController `archive`: the values `given`, the others at their
+    start values in its modelDescription.xml."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(archive))
+    starts = {v.name: float(v.start) for v in md.modelVariables if v.causality == "parameter"}
+    unknown = set(given) - set(starts)
+    if unknown:
+        raise ValueError(f"{archive}: no parameters {sorted(unknown)}")
+    return {**starts, **given}
+
+
+def controller_reference(p: dict[str, float]) -> Callable[[float], float]:
+    """The speed reference r(t) of a BacklashController with the parameters `p` (all of them, as
+    `controller_parameters` gives them)."""
     kind = int(p["reference"])
     if kind == STEP:
         return references(0.0, p["amplitude"])["step"]
@@ -157,14 +163,15 @@ def python_loop(system: System, times: list[float], sizes: list[float]) -> Run:
     try:
         for c in system.components:
             if c.model == CONTROLLER:
-                p = c.params
-                pis[c.name] = SampledPi(p.get("Kp", 0.0), p.get("Ki", 0.0), controller_reference(p), p["h"],
-                                        kp_t=p.get("Kp_T", 0.0), ki_t=p.get("Ki_T", 0.0), t_ref=p.get("T_ref", 0.0))
+                p = controller_parameters(system.folder / "resources" / f"{CONTROLLER}.fmu", c.params)
+                pis[c.name] = SampledPi(p["Kp"], p["Ki"], controller_reference(p), p["h"],
+                                        kp_t=p["Kp_T"], ki_t=p["Ki_T"], t_ref=p["T_ref"])
             else:
                 if c.model not in archives:
                     archives[c.model] = fmu.Archive(system.folder / "resources" / f"{c.model}.fmu")
                 plants[c.name] = archives[c.model].co_simulation(c.name, c.params)
         outputs = system.outputs()
+        # tau_m's start value (0): no system sets it (test_masters.py).
         held = {name: 0.0 for name in pis}
 
         def read() -> dict[tuple[str, str], float]:

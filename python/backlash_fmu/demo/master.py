@@ -42,7 +42,8 @@ def run(out: Path, short: bool) -> int:
     horizon = HORIZON_SHORT if short else HORIZON_FULL
     steps = int(round(horizon / h))
     params = {c.name: c.params for c in system.components}
-    plant, controller = params["plant"], params["controller"]
+    plant = params["plant"]
+    controller = systems.controller_parameters(folder / "resources" / f"{systems.CONTROLLER}.fmu", params["controller"])
     print(f"system {_shown(folder)}: BacklashShaft (Delta = {plant['Delta'] * 1e3:g} mm) and BacklashController "
           f"(Kp = {controller['Kp']:.6f}, Ki = {controller['Ki']:.6f}, sine {controller['amplitude']:g} at "
           f"{controller['frequency']:.4f} Hz), h = {h * 1e3:g} ms, {horizon:g} s")
