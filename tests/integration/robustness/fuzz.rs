@@ -11,7 +11,8 @@
 //!     # one of SLOW_SEEDS, with the driver of their time:
 //!     FUZZ_SEED=12345 FUZZ_CO_SIMULATION_ONLY=1 FUZZ_EXTREME=1 FUZZ_MODELS=2 cargo test --test integration robustness::fuzz
 //!
-//! Instances are drawn from every model; FUZZ_MODELS=n draws them from the first n only.
+//! Instances are drawn from every model, the controller included; FUZZ_MODELS=n draws them from
+//! the first n only.
 //! Every run first replays `SLOW_SEEDS` and `SLOW_MODEL_EXCHANGE_SEEDS`, seeds that once hung
 //! a call, with the driver of their time: BacklashShaft and BacklashBelt only
 //! (`MODELS_BEFORE_WEB`), so that they make the sequences that hung. A failing seed is
@@ -28,7 +29,7 @@
 
 use crate::robustness_common::fuzz::{Driver, Prng};
 use crate::robustness_common::*;
-use backlash_fmu::fmu::MODELS;
+use backlash_fmu::fmu::served;
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -81,7 +82,7 @@ impl Run {
                 hint += &format!(" {flag}=1");
             }
         }
-        if self.models < MODELS.len() {
+        if self.models < served().count() {
             hint += &format!(" FUZZ_MODELS={}", self.models);
         }
         hint
@@ -145,6 +146,7 @@ const SLOW_MODEL_EXCHANGE_SEEDS: [u64; 1] = [16743667580223936308];
 struct Counts {
     calls: u64,
     ok_steps: u64,
+    ok_controller_steps: u64,
     me_calls: u64,
     ok_state_sets: u64,
 }
@@ -181,6 +183,7 @@ fn run_seed(run: Run) -> Counts {
         Counts {
             calls: d.calls,
             ok_steps: d.ok_steps,
+            ok_controller_steps: d.ok_controller_steps,
             me_calls: d.me_calls,
             ok_state_sets: d.ok_state_sets,
         }
@@ -209,11 +212,11 @@ fn random_call_sequences_keep_every_invariant() {
     let extreme = std::env::var("FUZZ_EXTREME").is_ok_and(|v| v == "1");
     let far_times = std::env::var("FUZZ_FAR_TIMES").is_ok_and(|v| v == "1");
     let model_exchange = !std::env::var("FUZZ_CO_SIMULATION_ONLY").is_ok_and(|v| v == "1");
-    let models = std::env::var("FUZZ_MODELS").map_or(MODELS.len(), |v| {
+    let models = std::env::var("FUZZ_MODELS").map_or(served().count(), |v| {
         v.parse::<usize>()
             .ok()
-            .filter(|n| (1..=MODELS.len()).contains(n))
-            .unwrap_or_else(|| panic!("FUZZ_MODELS is a number of models, 1 to {}", MODELS.len()))
+            .filter(|n| (1..=served().count()).contains(n))
+            .unwrap_or_else(|| panic!("FUZZ_MODELS is a number of models, 1 to {}", served().count()))
     });
     let replay = std::env::var("FUZZ_SEED").ok();
     if replay.is_none() {
@@ -259,6 +262,7 @@ fn random_call_sequences_keep_every_invariant() {
         seeds_run += 1;
         total.calls += c.calls;
         total.ok_steps += c.ok_steps;
+        total.ok_controller_steps += c.ok_controller_steps;
         total.me_calls += c.me_calls;
         total.ok_state_sets += c.ok_state_sets;
         if budget.is_some_and(|b| start.elapsed() >= Duration::from_secs(b)) {
@@ -267,10 +271,11 @@ fn random_call_sequences_keep_every_invariant() {
     }
     let steps = total.ok_steps;
     eprintln!(
-        "fuzz: {seeds_run} seeds, {} calls ({} of the Model Exchange functions), {steps} successful steps, \
-         {} successful fmi2SetContinuousStates in {:.1} s",
+        "fuzz: {seeds_run} seeds, {} calls ({} of the Model Exchange functions), {steps} successful steps \
+         ({} of a controller), {} successful fmi2SetContinuousStates in {:.1} s",
         total.calls,
         total.me_calls,
+        total.ok_controller_steps,
         total.ok_state_sets,
         start.elapsed().as_secs_f64()
     );
@@ -284,6 +289,12 @@ fn random_call_sequences_keep_every_invariant() {
     assert!(
         replay.is_some() || steps > seeds_run * 5,
         "only {steps} successful steps in {seeds_run} seeds"
+    );
+    // A controller's too, when one is among the models (11 in the 15 fixed seeds).
+    assert!(
+        replay.is_some() || models < served().count() || total.ok_controller_steps > 0,
+        "only {} successful steps of a controller in {seeds_run} seeds",
+        total.ok_controller_steps
     );
     // Likewise Model Exchange sequences must reach Continuous-Time Mode and move the states.
     assert!(

@@ -12,8 +12,9 @@
 //!   fmi2NewDiscreteStates and fmi2CompletedIntegratorStep ask for nothing (no discrete states,
 //!   no time events).
 //!
-//! Instances are of every model in `MODELS` (unless [`Driver::models`] says fewer), each with
-//! its own number of continuous states in Model Exchange ([`nx`]). Model Exchange calls get
+//! Instances are of every model the library serves, the plants then the controller (unless
+//! [`Driver::models`] says fewer), each with its own number of continuous states in Model
+//! Exchange ([`nx`]); a controller's are Co-Simulation instances only. Model Exchange calls get
 //! random finite, extreme and non-finite arguments and random vector lengths; mostly they
 //! follow an explicit Euler integration, so that sequences reach Continuous-Time Mode with
 //! moving states; their fmi2SetTime goes back no further than the standard allows (the previous
@@ -165,6 +166,8 @@ pub struct Driver<S: Source> {
     stale: Vec<fmi2Component>,
     pub calls: u64,
     pub ok_steps: u64,
+    /// Of those, the steps of a controller.
+    pub ok_controller_steps: u64,
     /// Whether parameters may take extreme finite magnitudes (1e±300, f64::MAX). Off by
     /// default: some such plants make the physics hang (see `crate::robustness::extremes`).
     pub extreme_parameters: bool,
@@ -182,7 +185,8 @@ pub struct Driver<S: Source> {
     pub me_calls: u64,
     /// Successful fmi2SetContinuousStates calls.
     pub ok_state_sets: u64,
-    /// How many of `MODELS`, the first ones, instances are drawn from: all by default. Seeds
+    /// How many of the served models ([`model_at`]), the first ones, instances are drawn from:
+    /// all by default. Seeds
     /// found before BacklashWeb existed replay their sequences with 2.
     pub models: usize,
 }
@@ -197,13 +201,14 @@ impl<S: Source> Driver<S> {
             stale: Vec::new(),
             calls: 0,
             ok_steps: 0,
+            ok_controller_steps: 0,
             extreme_parameters: false,
             far_times: false,
             model_exchange: true,
             careful: false,
             me_calls: 0,
             ok_state_sets: 0,
-            models: MODELS.len(),
+            models: served().count(),
         }
     }
 
@@ -466,7 +471,10 @@ impl<S: Source> Driver<S> {
                     let mut out = [i32::MIN];
                     let s = fmi2GetInteger(c, vr.as_ptr(), 1, out.as_mut_ptr());
                     if s == fmi2Status::fmi2OK {
-                        assert!((-1..=1).contains(&out[0]), "contact = {}", out[0]);
+                        // Within the variable's range: contact's -1..=1, contact_law's and
+                        // reference's kinds.
+                        let v = model.by_vr(vr[0]).unwrap();
+                        assert!(v.range.admits(f64::from(out[0])), "{} = {}", v.name, out[0]);
                     }
                     s
                 }
@@ -508,11 +516,17 @@ impl<S: Source> Driver<S> {
                         1 => t + 1e-3,
                         _ => t,
                     };
-                    let h = self.step_size()?;
+                    // A controller takes steps of its sample period only (1 ms unless set).
+                    let controller = model.is_controller();
+                    let h = match controller && self.chance(80)? {
+                        true => 1e-3,
+                        false => self.step_size()?,
+                    };
                     let s = fmi2DoStep(c, cp, h, self.below(2)? as i32);
                     if s == fmi2Status::fmi2OK {
                         self.slots[i].time = cp + h;
                         self.ok_steps += 1;
+                        self.ok_controller_steps += u64::from(controller);
                         check_all = true;
                     }
                     s
@@ -708,9 +722,10 @@ impl<S: Source> Driver<S> {
                     let how = if self.careful { self.below(9)? } else { self.below(10)? };
                     for k in 0..n {
                         values.push(match how {
-                            // An explicit Euler step from the last states and derivatives.
-                            0..=5 => x[k % nx] + 1e-4 * (1 + self.below(100)?) as f64 * dx[k % nx],
-                            6 | 7 => x[k % nx] * (1.0 + (self.below(21)? as f64 - 10.0) / 100.0),
+                            // An explicit Euler step from the last states and derivatives (a
+                            // controller, called across interfaces, has none).
+                            0..=5 if nx > 0 => x[k % nx] + 1e-4 * (1 + self.below(100)?) as f64 * dx[k % nx],
+                            6 | 7 if nx > 0 => x[k % nx] * (1.0 + (self.below(21)? as f64 - 10.0) / 100.0),
                             _ => self.real()?,
                         });
                     }
@@ -770,9 +785,13 @@ impl<S: Source> Driver<S> {
                     // Mostly unknowns and knowns of the Jacobian (docs/model.md §6), sometimes any
                     // reference.
                     let (jacobian_knowns, jacobian_unknowns) = jacobian_names(model);
+                    // A controller has none of those names: any reference then.
                     let pick = |d: &mut Self, names: &[&str]| -> Option<u32> {
                         Some(if !d.wild(25)? {
-                            model.vr(names[d.below(names.len() as u64)? as usize])
+                            match model.by_name(names[d.below(names.len() as u64)? as usize]) {
+                                Some(v) => v.vr,
+                                None => d.vr(model)?,
+                            }
                         } else {
                             d.vr(model)?
                         })
@@ -858,13 +877,19 @@ impl<S: Source> Driver<S> {
 
     fn instantiate(&mut self) -> Option<()> {
         self.calls += 1;
-        let model = self.below(self.models.min(MODELS.len()) as u64)? as usize;
-        let name = if self.chance(50)? { "fuzz" } else { "a%s%n b" };
         let fmu_type = if self.model_exchange && self.chance(50)? {
             fmi2ModelExchange
         } else {
             fmi2CoSimulation
         };
+        // Model Exchange instances of the plants only; Co-Simulation ones of every model.
+        let served = if fmu_type == fmi2ModelExchange {
+            MODELS.len()
+        } else {
+            served().count()
+        };
+        let model = self.below(self.models.min(served) as u64)? as usize;
+        let name = if self.chance(50)? { "fuzz" } else { "a%s%n b" };
         let f = Fmu::instantiate(model, name, fmu_type);
         if self.chance(30)? {
             // SAFETY: no categories.

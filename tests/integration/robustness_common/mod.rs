@@ -4,7 +4,7 @@
 pub mod fuzz;
 
 use backlash_fmu::ffi::*;
-use backlash_fmu::fmu::{ModelInfo, MODELS};
+use backlash_fmu::fmu::{served, ModelInfo, MODELS};
 use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
 use std::sync::Mutex;
@@ -65,11 +65,20 @@ pub const WEB: usize = 2;
 /// the cap's surfaces (docs/model.md §6).
 pub const NI: usize = 6;
 
+/// Every model the library serves, by index: the plants in the order of `MODELS` (so that
+/// [`SHAFT`], [`BELT`], [`WEB`] index both), then the controllers (Co-Simulation only, no
+/// continuous state).
+pub fn model_at(model: usize) -> &'static ModelInfo {
+    served()
+        .nth(model)
+        .unwrap_or_else(|| panic!("no model {model}: the library serves {}", served().count()))
+}
+
 /// Number of continuous states of `model` in Model Exchange: its variables that are the
 /// derivative of a state. Four, z = [θ_m, ω_m, θ_L, ω_L]; five in BacklashWeb, whose span's
 /// tension T is the fifth (docs/model.md §6).
 pub fn nx(model: usize) -> usize {
-    MODELS[model]
+    model_at(model)
         .variables
         .iter()
         .filter(|v| v.derivative_of.is_some())
@@ -79,7 +88,7 @@ pub fn nx(model: usize) -> usize {
 /// The state variables of `model` in the order of its continuous states: that of their
 /// derivatives, as `<Derivatives>` lists them.
 pub fn state_names(model: usize) -> Vec<&'static str> {
-    let m = &MODELS[model];
+    let m = model_at(model);
     m.variables
         .iter()
         .filter_map(|v| v.derivative_of)
@@ -147,7 +156,7 @@ impl Fmu {
     /// An instance of `model` for `fmu_type` (fmi2ModelExchange or fmi2CoSimulation).
     pub fn instantiate(model: usize, name: &str, fmu_type: fmi2Type) -> Fmu {
         let log: Box<Log> = Box::default();
-        let info = &MODELS[model];
+        let info = model_at(model);
         let name = CString::new(name).unwrap();
         let guid = CString::new(info.guid).unwrap();
         let cb = callbacks(&*log);
@@ -403,7 +412,7 @@ impl Fmu {
     }
 
     pub fn model_index(&self) -> usize {
-        MODELS.iter().position(|m| std::ptr::eq(m, self.model)).unwrap()
+        served().position(|m| std::ptr::eq(m, self.model)).unwrap()
     }
 }
 
