@@ -21,7 +21,7 @@ pub enum Reference {
 }
 
 impl Reference {
-    /// The codes of the kinds (a controller's `reference` parameter, docs/model.md §10).
+    /// The codes of the kinds (a controller's `reference` parameter, docs/model.md §9).
     pub const STEP: i32 = 1;
     pub const TRAPEZOID: i32 = 2;
     pub const SINE: i32 = 3;

@@ -1,6 +1,6 @@
 """The co-simulation systems packed beside the archives (`systems/<name>/`: SystemStructure.ssd
 with its parameter sets and FMUs, OspSystemStructure.xml; `systems/<name>.ssp` zipped), run in
-real masters and closed here in Python under a master's timing (docs/model.md §10).
+real masters and closed here in Python under a master's timing (docs/model.md §9).
 
 - `System.read(folder)`: its components (name, model, the values of its parameter set), its
   connections, the step h of its controllers and its stop time;

@@ -34,7 +34,7 @@ pub enum Source {
     Derivative(StateEntry),
     /// The `contact` output: the sign of ψ in the mode in force (Integer; docs/model.md §4).
     Contact,
-    /// A controller's input, stored; read at each sample (docs/model.md §10).
+    /// A controller's input, stored; read at each sample (docs/model.md §9).
     Sampled,
     /// A controller's output: the command of its last sample, held (before the first sample,
     /// stored as its start value).

@@ -1,6 +1,6 @@
 //! BacklashController: the sampled speed PI of the paper's experiments and the web line's tension
 //! PI (docs/model.md §3, §8), with the speed references of the experiments, as a Co-Simulation
-//! model that closes the loop around a drive in a co-simulation master (docs/model.md §10).
+//! model that closes the loop around a drive in a co-simulation master (docs/model.md §9).
 //!
 //! Its sampling: at each communication point t_k (fmi2DoStep(t_k, h)) it reads `omega_m` and
 //! `T` as set for t_k, computes u_k (physics crate, `controller`), and outputs u_k from the end

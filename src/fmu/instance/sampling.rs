@@ -1,4 +1,4 @@
-//! A controller's instance (docs/model.md §10): initialization builds the sampled controller from
+//! A controller's instance (docs/model.md §9): initialization builds the sampled controller from
 //! the parameters, and each Co-Simulation step takes one sample of the inputs.
 
 use super::lifecycle::Lifecycle;
@@ -95,17 +95,12 @@ impl Instance {
     /// is the output from the end of the step on.
     pub(super) fn sample_step(&mut self, communication_point: f64, h: f64) -> Result<bool, FmuError> {
         let (omega_m, tension) = (self.stored(Symbol::MeasuredSpeed), self.stored(Symbol::MeasuredTension));
-        let now = self.time;
         let end = communication_point + h;
-        let limit = match self.experiment.stop_time {
-            Some(stop) => stop + super::stepping::TIME_TOLERANCE * stop.abs().max(1.0),
-            None => f64::MAX,
-        };
         let accepted = finite(communication_point)
             & (h > 0.0)
-            & ((communication_point - now).abs() <= super::stepping::TIME_TOLERANCE * now.abs().max(1.0))
+            & self.at_time(communication_point)
             & (end > communication_point)
-            & (end <= limit);
+            & (end <= self.step_limit());
         if !accepted {
             return Err(self.step_refusal(communication_point, h, &[0.0; MAX_INPUTS]));
         }

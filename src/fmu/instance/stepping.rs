@@ -9,7 +9,7 @@ use crate::physics::{finite, Inputs, StepError, MAX_PERIODS_PER_STEP};
 
 /// Relative tolerance for "the communication point equals the current time": steps are
 /// accumulated by the importer in floating point, so they drift by a few ulps per step.
-pub(super) const TIME_TOLERANCE: f64 = 1e-9;
+const TIME_TOLERANCE: f64 = 1e-9;
 
 /// What fmi3DoStep reports besides its status.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,12 +43,7 @@ impl Instance {
     #[inline]
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
         let end = communication_point + h;
-        let now = self.time;
-        // Where steps must end: finite, so that time stays finite.
-        let limit = match self.experiment.stop_time {
-            Some(stop) => stop + TIME_TOLERANCE * stop.abs().max(1.0),
-            None => f64::MAX,
-        };
+        let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
         // A controller has no simulation: its step is a sample, off the plants' path.
         let sim = match self.life.running() {
             Ok(sim) => sim,
@@ -65,7 +60,7 @@ impl Instance {
         let accepted = finite(communication_point)
             & (h > 0.0)
             & (h <= sim.max_step)
-            & ((communication_point - now).abs() <= TIME_TOLERANCE * now.abs().max(1.0))
+            & at_time
             & (end > communication_point)
             & (end <= limit)
             & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
@@ -89,6 +84,22 @@ impl Instance {
         Ok(false)
     }
 
+    /// Where steps must end: the stop time (to [`TIME_TOLERANCE`]), or anywhere finite, so that
+    /// time stays finite.
+    #[inline]
+    pub(super) fn step_limit(&self) -> f64 {
+        match self.experiment.stop_time {
+            Some(stop) => stop + TIME_TOLERANCE * stop.abs().max(1.0),
+            None => f64::MAX,
+        }
+    }
+
+    /// Whether a communication point is the instance's time, to [`TIME_TOLERANCE`].
+    #[inline]
+    pub(super) fn at_time(&self, communication_point: f64) -> bool {
+        (communication_point - self.time).abs() <= TIME_TOLERANCE * self.time.abs().max(1.0)
+    }
+
     /// Why `do_step_body` refuses its arguments (called only when it does).
     #[cold]
     #[inline(never)]
@@ -101,7 +112,7 @@ impl Instance {
             return bad(format!("communicationStepSize {h} must be finite and > 0"));
         }
         let now = self.time;
-        if (communication_point - now).abs() > TIME_TOLERANCE * now.abs().max(1.0) {
+        if !self.at_time(communication_point) {
             return bad(format!(
                 "currentCommunicationPoint {communication_point} differs from the FMU's time {now}; restore an FMU \
                  state to step from another time"

@@ -1,4 +1,4 @@
-//! BacklashController through the library's Rust API (docs/model.md §10): the sampled PI's law
+//! BacklashController through the library's Rust API (docs/model.md §9): the sampled PI's law
 //! worked by hand, its timing (each sample's torque out after the step, the reference on the
 //! controller's own count of samples), and its refusals (another step size, Model Exchange,
 //! Event Mode, FMU states, input and output derivatives, an overflowing sample).
