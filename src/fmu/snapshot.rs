@@ -164,9 +164,7 @@ impl Snapshot {
     /// (length, magic, version, guid, checksum) first, then every field in order.
     pub fn from_bytes(model: &'static ModelInfo, bytes: &[u8]) -> Result<Snapshot, FmuError> {
         if model.is_controller() {
-            return Err(FmuError::NotProvided(
-                "a controller's FMU state (canGetAndSetFMUstate = false)",
-            ));
+            return Err(FmuError::NotProvided(super::instance::NO_FMU_STATE));
         }
         let (payload, at) = checked_payload(model, bytes)?;
         let mut r = Reader { bytes: payload, at };

@@ -1,8 +1,7 @@
 //! Where an instance is in its state machine, with what it holds there: before initialization
 //! has ended its values only, from then on the simulation too (a controller's: the sampled
-//! controller). Holding the simulation in the
-//! variant of the states that have one, rather than beside the phase, makes "this state has a
-//! simulation" a fact of the type.
+//! controller). Holding the simulation in the variant of the states that have one, rather than
+//! beside the phase, makes "this state has a simulation" a fact of the type.
 
 use crate::fmu::error::FmuError;
 use crate::fmu::simulation::Simulation;

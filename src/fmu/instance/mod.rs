@@ -56,6 +56,7 @@ pub enum StatusKind {
 }
 
 pub use model_exchange::{EventInfo, TimeMarks};
+pub(crate) use sampling::NO_FMU_STATE;
 pub use stepping::StepOutcome;
 
 /// The choices of fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1).

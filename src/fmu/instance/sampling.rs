@@ -10,6 +10,9 @@ use crate::fmu::variables::ModelInfo;
 use crate::fmu::variables::Symbol;
 use crate::physics::{finite, ControllerParams, Reference, SampleError, SampledPi};
 
+/// What a controller says when asked for an FMU state.
+pub(crate) const NO_FMU_STATE: &str = "a controller's FMU state (canGetAndSetFMUstate = false)";
+
 /// How far a communication step may differ from the sample period, relative: a master's clock
 /// in integer nanoseconds, or summed step by step, hands steps that differ from it by a few ulps.
 const PERIOD_TOLERANCE: f64 = 1e-9;
@@ -46,9 +49,8 @@ impl Instance {
             return Ok(());
         }
         let feature = match function {
-            Function::GetFmuState | Function::SetFmuState | Function::DeSerializeFmuState => {
-                "a controller's FMU state (canGetAndSetFMUstate = false)"
-            }
+            // Deserializing is refused by `Snapshot::from_bytes`, which knows the model only.
+            Function::GetFmuState | Function::SetFmuState => NO_FMU_STATE,
             Function::SetRealInputDerivatives => "input derivatives of a controller (canInterpolateInputs = false)",
             Function::GetRealOutputDerivatives => "output derivatives of a controller (maxOutputDerivativeOrder = 0)",
             _ => return Ok(()),
