@@ -21,7 +21,8 @@ impl Instance {
     }
 
     fn variable(&self, vr: u32) -> Result<&'static Variable, FmuError> {
-        self.model.by_vr(vr).ok_or(FmuError::UnknownValueReference {
+        // Built only on refusal: an eagerly built error costs its drop on every lookup.
+        self.model.by_vr(vr).ok_or_else(|| FmuError::UnknownValueReference {
             vr,
             model: self.model.identifier,
         })
@@ -235,6 +236,27 @@ impl Instance {
         }
     }
 
+    /// The common case of a set, taken in one pass: every element an input of type `ty` whose
+    /// value its range admits, in a state in which inputs can be set. Anything else goes
+    /// through `check_settable` and the range's refusal, which give the reason.
+    #[inline]
+    fn inputs_admitted(&self, vrs: &[u32], values: &[f64], ty: VarType) -> bool {
+        let takes_inputs = matches!(
+            self.phase(),
+            Phase::Instantiated
+                | Phase::InitializationMode
+                | Phase::StepComplete
+                | Phase::EventMode
+                | Phase::ContinuousTimeMode
+        );
+        takes_inputs
+            && vrs.iter().zip(values).all(|(vr, value)| {
+                self.model.by_vr(*vr).is_some_and(|v| {
+                    (v.causality == Causality::Input) & (v.ty == ty) && v.range.admits(*value)
+                })
+            })
+    }
+
     /// Whether a continuous-time state can be set by value reference now. FMI 2.0.4 §3.2.3,
     /// condition 5 of fmi2SetReal in Continuous-Time Mode: "for a variable with causality =
     /// "input" and variability = "continuous", and for a continuous-time state variable". FMI
@@ -269,6 +291,16 @@ impl Instance {
 
     /// Sets variables of type `ty` (an Integer's value as its f64).
     fn set_values(&mut self, vrs: &[u32], values: &[f64], ty: VarType) -> Result<Status, FmuError> {
+        if self.inputs_admitted(vrs, values, ty) {
+            // Inputs are stored values in every state that takes one (`check_settable`), and a
+            // plant's preview does not read them.
+            for (vr, value) in vrs.iter().zip(values) {
+                if let Some(v) = self.model.by_vr(*vr) {
+                    self.values[v.symbol.index()] = *value;
+                }
+            }
+            return Ok(Status::Ok);
+        }
         // The plant's state with the states set here, once one is (after initialization).
         let mut z: Option<adapter::StateVector> = None;
         // All or nothing: every element is checked before any is stored.
