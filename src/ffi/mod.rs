@@ -2,7 +2,7 @@
 //! slices and call the safe instance in [`crate::fmu`] through one guard ([`guard::guard`]).
 //! All `unsafe` of the crate lives here; every block states why it is sound.
 //!
-//! Both models are served by the same exports; fmi2Instantiate tells them apart by guid. The
+//! Every model is served by the same exports; fmi2Instantiate tells them apart by guid. The
 //! FMI 3.0 functions ([`fmi3`]) serve the same instances through the FMI 3.0 archives.
 
 // Names and argument names follow the C headers, so that a generated header matches them.
