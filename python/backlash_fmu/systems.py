@@ -3,13 +3,16 @@ with its parameter sets and FMUs, OspSystemStructure.xml; `systems/<name>.ssp` z
 real masters and closed here in Python under a master's timing (docs/model.md §9).
 
 - `System.read(folder)`: its components (name, model, the values of its parameter set), its
-  connections, the step h of its controllers and its stop time;
+  connections, its communication step h and its stop time, as the SSD states them (h in the Open
+  Simulation Platform's annotation on its DefaultExperiment, the form libcosim reads);
 - `python_loop(system, times, sizes)`: the loop closed here, as a master that passes values after
   each step (Jacobi) does it: every plant through `backlash_fmu.fmu`, every BacklashController
   replaced by `twin.SampledPi` with its parameters, holding each sample's torque until the end of
   the next step; step k from times[k] by sizes[k];
 - `run_ecos`, `run_libcosim`, `run_fmpy`: the masters (PyPI ecospy, libcosimpy, fmpy), each
-  returning the times and sizes of its steps and the outputs after each step.
+  returning the times and sizes of its steps and the outputs after each step. libcosim takes h
+  from the packed .ssp itself; ecos (`step_size`) and fmpy's runner (`step_size`, `stop_time`)
+  are given the SSD's.
 
 A run's record maps (component, output) to the output's values after steps 1..N.
 
@@ -39,8 +42,14 @@ SSD = "SystemStructure.ssd"
 OSP = "OspSystemStructure.xml"
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
 }
+# Where the SSD states its communication step: the Open Simulation Platform's annotation on its
+# DefaultExperiment, as libcosim's SSP parser reads it (src/cosim/ssp/ssp_parser.cpp).
+STEP_PATH = ("ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation[@type='com.opensimulationplatform']"
+             "/osp:Algorithm/osp:FixedStepAlgorithm")
 CONTROLLER = "BacklashController"
 # The controller's reference kinds, by the value of its `reference` parameter.
 STEP, TRAPEZOID, SINE = 1, 2, 3
@@ -69,6 +78,8 @@ class System:
     # (start component, start connector, end component, end connector)
     connections: list[tuple[str, str, str, str]]
     stop_time: float
+    # The communication step h (every controller's sample period: it refuses any other step).
+    step_size: float
 
     @classmethod
     def read(cls, folder: Path) -> "System":
@@ -85,15 +96,20 @@ class System:
         connections = [(c.get("startElement"), c.get("startConnector"), c.get("endElement"), c.get("endConnector"))
                        for c in root.iterfind("ssd:System/ssd:Connections/ssd:Connection", NS)]
         stop = float(root.find("ssd:DefaultExperiment", NS).get("stopTime"))
-        return cls(folder, components, connections, stop)
+        return cls(folder, components, connections, stop, stated_step(root, folder / SSD))
 
-    @property
-    def step_size(self) -> float:
-        """The sample period h of its controllers (all alike)."""
-        periods = {c.params["h"] for c in self.components if c.model == CONTROLLER}
-        if len(periods) != 1:
-            raise ValueError(f"{self.folder}: the controllers' periods {periods} are not one")
-        return periods.pop()
+    @classmethod
+    def read_packed(cls, ssp: Path) -> "System":
+        """The system of the zipped `ssp`, read from a copy unpacked for the purpose (its
+        `folder` is gone afterwards: `python_loop` needs the unpacked folder)."""
+        with tempfile.TemporaryDirectory() as tmp:
+            shutil.unpack_archive(str(ssp), tmp, format="zip")
+            return cls.read(Path(tmp))
+
+    @classmethod
+    def read_any(cls, path: Path) -> "System":
+        """`read` for a folder, `read_packed` for a zipped .ssp."""
+        return cls.read_packed(path) if Path(path).is_file() else cls.read(path)
 
     @property
     def steps(self) -> int:
@@ -103,6 +119,16 @@ class System:
     def outputs(self) -> list[tuple[str, str]]:
         """Every output connector, (component, output), in the order of the file."""
         return [(c.name, n) for c in self.components for n, kind in c.connectors if kind == "output"]
+
+
+def stated_step(root: ET.Element, where: Path) -> float:
+    """The communication step the SSD `root` (of the file `where`) states: `baseStepSize` of
+    ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation[type=com.opensimulationplatform]/
+    osp:Algorithm/osp:FixedStepAlgorithm."""
+    found = root.findall(STEP_PATH, NS)
+    if len(found) != 1:
+        raise ValueError(f"{where}: {len(found)} osp:FixedStepAlgorithm annotations on DefaultExperiment, not one")
+    return float(found[0].get("baseStepSize"))
 
 
 def parameter_set(path: Path) -> dict[str, float]:
@@ -207,20 +233,21 @@ def _load_tbb() -> None:
     ctypes.CDLL(str(Path(sys.prefix) / "lib" / "libtbb.so.12"), mode=ctypes.RTLD_GLOBAL)
 
 
-def run_ecos(folder: Path, steps: int | None = None) -> Run:
-    """The system of `folder` in ecos (SSP): every component's parameter set applied (ecos applies
-    the sets named "values"), `steps` steps of h (default: to the stop time). ecos counts time as
-    t += h and hands every step h."""
+def run_ecos(path: Path, steps: int | None = None) -> Run:
+    """The system of `path` (a system folder or its zipped .ssp) in ecos (SSP): every component's
+    parameter set applied (ecos applies the sets named "values"), `steps` steps of h (default: to
+    the stop time). ecos reads no step from the SSD: its `step_size` is required, here the SSD's
+    h. ecos counts time as t += h and hands every step h."""
     _load_tbb()
     from ecospy import EcosLib, EcosSimulation
 
-    system = System.read(folder)
+    system = System.read_any(path)
     steps = system.steps if steps is None else steps
     h = system.step_size
     EcosLib.set_log_level("warn")
     outputs = system.outputs()
     rows, times = [], [0.0]
-    with EcosSimulation(ssp_path=str(folder), step_size=h) as sim:
+    with EcosSimulation(ssp_path=str(path), step_size=h) as sim:
         sim.init(parameter_set="values")
         for _ in range(steps):
             times.append(sim.step())
@@ -230,25 +257,30 @@ def run_ecos(folder: Path, steps: int | None = None) -> Run:
     return Run(times[:-1], [h] * steps, {key: table[:, i] for i, key in enumerate(outputs)})
 
 
-def run_libcosim(folder: Path, steps: int | None = None) -> Run:
-    """The system of `folder` in libcosim (OspSystemStructure.xml), `steps` steps of its base step
-    (default: to the stop time). libcosim counts time in integer nanoseconds and hands every step
-    the difference of two such times in seconds."""
+def run_libcosim(path: Path, steps: int | None = None) -> Run:
+    """The system in libcosim, `steps` steps of its base step (default: until its clock reaches
+    the SSD's stop time): `path` a system folder (its OspSystemStructure.xml, the step its
+    BaseStepSize) or its zipped .ssp (libcosim's SSP loader, CosimExecution.from_ssp_file, given
+    no step: libcosim takes it from the SSD's annotation). libcosim counts time in integer
+    nanoseconds and hands every step the difference of two such times in seconds."""
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
 
-    system = System.read(folder)
-    steps = system.steps if steps is None else steps
+    system = System.read_any(path)
+    stop = round(system.stop_time * NANOSECONDS)
     log_output_level(CosimLogLevel.ERROR)
-    execution = CosimExecution.from_osp_config_file(str(folder / OSP))
+    if Path(path).is_file():
+        execution = CosimExecution.from_ssp_file(str(path))
+    else:
+        execution = CosimExecution.from_osp_config_file(str(Path(path) / OSP))
     index = {s.name.decode(): s.index for s in execution.slave_infos()}
     vr = {(name, v.name.decode()): v.reference for name, i in index.items() for v in execution.slave_variables(i)}
     last = CosimObserver.create_last_value()
     execution.add_observer(last)
     outputs = system.outputs()
     rows, nanoseconds = [], [0]
-    for _ in range(steps):
+    while (nanoseconds[-1] < stop) if steps is None else (len(rows) < steps):
         if not execution.step(1):
             raise RuntimeError(f"libcosim refused a step at t = {nanoseconds[-1]} ns")
         nanoseconds.append(execution.status().current_time)
@@ -259,23 +291,29 @@ def run_libcosim(folder: Path, steps: int | None = None) -> Run:
                {key: table[:, i] for i, key in enumerate(outputs)})
 
 
-def run_fmpy(ssp: Path, steps: int | None = None) -> Run:
-    """The zipped system `ssp` in fmpy's SSP runner, `steps` steps of h. The runner reads the
-    parameter bindings but applies only the parameter set it is given, so the file's own sets are
-    given as one, each value named component.parameter; it steps while its clock (t += h) is
-    short of the stop time, so the stop time is half a step before the last point. It passes 0 to
-    every input before the first step."""
-    from fmpy.ssp.simulation import simulate_ssp
+def fmpy_parameters(system: System):
+    """The system's own parameter sets as one fmpy ParameterSet, each value named
+    component.parameter (fmpy's runner reads the bindings but applies only the set it is given)."""
     from fmpy.ssp.ssd import Parameter, ParameterSet
 
-    with tempfile.TemporaryDirectory() as tmp:
-        shutil.unpack_archive(str(ssp), tmp, format="zip")
-        system = System.read(Path(tmp))
-    steps = system.steps if steps is None else steps
-    h = system.step_size
-    given = ParameterSet(parameters=[
+    return ParameterSet(parameters=[
         Parameter(name=f"{c.name}.{n}", type="Integer" if n == "reference" else "Real", value=v)
         for c in system.components for n, v in c.params.items()])
-    result = simulate_ssp(str(ssp), start_time=0.0, stop_time=steps * h - h / 2, step_size=h, parameter_set=given)
+
+
+def run_fmpy(ssp: Path, steps: int | None = None) -> Run:
+    """The zipped system `ssp` in fmpy's SSP runner, `steps` steps of h. The runner reads neither
+    the step nor the stop time from the SSD (without them it runs to 1 s in steps of 1/100 of
+    the stop time): both are given, h the SSD's. It steps while its clock (t += h) is short of
+    the stop time, so the stop time given is half a step before the last point. It applies only
+    the parameter set it is given, so the file's own sets are given as one (`fmpy_parameters`).
+    It passes 0 to every input before the first step."""
+    from fmpy.ssp.simulation import simulate_ssp
+
+    system = System.read_packed(ssp)
+    steps = system.steps if steps is None else steps
+    h = system.step_size
+    result = simulate_ssp(str(ssp), start_time=0.0, stop_time=steps * h - h / 2, step_size=h,
+                          parameter_set=fmpy_parameters(system))
     return Run([float(t) for t in result["time"]], [h] * len(result),
                {(c, n): np.asarray(result[f"{c}.{n}"], dtype=float) for c, n in system.outputs()})

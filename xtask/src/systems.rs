@@ -1,9 +1,10 @@
 //! The co-simulation systems of `systems/` (a plant or two under BacklashController), packed
 //! beside the archives: for each system folder, `systems/<name>/` under the archives' folder with
-//! its `SystemStructure.ssd` (SSP 1.0: ecos, fmpy's SSP runner), its `OspSystemStructure.xml`
-//! (libcosim), the parameter sets it binds (`parameters/*.ssv`) and the FMI 2.0 archives its
-//! components use (`resources/*.fmu`), and the same SSP zipped as `systems/<name>.ssp`
-//! (`SystemStructure.ssd` first, then its resources and parameter sets).
+//! its `SystemStructure.ssd` (SSP 1.0: ecos, fmpy's SSP runner, libcosim, which reads its step
+//! from the SSD's annotation), its `OspSystemStructure.xml` (libcosim), the parameter sets it
+//! binds (`parameters/*.ssv`) and the FMI 2.0 archives its components use (`resources/*.fmu`),
+//! and the same SSP zipped as `systems/<name>.ssp` (`SystemStructure.ssd` first, then its
+//! resources and parameter sets).
 //!
 //! What a system holds is read from its files: every `source` of the SSD (components and
 //! parameter bindings) and of the OSP file (simulators), so that a new system is a folder and
