@@ -98,11 +98,17 @@ pub(super) unsafe fn free_state(slot: *mut *mut c_void) -> Result<Status, FmuErr
     Ok(Status::Ok)
 }
 
-/// fmi2SerializedFMUstateSize / fmi3SerializedFMUStateSize.
+/// fmi2SerializedFMUstateSize / fmi3SerializedFMUStateSize; refused by a controller, which has
+/// no FMU state, whatever the handle.
 ///
 /// # Safety
 /// `size` NULL or one writable size_t.
-pub(super) unsafe fn serialized_size(handle: *mut c_void, size: *mut usize) -> Result<Status, FmuError> {
+pub(super) unsafe fn serialized_size(
+    inst: &Instance,
+    handle: *mut c_void,
+    size: *mut usize,
+) -> Result<Status, FmuError> {
+    inst.check_offered(Function::SerializedFmuStateSize)?;
     // SAFETY: the caller's contract.
     let size = unsafe { output_pointer(size, "size") }?;
     *size = lookup(handle)?.serialized_len();
@@ -110,16 +116,18 @@ pub(super) unsafe fn serialized_size(handle: *mut c_void, size: *mut usize) -> R
 }
 
 /// fmi2SerializeFMUstate / fmi3SerializeFMUState (`size_function` names the size call in the
-/// message).
+/// message); refused by a controller, as [`serialized_size`].
 ///
 /// # Safety
 /// `buffer` NULL or `size` writable bytes.
 pub(super) unsafe fn serialize(
+    inst: &Instance,
     handle: *mut c_void,
     buffer: *mut u8,
     size: usize,
     size_function: &str,
 ) -> Result<Status, FmuError> {
+    inst.check_offered(Function::SerializeFmuState)?;
     let bytes = lookup(handle)?.to_bytes();
     if size < bytes.len() {
         return Err(FmuError::InvalidArgument(format!(
@@ -191,8 +199,8 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
     size: *mut usize,
 ) -> fmi2Status {
     // SAFETY: FMI 2.0 passes a pointer to the importer's size_t.
-    guard(c, Function::SerializedFmuStateSize, |_| unsafe {
-        serialized_size(FMUstate, size)
+    guard(c, Function::SerializedFmuStateSize, |inst| unsafe {
+        serialized_size(inst, FMUstate, size)
     })
 }
 
@@ -205,10 +213,11 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
     serializedState: *mut fmi2Byte,
     size: usize,
 ) -> fmi2Status {
-    guard(c, Function::SerializeFmuState, |_| {
+    guard(c, Function::SerializeFmuState, |inst| {
         // SAFETY: FMI 2.0 passes a buffer of `size` fmi2Bytes (char: the size and alignment of u8).
         unsafe {
             serialize(
+                inst,
                 FMUstate,
                 serializedState.cast::<u8>(),
                 size,

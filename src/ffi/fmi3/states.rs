@@ -42,8 +42,8 @@ pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
     size: *mut usize,
 ) -> fmi3Status {
     // SAFETY: FMI 3.0 passes a pointer to the importer's size_t.
-    guard3(instance, Function::SerializedFmuStateSize, |_| unsafe {
-        serialized_size(FMUState, size)
+    guard3(instance, Function::SerializedFmuStateSize, |inst| unsafe {
+        serialized_size(inst, FMUState, size)
     })
 }
 
@@ -56,9 +56,9 @@ pub unsafe extern "C" fn fmi3SerializeFMUState(
     serializedState: *mut fmi3Byte,
     size: usize,
 ) -> fmi3Status {
-    guard3(instance, Function::SerializeFmuState, |_| {
+    guard3(instance, Function::SerializeFmuState, |inst| {
         // SAFETY: FMI 3.0 passes a buffer of `size` bytes.
-        unsafe { serialize(FMUState, serializedState, size, "fmi3SerializedFMUStateSize") }
+        unsafe { serialize(inst, FMUState, serializedState, size, "fmi3SerializedFMUStateSize") }
     })
 }
 

@@ -10,8 +10,10 @@ use crate::fmu::variables::ModelInfo;
 use crate::fmu::variables::Symbol;
 use crate::physics::{finite, ControllerParams, Reference, SampleError, SampledPi};
 
-/// What a controller says when asked for an FMU state.
-pub(crate) const NO_FMU_STATE: &str = "a controller's FMU state (canGetAndSetFMUstate = false)";
+/// What a controller says when asked for an FMU state, naming both standards' spellings of the flag (FMI 2.0 `canGetAndSetFMUstate`, FMI 3.0
+/// `canGetAndSetFMUState`): the snapshot code that refuses it does not know the standard.
+pub(crate) const NO_FMU_STATE: &str =
+    "a controller's FMU state (canGetAndSetFMUstate = false; FMI 3.0: canGetAndSetFMUState = false)";
 
 /// How far a communication step may differ from the sample period, relative: a master's clock
 /// in integer nanoseconds, or summed step by step, hands steps that differ from it by a few ulps.
@@ -42,15 +44,19 @@ impl Instance {
     }
 
     /// A controller's refusal of the calls its description does not offer (canGetAndSetFMUstate,
-    /// canInterpolateInputs false; maxOutputDerivativeOrder 0), legal in the state table: checked
-    /// in those calls' bodies, so that the calls every step makes carry no test of the kind.
+    /// canSerializeFMUstate, canInterpolateInputs false; maxOutputDerivativeOrder 0), legal in the
+    /// state table: checked in those calls' bodies, so that the calls every step makes carry no
+    /// test of the kind. (fmi2FreeFMUstate stays: freeing nothing is always fine.)
     pub(crate) fn check_offered(&self, function: Function) -> Result<(), FmuError> {
         if !self.model.is_controller() {
             return Ok(());
         }
         let feature = match function {
             // Deserializing is refused by `Snapshot::from_bytes`, which knows the model only.
-            Function::GetFmuState | Function::SetFmuState => NO_FMU_STATE,
+            Function::GetFmuState
+            | Function::SetFmuState
+            | Function::SerializedFmuStateSize
+            | Function::SerializeFmuState => NO_FMU_STATE,
             Function::SetRealInputDerivatives => "input derivatives of a controller (canInterpolateInputs = false)",
             Function::GetRealOutputDerivatives => "output derivatives of a controller (maxOutputDerivativeOrder = 0)",
             _ => return Ok(()),

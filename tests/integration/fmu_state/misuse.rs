@@ -3,6 +3,9 @@
 //! serialization; handles that are stale, foreign or freed twice. Every refusal is fmi2Error
 //! with a logged reason, nothing invalid reaches the instance, and the instance (after
 //! fmi2Reset) and fresh ones work normally.
+//!
+//! The controller ([`CONTROLLER`]) has no FMU state (canGetAndSetFMUstate = false, docs/model.md
+//! §9): its own rows refuse every state, whatever the bytes, the buffer or the handle, naming that.
 
 use crate::robustness_common::*;
 use backlash_fmu::ffi::*;
@@ -22,6 +25,39 @@ fn stepped(model: usize) -> (Fmu, Vec<u8>) {
     }
     let bytes = serialized(&f);
     (f, bytes)
+}
+
+/// What the controller's refusals of FMU states name: the flag of its description.
+const NO_FMU_STATE: &str = "a controller's FMU state (canGetAndSetFMUstate = false";
+
+/// A controller initialized and stepped through five samples of a measured speed: values to
+/// compare before and after a refusal.
+fn controller_stepped() -> Fmu {
+    let f = Fmu::initialized(CONTROLLER, None);
+    assert_eq!(f.set_real("omega_m", -0.02), OK);
+    for k in 0..5 {
+        assert_eq!(fmi2DoStep(f.c, k as f64 * 1e-3, 1e-3, 1), OK);
+    }
+    f
+}
+
+/// `call` on a stepped controller is refused naming its lack of FMU state and changes nothing;
+/// after fmi2Reset the controller works.
+#[track_caller]
+fn refused_by_the_controller(call: impl FnOnce(fmi2Component) -> fmi2Status) {
+    let f = controller_stepped();
+    f.refuses_changing_nothing(NO_FMU_STATE, call);
+    f.reset_and_check();
+}
+
+/// Deserializing `bytes` into a controller is refused naming its lack of FMU state, hands out
+/// no handle and changes nothing.
+#[track_caller]
+fn deserialize_refused_by_the_controller(bytes: &[u8]) {
+    let mut s: fmi2FMUstate = null_mut();
+    // SAFETY: `bytes` has the announced length; `s` is a local.
+    refused_by_the_controller(|c| unsafe { fmi2DeSerializeFMUstate(c, bytes.as_ptr().cast(), bytes.len(), &mut s) });
+    assert!(s.is_null(), "a refused state was handed out");
 }
 
 /// Deserializing `bytes` into `f` is refused with a reason containing `reason`, and no FMU
@@ -50,9 +86,17 @@ fn truncated_extended_and_empty_bytes_are_refused() {
         refused(&f, &longer, "bytes, a version-4 state");
         // The instance, in state Error now, comes back with fmi2Reset.
         f.reset_and_check();
+        // The controller's own rows: any length of any bytes, refused for lack of a state.
+        for len in [0, 1, 12, bytes.len() / 2, bytes.len() - 1] {
+            deserialize_refused_by_the_controller(&bytes[..len]);
+        }
+        deserialize_refused_by_the_controller(&longer);
     }
+    fresh_instance_works(CONTROLLER);
 }
 
+/// The plants only: the controller has no state format (it refuses any bytes, see
+/// `garbage_and_other_model_bytes_are_refused`).
 #[test]
 fn every_single_bit_flip_is_refused() {
     for model in 0..MODELS.len() {
@@ -113,10 +157,17 @@ fn garbage_and_other_model_bytes_are_refused() {
     }
     f.reset_and_check();
     fresh_instance_works(SHAFT);
+    // The controller's own rows: every plant's state, and garbage, refused for lack of a state.
+    for bytes in &states {
+        deserialize_refused_by_the_controller(bytes);
+    }
+    deserialize_refused_by_the_controller(&vec![0u8; shaft.len()]);
+    deserialize_refused_by_the_controller(&vec![0xffu8; shaft.len()]);
+    fresh_instance_works(CONTROLLER);
 }
 
 /// Fields made invalid while the checksum is kept valid: the field checks behind the
-/// checksum must catch them.
+/// checksum must catch them (the plants only: the controller has no state format).
 #[test]
 fn invalid_fields_behind_a_valid_checksum_are_refused() {
     for model in 0..MODELS.len() {
@@ -202,7 +253,8 @@ fn invalid_fields_are_refused(model: usize) {
 
 /// Finite but inconsistent plant states (u that does not match the angles, a contact mode
 /// that does not match u, huge values) are either refused with a reason or, if accepted,
-/// step to finite outputs or are refused at the step: never NaN.
+/// step to finite outputs or are refused at the step: never NaN (the plants only: the
+/// controller has no plant state).
 #[test]
 fn inconsistent_but_finite_plant_states_never_produce_nan() {
     let (_, bytes) = stepped(SHAFT);
@@ -271,8 +323,25 @@ fn serializing_into_a_buffer_that_is_too_small_is_refused_and_writes_nothing() {
         assert_eq!(&buffer[..bytes.len()], &bytes[..]);
         assert!(buffer[bytes.len()..].iter().all(|b| *b == 0xAA));
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
+        // The controller's own rows: refused whatever the buffer (a plant's live state passed),
+        // before anything is written.
+        let mut s = null_mut();
+        assert_eq!(fmi2GetFMUstate(f.c, &mut s), OK);
+        for size in [0, 1, bytes.len() - 1, bytes.len(), bytes.len() + 16] {
+            let mut buffer = vec![0xAAu8; bytes.len() + 16];
+            refused_by_the_controller(|c| fmi2SerializeFMUstate(c, s, buffer.as_mut_ptr().cast(), size));
+            assert!(
+                buffer.iter().all(|b| *b == 0xAA),
+                "the controller wrote into the buffer"
+            );
+            let mut n = usize::MAX;
+            refused_by_the_controller(|c| fmi2SerializedFMUstateSize(c, s, &mut n));
+            assert_eq!(n, usize::MAX, "the controller wrote a size");
+        }
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
     }
     f.reset_and_check();
+    fresh_instance_works(CONTROLLER);
 }
 
 #[test]
@@ -312,4 +381,48 @@ fn stale_foreign_and_doubly_freed_handles_are_refused() {
     }
     f.reset_and_check();
     fresh_instance_works(SHAFT);
+}
+
+/// The controller's own rows of the handle table: with no state of its own, fmi2GetFMUstate,
+/// fmi2SetFMUstate of a live (plant's) state, fmi2SerializedFMUstateSize and fmi2SerializeFMUstate
+/// are refused naming its lack of FMU state, and a handle passed in is never written; a handle
+/// that is no live state is refused as such by fmi2SetFMUstate and fmi2FreeFMUstate; freeing
+/// none is ignored. Each refusal changes nothing, and the controller works after fmi2Reset.
+#[test]
+fn the_controller_refuses_every_handle_with_the_reason() {
+    let (plant, _) = stepped(SHAFT);
+    let mut live = null_mut();
+    // SAFETY: pointer to a local.
+    assert_eq!(unsafe { fmi2GetFMUstate(plant.c, &mut live) }, OK);
+    let mut local = [0u8; 64];
+    let foreign = local.as_mut_ptr() as fmi2FMUstate;
+    // SAFETY (all calls): pointers to locals; handles are never dereferenced by the FMU.
+    unsafe {
+        for handle in [null_mut(), live, foreign, usize::MAX as fmi2FMUstate] {
+            let mut slot = handle;
+            refused_by_the_controller(|c| fmi2GetFMUstate(c, &mut slot));
+            assert_eq!(slot, handle, "a refused fmi2GetFMUstate wrote the handle");
+            refused_by_the_controller(|c| fmi2SerializedFMUstateSize(c, handle, &mut 0));
+            refused_by_the_controller(|c| fmi2SerializeFMUstate(c, handle, [0; 4096].as_mut_ptr(), 4096));
+        }
+        refused_by_the_controller(|c| fmi2SetFMUstate(c, live));
+        for handle in [foreign, usize::MAX as fmi2FMUstate] {
+            let f = controller_stepped();
+            f.refuses_changing_nothing("not a live FMU state", |c| fmi2SetFMUstate(c, handle));
+            f.reset_and_check();
+            let f = controller_stepped();
+            let mut slot = handle;
+            f.refuses_changing_nothing("not a live FMU state", |c| fmi2FreeFMUstate(c, &mut slot));
+            f.reset_and_check();
+        }
+        let f = controller_stepped();
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut null_mut()), OK);
+        f.reset_and_check();
+    }
+    assert_eq!(local, [0u8; 64], "a foreign handle was written through");
+    // The plant's state is still live and its own.
+    assert_eq!(load(&plant, &serialized(&plant)), (OK, OK));
+    // SAFETY: pointer to a local.
+    assert_eq!(unsafe { fmi2FreeFMUstate(plant.c, &mut live) }, OK);
+    fresh_instance_works(CONTROLLER);
 }

@@ -6,11 +6,15 @@
 //! time, bad seeds and references of fmi2GetDirectionalDerivative. Each refusal must be
 //! fmi2Error/fmi2Discard with its reason logged through the importer's logger, must change
 //! nothing, and a fresh instance must work normally after.
+//!
+//! The Co-Simulation tables cover the controller too ([`CONTROLLER`], docs/model.md §9), with its
+//! own rows where it answers otherwise: no FMU state, no input or output derivatives, one step
+//! size (its sample period), no Model Exchange, and its own variables.
 
 use crate::robustness_common::*;
 use backlash_fmu::ffi::*;
-use backlash_fmu::fmu::variables::VarType;
-use backlash_fmu::fmu::MODELS;
+use backlash_fmu::fmu::variables::{Causality, VarType, Variable};
+use backlash_fmu::fmu::{served, ModelInfo, MODELS};
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
 
@@ -178,9 +182,11 @@ fn every_instance_function() -> Vec<(&'static str, InstanceCall)> {
 
 #[test]
 fn a_null_freed_or_foreign_instance_is_refused_by_every_function() {
-    // Freed instances of every model, Co-Simulation and Model Exchange (each is freed as it drops).
+    // Freed instances of every model, Co-Simulation and Model Exchange (each is freed as it
+    // drops), and of the controller, Co-Simulation only.
     let stale: Vec<fmi2Component> = (0..MODELS.len())
         .flat_map(|model| [Fmu::new(model), Fmu::me_continuous(model)])
+        .chain([Fmu::initialized(CONTROLLER, None)])
         .map(|freed| freed.c)
         .collect();
     let mut local = 0u64;
@@ -202,31 +208,38 @@ fn a_null_freed_or_foreign_instance_is_refused_by_every_function() {
     fmi2FreeInstance(foreign);
     assert_eq!(local, 0, "a foreign pointer was written through");
     fresh_instance_works(SHAFT);
+    fresh_instance_works(CONTROLLER);
 }
 
-/// A fresh initialized instance for each refused call (a refusal puts it in state Error).
-fn refused_in_step_complete(reason: &str, call: impl FnOnce(fmi2Component) -> fmi2Status) {
-    let f = Fmu::initialized(SHAFT, None);
-    let before = f.all_values().1;
-    f.refuses(reason, call);
-    // The refusal changed no value (fmi2GetXXX stays legal in state Error): bit for bit, as
-    // both reads compute the outputs by the same code from the same stored values.
-    let after = f.all_values();
-    assert_eq!(after.0, OK);
-    assert_eq!(
-        before.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>(),
-        after.1.iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>()
-    );
-    f.reset_and_check();
+/// The first variable of `model` with `causality`: an input and an output to pass to the calls
+/// that take one (a plant's τ_m and θ_m, the controller's ω_m and τ_m).
+fn first(model: &ModelInfo, causality: Causality) -> &'static Variable {
+    model
+        .variables
+        .iter()
+        .find(|v| v.causality == causality)
+        .unwrap_or_else(|| panic!("{} has no {causality:?}", model.identifier))
 }
 
+/// On a plant and on the controller: the NULL is refused before any reference is looked up, so
+/// both answer alike, but for the FMU-state rows of the controller, which has none to pass (its
+/// own rows: fmi2SerializedFMUstateSize and fmi2SerializeFMUstate refused as not provided).
 #[test]
 fn null_arrays_and_out_pointers_with_a_positive_length_are_refused() {
-    let vr = [MODELS[0].vr("tau_m")];
-    let out = [MODELS[0].vr("omega_m")];
-    let vr = vr.as_ptr();
-    let out = out.as_ptr();
+    for model in [SHAFT, CONTROLLER] {
+        null_arrays_and_out_pointers_are_refused(model);
+    }
+    fresh_instance_works(SHAFT);
+    fresh_instance_works(CONTROLLER);
+}
+
+fn null_arrays_and_out_pointers_are_refused(model: usize) {
+    let m = model_at(model);
+    let vr = [first(m, Causality::Input).vr];
+    let out = [first(m, Causality::Output).vr];
+    let (vr, out) = (vr.as_ptr(), out.as_ptr());
     let n = 1;
+    let controller = m.is_controller();
     // (what, reason, call): each call passes exactly one NULL where n > 0 values are announced.
     type Call = Box<dyn Fn(fmi2Component) -> fmi2Status>;
     // SAFETY (all closures): the non-NULL pointers point to live values of the announced length.
@@ -389,19 +402,31 @@ fn null_arrays_and_out_pointers_with_a_positive_length_are_refused() {
             ),
             (
                 "SerializedFMUstateSize",
-                "size is NULL",
-                Box::new(|c| {
+                if controller {
+                    "canGetAndSetFMUstate = false"
+                } else {
+                    "size is NULL"
+                },
+                Box::new(move |c| {
                     let mut s = null_mut();
-                    assert_eq!(fmi2GetFMUstate(c, &mut s), OK);
+                    if !controller {
+                        assert_eq!(fmi2GetFMUstate(c, &mut s), OK);
+                    }
                     fmi2SerializedFMUstateSize(c, s, null_mut())
                 }),
             ),
             (
                 "SerializeFMUstate",
-                "serializedState is NULL",
-                Box::new(|c| {
+                if controller {
+                    "canGetAndSetFMUstate = false"
+                } else {
+                    "serializedState is NULL"
+                },
+                Box::new(move |c| {
                     let mut s = null_mut();
-                    assert_eq!(fmi2GetFMUstate(c, &mut s), OK);
+                    if !controller {
+                        assert_eq!(fmi2GetFMUstate(c, &mut s), OK);
+                    }
                     fmi2SerializeFMUstate(c, s, null_mut(), 1 << 16)
                 }),
             ),
@@ -458,101 +483,141 @@ fn null_arrays_and_out_pointers_with_a_positive_length_are_refused() {
         ]
     };
     for (what, reason, call) in cases {
-        eprintln!("{what}");
-        refused_in_step_complete(reason, call);
+        eprintln!("{what} ({})", m.identifier);
+        refused_in_step_complete(model, reason, call);
     }
-    fresh_instance_works(SHAFT);
 }
 
+/// On a plant and on the controller, which refuses the input and output derivatives it does not
+/// offer whatever their length (its own rows: canInterpolateInputs = false,
+/// maxOutputDerivativeOrder = 0).
 #[test]
 fn zero_length_null_arrays_are_accepted() {
-    let f = Fmu::initialized(BELT, None);
-    // SAFETY: n = 0: no element is read or written.
-    unsafe {
-        assert_eq!(fmi2GetReal(f.c, null(), 0, null_mut()), OK);
-        assert_eq!(fmi2GetInteger(f.c, null(), 0, null_mut()), OK);
-        assert_eq!(fmi2GetBoolean(f.c, null(), 0, null_mut()), OK);
-        assert_eq!(fmi2GetString(f.c, null(), 0, null_mut()), OK);
-        assert_eq!(fmi2SetReal(f.c, null(), 0, null()), OK);
-        assert_eq!(fmi2SetInteger(f.c, null(), 0, null()), OK);
-        assert_eq!(fmi2SetBoolean(f.c, null(), 0, null()), OK);
-        assert_eq!(fmi2SetString(f.c, null(), 0, null()), OK);
-        assert_eq!(fmi2SetRealInputDerivatives(f.c, null(), 0, null(), null()), OK);
-        assert_eq!(fmi2GetRealOutputDerivatives(f.c, null(), 0, null(), null_mut()), OK);
-        assert_eq!(fmi2SetDebugLogging(f.c, 0, 0, null()), OK);
+    for model in [BELT, CONTROLLER] {
+        let f = Fmu::initialized(model, None);
+        let controller = f.model.is_controller();
+        // SAFETY: n = 0: no element is read or written.
+        unsafe {
+            assert_eq!(fmi2GetReal(f.c, null(), 0, null_mut()), OK);
+            assert_eq!(fmi2GetInteger(f.c, null(), 0, null_mut()), OK);
+            assert_eq!(fmi2GetBoolean(f.c, null(), 0, null_mut()), OK);
+            assert_eq!(fmi2GetString(f.c, null(), 0, null_mut()), OK);
+            assert_eq!(fmi2SetReal(f.c, null(), 0, null()), OK);
+            assert_eq!(fmi2SetInteger(f.c, null(), 0, null()), OK);
+            assert_eq!(fmi2SetBoolean(f.c, null(), 0, null()), OK);
+            assert_eq!(fmi2SetString(f.c, null(), 0, null()), OK);
+            if !controller {
+                assert_eq!(fmi2SetRealInputDerivatives(f.c, null(), 0, null(), null()), OK);
+                assert_eq!(fmi2GetRealOutputDerivatives(f.c, null(), 0, null(), null_mut()), OK);
+            }
+            assert_eq!(fmi2SetDebugLogging(f.c, 0, 0, null()), OK);
+        }
+        assert!(
+            f.entries().iter().all(|e| e.category != "logErrors"),
+            "{:?}",
+            f.entries()
+        );
+        f.assert_all_finite("after empty calls");
+        assert_eq!(fmi2DoStep(f.c, 0.0, 1e-3, 1), OK);
+        f.reset_and_check();
     }
-    assert!(
-        f.entries().iter().all(|e| e.category != "logErrors"),
-        "{:?}",
-        f.entries()
-    );
-    f.assert_all_finite("after empty calls");
-    assert_eq!(fmi2DoStep(f.c, 0.0, 1e-3, 1), OK);
-    f.reset_and_check();
+    // SAFETY (both calls): n = 0: no element is read or written.
+    refused_in_step_complete(CONTROLLER, "canInterpolateInputs = false", |c| unsafe {
+        fmi2SetRealInputDerivatives(c, null(), 0, null(), null())
+    });
+    refused_in_step_complete(CONTROLLER, "maxOutputDerivativeOrder = 0", |c| unsafe {
+        fmi2GetRealOutputDerivatives(c, null(), 0, null(), null_mut())
+    });
+    fresh_instance_works(CONTROLLER);
 }
 
+/// On a plant and on the controller, each with its own variables: the controller's Integer is
+/// the parameter `reference`, its Reals the inputs ω_m and T, the output τ_m and parameters.
 #[test]
 fn unknown_and_mistyped_value_references_are_refused() {
-    let m = &MODELS[SHAFT];
-    let known: Vec<u32> = m.variables.iter().map(|v| v.vr).collect();
-    let unknown = [0, 25, 1000, u32::MAX].into_iter().filter(|vr| !known.contains(vr));
-    for vr in unknown {
-        let v = [vr];
+    // (model, an Integer, a Real output, two Real inputs)
+    let cases = [
+        (SHAFT, "contact", "theta_m", ["tau_m", "tau_L"]),
+        (CONTROLLER, "reference", "tau_m", ["omega_m", "T"]),
+    ];
+    for (model, integer, output, inputs) in cases {
+        let m = model_at(model);
+        let known: Vec<u32> = m.variables.iter().map(|v| v.vr).collect();
+        let unknown = [0, 25, 1000, u32::MAX].into_iter().filter(|vr| !known.contains(vr));
+        let refused =
+            |reason: &str, call: &dyn Fn(fmi2Component) -> fmi2Status| refused_in_step_complete(model, reason, call);
+        for vr in unknown {
+            let v = [vr];
+            // SAFETY (all calls): arrays of length 1.
+            unsafe {
+                refused("not a variable", &|c| fmi2GetReal(c, v.as_ptr(), 1, [0.0].as_mut_ptr()));
+                refused("not a variable", &|c| fmi2SetReal(c, v.as_ptr(), 1, [0.0].as_ptr()));
+                refused("not a variable", &|c| {
+                    fmi2GetInteger(c, v.as_ptr(), 1, [0].as_mut_ptr())
+                });
+                refused("not a variable", &|c| fmi2SetInteger(c, v.as_ptr(), 1, [0].as_ptr()));
+                refused("not a variable", &|c| {
+                    fmi2GetBoolean(c, v.as_ptr(), 1, [0].as_mut_ptr())
+                });
+                refused("not a variable", &|c| fmi2SetBoolean(c, v.as_ptr(), 1, [0].as_ptr()));
+                refused("not a variable", &|c| {
+                    fmi2GetString(c, v.as_ptr(), 1, [null()].as_mut_ptr())
+                });
+                refused("not a variable", &|c| {
+                    fmi2SetString(c, v.as_ptr(), 1, [null()].as_ptr())
+                });
+                if !m.is_controller() {
+                    refused("not a variable", &|c| {
+                        fmi2SetRealInputDerivatives(c, v.as_ptr(), 1, [1].as_ptr(), [0.0].as_ptr())
+                    });
+                    refused("not a variable", &|c| {
+                        fmi2GetRealOutputDerivatives(c, v.as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
+                    });
+                }
+            }
+        }
+        let integer = [m.vr(integer)];
+        let output = [m.vr(output)];
+        let input = [m.vr(inputs[0])];
         // SAFETY (all calls): arrays of length 1.
         unsafe {
-            refused_in_step_complete("not a variable", |c| fmi2GetReal(c, v.as_ptr(), 1, [0.0].as_mut_ptr()));
-            refused_in_step_complete("not a variable", |c| fmi2SetReal(c, v.as_ptr(), 1, [0.0].as_ptr()));
-            refused_in_step_complete("not a variable", |c| fmi2GetInteger(c, v.as_ptr(), 1, [0].as_mut_ptr()));
-            refused_in_step_complete("not a variable", |c| fmi2SetInteger(c, v.as_ptr(), 1, [0].as_ptr()));
-            refused_in_step_complete("not a variable", |c| fmi2GetBoolean(c, v.as_ptr(), 1, [0].as_mut_ptr()));
-            refused_in_step_complete("not a variable", |c| fmi2SetBoolean(c, v.as_ptr(), 1, [0].as_ptr()));
-            refused_in_step_complete("not a variable", |c| {
-                fmi2GetString(c, v.as_ptr(), 1, [null()].as_mut_ptr())
+            refused("not Integer", &|c| {
+                fmi2GetInteger(c, output.as_ptr(), 1, [0].as_mut_ptr())
             });
-            refused_in_step_complete("not a variable", |c| fmi2SetString(c, v.as_ptr(), 1, [null()].as_ptr()));
-            refused_in_step_complete("not a variable", |c| {
-                fmi2SetRealInputDerivatives(c, v.as_ptr(), 1, [1].as_ptr(), [0.0].as_ptr())
+            refused("not Real", &|c| fmi2GetReal(c, integer.as_ptr(), 1, [0.0].as_mut_ptr()));
+            refused("not Real", &|c| fmi2SetReal(c, integer.as_ptr(), 1, [1.0].as_ptr()));
+            refused("not Boolean", &|c| {
+                fmi2GetBoolean(c, input.as_ptr(), 1, [0].as_mut_ptr())
             });
-            refused_in_step_complete("not a variable", |c| {
-                fmi2GetRealOutputDerivatives(c, v.as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
+            refused("not Boolean", &|c| fmi2SetBoolean(c, input.as_ptr(), 1, [1].as_ptr()));
+            refused("not String", &|c| {
+                fmi2GetString(c, input.as_ptr(), 1, [null()].as_mut_ptr())
+            });
+            refused("not String", &|c| {
+                fmi2SetString(c, input.as_ptr(), 1, [c"1".as_ptr()].as_ptr())
+            });
+            refused("not Integer", &|c| fmi2SetInteger(c, input.as_ptr(), 1, [1].as_ptr()));
+            if !m.is_controller() {
+                // contact is an Integer, but a calculated output.
+                refused("output computed by the FMU", &|c| {
+                    fmi2SetInteger(c, integer.as_ptr(), 1, [1].as_ptr())
+                });
+            }
+            // A bad reference after good ones: nothing is stored (checked by the helper).
+            let mixed = [m.vr(inputs[0]), m.vr(inputs[1]), 1000];
+            refused("not a variable", &|c| {
+                fmi2SetReal(c, mixed.as_ptr(), 3, [5.0, 6.0, 7.0].as_ptr())
             });
         }
+        fresh_instance_works(model);
     }
-    let contact = [m.vr("contact")];
-    let theta = [m.vr("theta_m")];
-    let tau = [m.vr("tau_m")];
-    // SAFETY (all calls): arrays of length 1.
-    unsafe {
-        refused_in_step_complete("not Integer", |c| {
-            fmi2GetInteger(c, theta.as_ptr(), 1, [0].as_mut_ptr())
-        });
-        refused_in_step_complete("not Real", |c| fmi2GetReal(c, contact.as_ptr(), 1, [0.0].as_mut_ptr()));
-        refused_in_step_complete("not Real", |c| fmi2SetReal(c, contact.as_ptr(), 1, [1.0].as_ptr()));
-        refused_in_step_complete("not Boolean", |c| fmi2GetBoolean(c, tau.as_ptr(), 1, [0].as_mut_ptr()));
-        refused_in_step_complete("not Boolean", |c| fmi2SetBoolean(c, tau.as_ptr(), 1, [1].as_ptr()));
-        refused_in_step_complete("not String", |c| {
-            fmi2GetString(c, tau.as_ptr(), 1, [null()].as_mut_ptr())
-        });
-        refused_in_step_complete("not String", |c| {
-            fmi2SetString(c, tau.as_ptr(), 1, [c"1".as_ptr()].as_ptr())
-        });
-        refused_in_step_complete("not Integer", |c| fmi2SetInteger(c, tau.as_ptr(), 1, [1].as_ptr()));
-        // contact is an Integer, but a calculated output.
-        refused_in_step_complete("output computed by the FMU", |c| {
-            fmi2SetInteger(c, contact.as_ptr(), 1, [1].as_ptr())
-        });
-        // A bad reference after good ones: nothing is stored (checked by the helper).
-        let mixed = [m.vr("tau_m"), m.vr("tau_L"), 1000];
-        refused_in_step_complete("not a variable", |c| {
-            fmi2SetReal(c, mixed.as_ptr(), 3, [5.0, 6.0, 7.0].as_ptr())
-        });
-    }
-    fresh_instance_works(SHAFT);
 }
 
+/// On every model the library serves: the plants, and the controller, whose output τ_m has a
+/// start value (held until the first step ends) and whose Integer parameter is `reference`.
 #[test]
 fn variables_that_cannot_be_set_now_are_refused() {
-    for (model, m) in MODELS.iter().enumerate() {
+    for (model, m) in served().enumerate() {
         let in_step_complete = |name: &str, reason: &str| {
             let f = Fmu::initialized(model, None);
             let (_, old) = f.get_real(name);
@@ -560,15 +625,17 @@ fn variables_that_cannot_be_set_now_are_refused() {
             assert_eq!(f.get_real(name).1.to_bits(), old.to_bits(), "{name} changed");
             f.reset_and_check();
         };
-        // contact_law, an Integer, by fmi2SetInteger: a fixed parameter too.
-        let f = Fmu::initialized(model, None);
-        f.refuses("fixed parameter", |_| f.set_integer("contact_law", 2));
-        assert_eq!(f.get_integer("contact_law"), (OK, 1));
-        f.reset_and_check();
         for v in m.variables {
             use backlash_fmu::fmu::variables::Causality::*;
-            match (v.causality, v.is_initial_state(), v.name) {
-                (_, _, "contact" | "contact_law") => {}
+            match (v.causality, v.is_initial_state(), v.ty) {
+                // The Integer parameters (contact_law, reference), by fmi2SetInteger.
+                (Parameter, _, VarType::Integer) => {
+                    let f = Fmu::initialized(model, None);
+                    f.refuses("fixed parameter", |_| f.set_integer(v.name, 2));
+                    assert_eq!(f.get_integer(v.name), (OK, v.start.unwrap() as i32), "{}", v.name);
+                    f.reset_and_check();
+                }
+                (_, _, VarType::Integer) => {}
                 (Input, ..) => {}
                 (Output, true, _) => in_step_complete(v.name, "initial state"),
                 (Output, false, _) => in_step_complete(v.name, "output computed by the FMU"),
@@ -578,15 +645,19 @@ fn variables_that_cannot_be_set_now_are_refused() {
                 (Local, ..) => in_step_complete(v.name, "computed by the FMU from the state"),
             }
         }
-        // Before initialization the calculated quantities are refused too.
-        let f = Fmu::new(model);
-        f.refuses("calculatedParameter", |_| f.set_real("bound_sup", 1.0));
-        let f = Fmu::new(model);
-        f.refuses("output computed", |_| f.set_real("psi", 1.0));
-        // After fmi2Terminate nothing can be set.
+        // Before initialization the calculated quantities are refused too (a controller has none).
+        if !m.is_controller() {
+            let f = Fmu::new(model);
+            f.refuses("calculatedParameter", |_| f.set_real("bound_sup", 1.0));
+            let f = Fmu::new(model);
+            f.refuses("output computed", |_| f.set_real("psi", 1.0));
+        }
+        // After fmi2Terminate nothing can be set, not even an input.
         let f = Fmu::initialized(model, None);
         assert_eq!(fmi2Terminate(f.c), OK);
-        f.refuses("not allowed in state Terminated", |_| f.set_real("tau_m", 1.0));
+        f.refuses("not allowed in state Terminated", |_| {
+            f.set_real(first(m, Causality::Input).name, 1.0)
+        });
         f.reset_and_check();
     }
 }
@@ -613,21 +684,31 @@ fn bad_integers(range: backlash_fmu::fmu::variables::Range) -> Vec<i32> {
     }
 }
 
+/// On every model the library serves, each with its own ranges (the controller's: `h > 0`,
+/// `t_ramp > 0`, `frequency >= 0`, `t_hold >= 0`, `reference` 1 to 3); the controller takes no
+/// input derivatives at all (its own rows: refused naming canInterpolateInputs = false, finite or
+/// not).
 #[test]
 fn non_finite_and_out_of_range_values_never_reach_the_instance() {
-    for (model, m) in MODELS.iter().enumerate() {
+    for (model, m) in served().enumerate() {
         for v in m
             .variables
             .iter()
             .filter(|v| v.start.is_some() && v.ty == VarType::Integer)
         {
+            // The ranges of the descriptions (docs/model.md §4, §9).
+            let range = match v.name {
+                "contact_law" => "1 or 2",
+                "reference" => "an integer from 1 to 3",
+                other => unreachable!("an Integer {other} with a start value"),
+            };
             for x in bad_integers(v.range) {
                 for phase in 0..2 {
                     let f = Fmu::new(model);
                     if phase == 1 {
                         assert_eq!(fmi2EnterInitializationMode(f.c), OK);
                     }
-                    let reason = format!("value {x} refused for {}: it must be 1 or 2", v.name);
+                    let reason = format!("value {x} refused for {}: it must be {range}", v.name);
                     f.refuses(&reason, |_| f.set_integer(v.name, x));
                     if phase > 0 {
                         assert_eq!(f.get_integer(v.name), (OK, v.start.unwrap() as i32), "{}", v.name);
@@ -671,20 +752,31 @@ fn non_finite_and_out_of_range_values_never_reach_the_instance() {
             .iter()
             .filter(|v| v.causality == backlash_fmu::fmu::variables::Causality::Input);
         for v in inputs {
-            for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-                let f = Fmu::initialized(model, None);
+            let (slopes, reason) = if m.is_controller() {
+                (
+                    vec![f64::NAN, f64::INFINITY, 0.5],
+                    "canInterpolateInputs = false".to_string(),
+                )
+            } else {
+                (
+                    vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY],
+                    format!("refused for {}", v.name),
+                )
+            };
+            for x in slopes {
                 let vr = [v.vr];
                 // SAFETY: arrays of length 1.
-                f.refuses(&format!("refused for {}", v.name), |c| unsafe {
+                refused_in_step_complete(model, &reason, |c| unsafe {
                     fmi2SetRealInputDerivatives(c, vr.as_ptr(), 1, [1].as_ptr(), [x].as_ptr())
                 });
-                f.reset_and_check();
             }
         }
+        fresh_instance_works(model);
     }
-    fresh_instance_works(BELT);
 }
 
+/// The plants only: the controller takes no input derivatives (refused in
+/// `non_finite_and_out_of_range_values_never_reach_the_instance`).
 #[test]
 fn input_ramps_that_overflow_are_refused_not_stored() {
     let f = Fmu::initialized(SHAFT, None);
@@ -709,15 +801,42 @@ fn input_ramps_that_overflow_are_refused_not_stored() {
     f.reset_and_check();
 }
 
+/// On a plant and on the controller, whose every step must last its sample period `h` (1 ms by
+/// default) to 1e-9 relative (docs/model.md §9; its own rows: any other size, tiny or huge, is
+/// refused naming the period).
 #[test]
 fn bad_step_sizes_and_communication_points_are_refused() {
-    for h in [0.0, -0.0, -1e-3, -1e-300, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-        refused_in_step_complete("communicationStepSize", |c| fmi2DoStep(c, 0.0, h, 1));
+    for model in [SHAFT, CONTROLLER] {
+        for h in [0.0, -0.0, -1e-3, -1e-300, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            refused_in_step_complete(model, "communicationStepSize", |c| fmi2DoStep(c, 0.0, h, 1));
+        }
+        // The controller's steps are 1 ms long (its default h), so 1e-3 is a valid size for both.
+        for t in [0.5, -0.5, 1e-3, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            refused_in_step_complete(model, "currentCommunicationPoint", |c| fmi2DoStep(c, t, 1e-3, 1));
+        }
     }
-    refused_in_step_complete("exceeds", |c| fmi2DoStep(c, 0.0, 1e300, 1));
-    for t in [0.5, -0.5, 1e-3, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-        refused_in_step_complete("currentCommunicationPoint", |c| fmi2DoStep(c, t, 1e-3, 1));
+    refused_in_step_complete(SHAFT, "exceeds", |c| fmi2DoStep(c, 0.0, 1e300, 1));
+
+    // The controller: a step of any other size than its period is refused with the period named.
+    let period = model_at(CONTROLLER).by_name("h").and_then(|v| v.start).unwrap();
+    assert_eq!(
+        period, 1e-3,
+        "the controller's default sample period (docs/model.md §9)"
+    );
+    for h in [1e300, 1e-300, 2e-3, 5e-4, 1e-3 * (1.0 + 1e-8), 1e-3 * (1.0 - 1e-8)] {
+        let reason = format!("communicationStepSize {h} is not the sample period h = 0.001");
+        refused_in_step_complete(CONTROLLER, &reason, |c| fmi2DoStep(c, 0.0, h, 1));
     }
+    // Within 1e-9 relative of h (a master's clock in integer nanoseconds, or summed step by step):
+    // a sample, taken.
+    let f = Fmu::initialized(CONTROLLER, None);
+    let (t1, t2) = (1e-3 * (1.0 + 1e-10), 2_000_000.0 / 1e9);
+    assert_eq!(fmi2DoStep(f.c, 0.0, t1, 1), OK);
+    assert_eq!(fmi2DoStep(f.c, t1, t2 - t1, 1), OK);
+    assert_eq!(f.time(), t2);
+    // Another size after good steps: refused, and the held torque stays.
+    f.refuses_changing_nothing("is not the sample period h = 0.001", |c| fmi2DoStep(c, t2, 2e-3, 1));
+    f.reset_and_check();
 
     // A tiny step is a step: at t = 0 it is representable and moves time exactly. The FMU's
     // time is currentCommunicationPoint + h, so exact here: 0 + 1e-300 = 1e-300, and
@@ -741,6 +860,13 @@ fn bad_step_sizes_and_communication_points_are_refused() {
     f.refuses("stopTime", |c| fmi2DoStep(c, 0.01, 1e-6, 1));
     f.assert_all_finite("after stepping past the stop time");
     f.reset_and_check();
+    // The controller: ten samples of 1 ms end on a stop time of 10 ms; the eleventh is refused.
+    let f = Fmu::initialized(CONTROLLER, Some(0.01));
+    for k in 0..10 {
+        assert_eq!(fmi2DoStep(f.c, f.time(), 1e-3, 1), OK, "sample {k}");
+    }
+    f.refuses_changing_nothing("stopTime", |c| fmi2DoStep(c, f.time(), 1e-3, 1));
+    f.reset_and_check();
 
     // fmi2SetupExperiment: non-finite times, stop before start.
     for (start, stop) in [
@@ -750,17 +876,27 @@ fn bad_step_sizes_and_communication_points_are_refused() {
         (0.0, -1.0),
         (1.0, 0.5),
     ] {
-        let f = Fmu::new(SHAFT);
-        let reason = if start.is_finite() { "stopTime" } else { "startTime" };
-        f.refuses(reason, |c| fmi2SetupExperiment(c, 0, 0.0, start, 1, stop));
-        f.reset_and_check();
+        for model in [SHAFT, CONTROLLER] {
+            let f = Fmu::new(model);
+            let reason = if start.is_finite() { "stopTime" } else { "startTime" };
+            f.refuses(reason, |c| fmi2SetupExperiment(c, 0, 0.0, start, 1, stop));
+            f.reset_and_check();
+        }
     }
     fresh_instance_works(SHAFT);
+    fresh_instance_works(CONTROLLER);
 }
 
+/// On a plant and on the controller alike.
 #[test]
 fn status_queries_that_have_no_answer_are_discarded_with_a_reason() {
-    let f = Fmu::initialized(SHAFT, None);
+    for model in [SHAFT, CONTROLLER] {
+        status_queries_are_discarded(model);
+    }
+}
+
+fn status_queries_are_discarded(model: usize) {
+    let f = Fmu::initialized(model, None);
     // SAFETY: pointers to locals.
     unsafe {
         for kind in [fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated] {
@@ -784,6 +920,7 @@ fn instantiate_refuses_bad_arguments_with_a_reason() {
     let log: Box<Log> = Box::default();
     let cb = callbacks(&*log);
     let shaft = CString::new(MODELS[0].guid).unwrap();
+    let controller = CString::new(model_at(CONTROLLER).guid).unwrap();
     let count = || log.lock().unwrap().len();
     let refuse = |reason: &str, c: fmi2Component| {
         assert!(c.is_null(), "instantiated despite {reason}");
@@ -810,6 +947,11 @@ fn instantiate_refuses_bad_arguments_with_a_reason() {
         refuse("fmuGUID", i(c"a".as_ptr(), ok, padded.as_ptr()));
         refuse("neither", i(c"a".as_ptr(), 2, shaft.as_ptr()));
         refuse("neither", i(c"a".as_ptr(), -1, shaft.as_ptr()));
+        // The controller is Co-Simulation only: its description declares no Model Exchange.
+        refuse(
+            "BacklashController is a controller: Co-Simulation only, its description declares no Model Exchange",
+            i(c"a".as_ptr(), fmi2ModelExchange, controller.as_ptr()),
+        );
         let n = count();
         // No callbacks: nothing to log through, just NULL.
         assert!(fmi2Instantiate(c"a".as_ptr(), ok, shaft.as_ptr(), null(), null(), 0, 0).is_null());
@@ -838,23 +980,39 @@ fn instantiate_refuses_bad_arguments_with_a_reason() {
         assert_eq!(fmi2ExitInitializationMode(c), OK);
         assert_eq!(fmi2DoStep(c, 0.0, 1e-3, 1), OK);
         fmi2FreeInstance(c);
+        // The controller alike: a step of another size than its period, refused in silence.
+        let c = fmi2Instantiate(c"quiet".as_ptr(), ok, controller.as_ptr(), null(), &quiet, 0, 1);
+        assert!(!c.is_null());
+        assert_eq!(fmi2EnterInitializationMode(c), OK);
+        assert_eq!(fmi2ExitInitializationMode(c), OK);
+        assert_eq!(fmi2DoStep(c, 0.0, 2e-3, 1), ERROR);
+        assert_eq!(fmi2Reset(c), OK);
+        assert_eq!(fmi2EnterInitializationMode(c), OK);
+        assert_eq!(fmi2ExitInitializationMode(c), OK);
+        assert_eq!(fmi2DoStep(c, 0.0, 1e-3, 1), OK);
+        fmi2FreeInstance(c);
         let m = count();
         assert!(fmi2Instantiate(null(), ok, shaft.as_ptr(), null(), &quiet, 0, 1).is_null());
+        let me = fmi2ModelExchange;
+        assert!(fmi2Instantiate(c"me".as_ptr(), me, controller.as_ptr(), null(), &quiet, 0, 1).is_null());
         assert_eq!(count(), m, "nothing reaches the other logger");
     }
-    for model in 0..MODELS.len() {
+    for model in 0..served().count() {
         fresh_instance_works(model);
     }
 }
 
+/// On a plant and on the controller alike.
 #[test]
 fn debug_logging_refuses_unknown_categories() {
-    let f = Fmu::new(BELT);
-    // SAFETY: arrays of the announced length, NUL-terminated strings.
-    f.refuses("unknown log category", |c| unsafe {
-        fmi2SetDebugLogging(c, 1, 2, [c"logCalls".as_ptr(), c"logEverything".as_ptr()].as_ptr())
-    });
-    f.reset_and_check();
+    for model in [BELT, CONTROLLER] {
+        let f = Fmu::new(model);
+        // SAFETY: arrays of the announced length, NUL-terminated strings.
+        f.refuses("unknown log category", |c| unsafe {
+            fmi2SetDebugLogging(c, 1, 2, [c"logCalls".as_ptr(), c"logEverything".as_ptr()].as_ptr())
+        });
+        f.reset_and_check();
+    }
 }
 
 // ---- Model Exchange ----
@@ -944,6 +1102,7 @@ fn reads_are_finite_or_refused(f: &Fmu, context: &str) {
     }
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_null_arrays_and_out_pointers_are_refused() {
     for model in 0..MODELS.len() {
@@ -1060,6 +1219,7 @@ fn null_arrays_and_out_pointers_are_refused_in_me(model: usize) {
     assert_eq!(count, 16);
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_vectors_of_the_wrong_length_are_refused_and_left_unwritten() {
     for model in 0..MODELS.len() {
@@ -1111,6 +1271,7 @@ fn model_exchange_vectors_of_the_wrong_length_are_refused_and_left_unwritten() {
     fresh_me_instance_works(BELT);
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
     for (model, m) in MODELS.iter().enumerate() {
@@ -1208,6 +1369,7 @@ fn model_exchange_non_finite_states_and_times_never_reach_the_instance() {
     fresh_me_instance_works(SHAFT);
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_directional_derivatives_refuse_bad_seeds_and_references() {
     for (model, m) in MODELS.iter().enumerate() {
@@ -1487,6 +1649,7 @@ fn a_state_set_by_reference_is_a_state_set(model: usize, name: &str) {
     }
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
     use backlash_fmu::fmu::variables::Causality::*;
@@ -1572,7 +1735,8 @@ fn model_exchange_variables_that_cannot_be_set_now_are_refused() {
 }
 
 /// fmi2SetTime accepts any finite time from the start time on; the bounds are then brought to
-/// that time when read. That must not take unbounded work: a far time is refused with a reason,
+/// that time when read (Model Exchange: the plants only; the controller has no bounds and no
+/// Model Exchange). That must not take unbounded work: a far time is refused with a reason,
 /// or the read answers promptly. (Each time runs in its own thread, so that a hang fails the
 /// test instead of stalling the suite; a hung thread is left behind until the process exits.)
 #[test]

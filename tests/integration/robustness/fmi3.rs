@@ -10,8 +10,14 @@
 //! message, and after an accepted call every Float64 variable reads non-NaN (infinite only for
 //! bound_sup and bound_T_sup) or the read is refused with a reason. Instances are of every model,
 //! each with its own number of continuous states. FMI3_FUZZ_SECONDS=60 lengthens it.
+//!
+//! The controller ([`CONTROLLER`], docs/model.md §9) has Co-Simulation without Event Mode only:
+//! the Co-Simulation table is checked on it in the states it has, with its own rows (no FMU
+//! state, no continuous state to set), and its refused instantiations (Model Exchange,
+//! eventModeUsed = true) are checked with their reasons. The fuzz draws plants only (the FMI 2.0
+//! fuzz draws the controller).
 
-use crate::robustness_common::{admissible, nx, NI};
+use crate::robustness_common::{admissible, model_at, nx, CONTROLLER, NI};
 use backlash_fmu::ffi::fmi3::*;
 use backlash_fmu::fmu::variables::VarType;
 use backlash_fmu::fmu::MODELS;
@@ -45,8 +51,13 @@ struct Inst {
 
 impl Inst {
     fn new(model: usize, me: bool, event_mode_used: bool) -> Inst {
+        Inst::try_new(model, me, event_mode_used).unwrap_or_else(|log| panic!("{log:?}"))
+    }
+
+    /// The instance, or the messages logged by its refused instantiation.
+    fn try_new(model: usize, me: bool, event_mode_used: bool) -> Result<Inst, Vec<String>> {
         let log: Box<Log3> = Box::default();
-        let token = CString::new(MODELS[model].instantiation_token).unwrap();
+        let token = CString::new(model_at(model).instantiation_token).unwrap();
         let env = &*log as *const Log3 as *mut c_void;
         // SAFETY: NUL-terminated strings; the log outlives the instance (freed in Drop).
         let c = unsafe {
@@ -69,14 +80,16 @@ impl Inst {
                 )
             }
         };
-        assert!(!c.is_null(), "{:?}", log.lock().unwrap());
-        Inst {
+        if c.is_null() {
+            return Err(log.lock().unwrap().clone());
+        }
+        Ok(Inst {
             c,
             model,
             me,
             event_mode_used,
             log,
-        }
+        })
     }
     fn log_len(&self) -> usize {
         self.log.lock().unwrap().len()
@@ -85,11 +98,35 @@ impl Inst {
         self.log.lock().unwrap()[n..].to_vec()
     }
     fn vr(&self, name: &str) -> u32 {
-        MODELS[self.model].vr(name)
+        model_at(self.model).vr(name)
     }
     /// Number of continuous states of its model.
     fn nx(&self) -> usize {
         nx(self.model)
+    }
+    /// `plant` on a plant, `controller` on the controller: a variable of the same kind in each.
+    fn named(&self, plant: &'static str, controller: &'static str) -> &'static str {
+        if self.model == CONTROLLER {
+            controller
+        } else {
+            plant
+        }
+    }
+    /// The bits of every Float64 variable, or the status of a refused read.
+    fn values(&self) -> Result<Vec<u64>, fmi3Status> {
+        let vrs: Vec<u32> = model_at(self.model)
+            .variables
+            .iter()
+            .filter(|v| v.ty == VarType::Real)
+            .map(|v| v.vr)
+            .collect();
+        let mut out = vec![f64::NAN; vrs.len()];
+        // SAFETY: arrays of the announced lengths.
+        let s = unsafe { fmi3GetFloat64(self.c, vrs.as_ptr(), vrs.len(), out.as_mut_ptr(), out.len()) };
+        match s {
+            OK => Ok(out.iter().map(|x| x.to_bits()).collect()),
+            s => Err(s),
+        }
     }
 }
 
@@ -122,14 +159,25 @@ fn init(f: &Inst) {
 
 /// An instance in state `index` of CS_STATES / ME_STATES (Co-Simulation with eventModeUsed).
 fn in_state(me: bool, index: usize) -> Inst {
-    let f = Inst::new(0, me, true);
+    in_state_of(0, me, true, index)
+}
+
+/// An instance of `model` in state `index` of CS_STATES / ME_STATES; without eventModeUsed
+/// (Co-Simulation only) initialization leads straight to Step Mode, and there is no Event Mode.
+fn in_state_of(model: usize, me: bool, event_mode_used: bool, index: usize) -> Inst {
+    assert!(
+        me || event_mode_used || index != 2,
+        "no Event Mode without eventModeUsed"
+    );
+    let f = Inst::new(model, me, event_mode_used);
     if index >= 1 {
         init(&f);
     }
     if index >= 2 {
-        assert_eq!(fmi3ExitInitializationMode(f.c), OK); // Event Mode, both kinds
+        // Event Mode, both kinds; Step Mode without eventModeUsed.
+        assert_eq!(fmi3ExitInitializationMode(f.c), OK);
     }
-    if index >= 3 {
+    if index >= 3 && (me || event_mode_used) {
         let s = if me {
             fmi3EnterContinuousTimeMode(f.c)
         } else {
@@ -187,15 +235,16 @@ fn table() -> Vec<(&'static str, Call, Option<[bool; 6]>, Option<[bool; 6]>)> {
             ("fmi3CompletedIntegratorStep", |f| fmi3CompletedIntegratorStep(f.c, true, &mut false, &mut false), None, only(3)),
             ("fmi3Terminate", |f| fmi3Terminate(f.c), Some([false, false, true, true, false, false]), Some([false, false, true, true, false, false])),
             ("fmi3Reset", |f| fmi3Reset(f.c), ALL, ALL),
-            ("fmi3GetFloat64", |f| fmi3GetFloat64(f.c, [f.vr("theta_m")].as_ptr(), 1, [0.0].as_mut_ptr(), 1),
+            ("fmi3GetFloat64", |f| fmi3GetFloat64(f.c, [f.vr(f.named("theta_m", "tau_m"))].as_ptr(), 1, [0.0].as_mut_ptr(), 1),
                 Some([false, true, true, true, true, true]), Some([false, true, true, true, true, true])),
-            ("fmi3SetFloat64", |f| fmi3SetFloat64(f.c, [f.vr("tau_m")].as_ptr(), 1, [0.5].as_ptr(), 1),
+            ("fmi3SetFloat64", |f| fmi3SetFloat64(f.c, [f.vr(f.named("tau_m", "omega_m"))].as_ptr(), 1, [0.5].as_ptr(), 1),
                 Some([true, true, true, true, false, false]), Some([true, true, true, true, false, false])),
             // A continuous-time state: §2.3.5, Event Mode (either interface): "… and continuous-time
             // states with reinit = false"; §3.2.1, Continuous-Time Mode: "Only for variables with
             // causality = input and variability = continuous, and continuous-time states"; not in
-            // Step Mode (§4.2.1: inputs and tunable parameters).
-            ("fmi3SetFloat64(theta_m)", |f| fmi3SetFloat64(f.c, [f.vr("theta_m")].as_ptr(), 1, [1e-4].as_ptr(), 1),
+            // Step Mode (§4.2.1: inputs and tunable parameters). The controller's output tau_m,
+            // whose start value it holds until the first step ends, alike before Step Mode.
+            ("fmi3SetFloat64(theta_m)", |f| fmi3SetFloat64(f.c, [f.vr(f.named("theta_m", "tau_m"))].as_ptr(), 1, [1e-4].as_ptr(), 1),
                 Some([true, true, true, false, false, false]), Some([true, true, true, true, false, false])),
             ("fmi3GetFMUState", |f| {
                 let mut s = null_mut();
@@ -207,6 +256,7 @@ fn table() -> Vec<(&'static str, Call, Option<[bool; 6]>, Option<[bool; 6]>)> {
     }
 }
 
+/// On a shaft, both interfaces; the controller's table is the next test.
 #[test]
 fn every_call_in_every_fmi3_state_follows_the_standard_table() {
     let mut failures = Vec::new();
@@ -232,14 +282,7 @@ fn every_call_in_every_fmi3_state_follows_the_standard_table() {
                         }
                     }
                     _ => {
-                        let reason = if legal.is_none() {
-                            other.to_string()
-                        } else if name.contains('(') && *state == "StepMode" {
-                            // The function is legal there; the variable is refused.
-                            "theta_m cannot be set in state StepComplete".to_string()
-                        } else {
-                            "not allowed in state".to_string()
-                        };
+                        let reason = why_illegal(&f, name, legal.is_none(), other, state);
                         if status != ERROR || !log.iter().any(|m| m.contains(&reason)) {
                             failures.push(format!(
                                 "{kind} {name} in {state}: illegal (\"{reason}\"), got {status:?} {log:?}"
@@ -260,24 +303,151 @@ fn every_call_in_every_fmi3_state_follows_the_standard_table() {
     );
 }
 
+/// The reason an illegal call of `name` in `state` must log: the other interface's, or, where the
+/// function is legal but the variable is not settable there (Step Mode), the variable's.
+fn why_illegal(f: &Inst, name: &str, other_interface: bool, other: &str, state: &str) -> String {
+    if other_interface {
+        other.to_string()
+    } else if name.contains('(') && state == "StepMode" {
+        format!("{} cannot be set in state StepComplete", f.named("theta_m", "tau_m"))
+    } else {
+        "not allowed in state".to_string()
+    }
+}
+
+/// The controller's own answer to a call the Co-Simulation table allows (docs/model.md §9):
+/// refused, naming why. It has no FMU state, and no Event Mode (eventModeUsed is false).
+fn controller_refusal(function: &str) -> Option<&'static str> {
+    match function {
+        "fmi3GetFMUState" => Some("a controller's FMU state"),
+        "fmi3EnterEventMode" => Some("eventModeUsed"),
+        _ => None,
+    }
+}
+
+/// The Co-Simulation table on the controller, in the states it has (no Event Mode: initialization
+/// leads straight to Step Mode), with its own rows ([`controller_refusal`]): each such refusal is
+/// fmi3Error with the reason, changes no value, and a fresh instance works after.
 #[test]
-fn co_simulation_without_event_mode_refuses_event_mode_with_the_reason() {
-    let f = Inst::new(0, false, false);
-    init(&f);
-    assert_eq!(fmi3ExitInitializationMode(f.c), OK, "straight to Step Mode");
-    let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
-    // SAFETY: pointers to locals.
+fn every_call_in_every_fmi3_state_of_the_controller_follows_the_standard_table() {
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for (name, call, cs, _) in table() {
+        for (i, state) in CS_STATES.iter().enumerate().filter(|(i, _)| *i != 2) {
+            checked += 1;
+            let f = in_state_of(CONTROLLER, false, false, i);
+            // Values are readable from Initialization Mode on: a refusal must change none.
+            let values = (i > 0).then(|| f.values());
+            let before = f.log_len();
+            let status = call(&f);
+            let log = f.since(before);
+            let legal = cs.is_some_and(|m| m[i]);
+            let reason = match (legal, controller_refusal(name)) {
+                (true, None) => {
+                    if status != OK {
+                        failures.push(format!("{name} in {state}: legal, got {status:?} {log:?}"));
+                    }
+                    continue;
+                }
+                (true, Some(reason)) => reason.to_string(),
+                (false, _) => why_illegal(&f, name, cs.is_none(), "belongs to FMI for Model Exchange", state),
+            };
+            if status != ERROR || !log.iter().any(|m| m.contains(&reason)) {
+                failures.push(format!(
+                    "{name} in {state}: refused (\"{reason}\"), got {status:?} {log:?}"
+                ));
+            }
+            if values.is_some_and(|values| f.values() != values) {
+                failures.push(format!("{name} in {state}: the refusal changed a value"));
+            }
+        }
+    }
+    println!("{checked} (function, state) cases checked on the controller");
+    assert_eq!(checked, 18 * 5);
+    assert!(
+        failures.is_empty(),
+        "{} disagreements:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    controller_works(&Inst::new(CONTROLLER, false, false));
+}
+
+/// A controller instance just instantiated (or reset) works: a step reference of 1, Kp = 2,
+/// Ki = 4, h = 0.25 and a measured speed of 0.5 give, by docs/model.md §9, u_k = 1 + k/2 after
+/// step k (the law worked out at `standard_controller_run_on`, here through FMI 3.0).
+fn controller_works(f: &Inst) {
+    let set = |name: &str, x: f64| {
+        // SAFETY: arrays of length 1.
+        unsafe { fmi3SetFloat64(f.c, [f.vr(name)].as_ptr(), 1, [x].as_ptr(), 1) }
+    };
+    init(f);
+    // SAFETY: arrays of length 1.
     assert_eq!(
-        unsafe { fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t) },
+        unsafe { fmi3SetInt32(f.c, [f.vr("reference")].as_ptr(), 1, [1].as_ptr(), 1) },
         OK
     );
-    let before = f.log_len();
-    assert_eq!(fmi3EnterEventMode(f.c), ERROR);
-    assert!(
-        f.since(before).iter().any(|m| m.contains("eventModeUsed")),
-        "{:?}",
-        f.since(before)
+    for (name, x) in [("amplitude", 1.0), ("Kp", 2.0), ("Ki", 4.0), ("h", 0.25)] {
+        assert_eq!(set(name, x), OK, "{name}");
+    }
+    assert_eq!(fmi3ExitInitializationMode(f.c), OK);
+    assert_eq!(set("omega_m", 0.5), OK);
+    for k in 0..4 {
+        let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
+        // SAFETY: pointers to locals.
+        let s = unsafe { fmi3DoStep(f.c, k as f64 * 0.25, 0.25, true, &mut a, &mut b, &mut c, &mut t) };
+        assert_eq!((s, t), (OK, (k + 1) as f64 * 0.25), "sample {k}");
+        assert_eq!(float64(f, &["tau_m"]), [(1.0 + k as f64 / 2.0).to_bits()], "sample {k}");
+    }
+}
+
+/// On a plant and on the controller, which never has Event Mode.
+#[test]
+fn co_simulation_without_event_mode_refuses_event_mode_with_the_reason() {
+    for model in [0, CONTROLLER] {
+        let f = Inst::new(model, false, false);
+        init(&f);
+        assert_eq!(fmi3ExitInitializationMode(f.c), OK, "straight to Step Mode");
+        let (mut a, mut b, mut c, mut t) = (false, false, false, 0.0);
+        // SAFETY: pointers to locals.
+        assert_eq!(
+            unsafe { fmi3DoStep(f.c, 0.0, 1e-3, true, &mut a, &mut b, &mut c, &mut t) },
+            OK
+        );
+        let before = f.log_len();
+        assert_eq!(fmi3EnterEventMode(f.c), ERROR);
+        assert!(
+            f.since(before).iter().any(|m| m.contains("eventModeUsed")),
+            "{:?}",
+            f.since(before)
+        );
+    }
+}
+
+/// The controller's instantiations that its description does not offer return NULL and log why,
+/// naming the cause (FMI 3.0.2 §2.3.1: eventModeUsed "may only be fmi3True, if hasEventMode =
+/// true, otherwise the FMU must raise an error"); those it offers work after.
+#[test]
+fn the_controller_refuses_model_exchange_and_event_mode_at_instantiation() {
+    let refused = |me: bool, event_mode_used: bool, reason: &str| match Inst::try_new(CONTROLLER, me, event_mode_used) {
+        Ok(_) => panic!("instantiated despite {reason:?}"),
+        Err(log) => assert!(log.iter().any(|m| m.contains(reason)), "{reason:?} not in {log:?}"),
+    };
+    refused(
+        true,
+        false,
+        "BacklashController is a controller: Co-Simulation only, its description declares no Model Exchange",
     );
+    refused(
+        false,
+        true,
+        "eventModeUsed = true, but BacklashController has no Event Mode (hasEventMode = false)",
+    );
+    let f = Inst::new(CONTROLLER, false, false);
+    controller_works(&f);
+    // fmi3Reset leads back to a working instance.
+    assert_eq!(fmi3Reset(f.c), OK);
+    controller_works(&f);
 }
 
 /// An ME instance of `model` in Continuous-Time Mode at the start time 0.
@@ -309,7 +479,8 @@ fn float64(f: &Inst, names: &[&str]) -> Vec<u64> {
 
 /// FMI 3.0.2 §3.2.1, fmi3SetTime: "time must be larger or equal to: startTime, the time at the
 /// second last call to fmi3CompletedIntegratorStep, the time at the last call to
-/// fmi3EnterEventMode", whatever needsCompletedIntegratorStep says; on every model.
+/// fmi3EnterEventMode", whatever needsCompletedIntegratorStep says; on every model (Model
+/// Exchange: the plants only, the controller has none).
 #[test]
 fn fmi3_set_time_goes_back_no_further_than_the_text_allows() {
     for model in 0..MODELS.len() {
@@ -357,7 +528,8 @@ fn fmi3_set_time_goes_back_no_further_than_the_text_allows() {
 /// as fmi3SetContinuousStates with the other entries unchanged; in Event Mode of either
 /// interface (§2.3.5, "continuous-time states with reinit = false"), and in Co-Simulation the
 /// steps then start from it exactly as from that start value. Each pair computes the plant's
-/// state from the same numbers by the same function, so the values agree bit for bit.
+/// state from the same numbers by the same function, so the values agree bit for bit. The plants
+/// only: the controller has no continuous state (its held torque: the controller's table).
 #[test]
 fn fmi3_continuous_states_set_by_value_reference_are_states_set() {
     for model in 0..MODELS.len() {
@@ -442,14 +614,15 @@ unsafe extern "C" fn counting_logger(env: fmi3InstanceEnvironment, _s: fmi3Statu
 
 /// FMI 3.0.2 §2.3.1: "If loggingOn = fmi3False, then any logging is disabled and the logMessage
 /// callback function must not be called by the FMU", errors included, until fmi3SetDebugLogging
-/// enables categories. (FMI 2.0 reports errors and warnings whatever loggingOn says.)
+/// enables categories. (FMI 2.0 reports errors and warnings whatever loggingOn says.) On a plant
+/// (both interfaces) and on the controller (Co-Simulation), each refusing a parameter of its own.
 #[test]
 fn fmi3_logging_off_calls_no_logger_until_enabled() {
     use std::sync::atomic::{AtomicUsize, Ordering::SeqCst};
-    for me in [false, true] {
+    for (model, me, positive) in [(0, false, "J_m"), (0, true, "J_m"), (CONTROLLER, false, "h")] {
         let calls = AtomicUsize::new(0);
         let env = &calls as *const AtomicUsize as *mut c_void;
-        let token = CString::new(MODELS[0].instantiation_token).unwrap();
+        let token = CString::new(model_at(model).instantiation_token).unwrap();
         // SAFETY: NUL-terminated strings; `calls` outlives the instances (freed below).
         let instantiate = |token: &CStr| unsafe {
             if me {
@@ -463,14 +636,16 @@ fn fmi3_logging_off_calls_no_logger_until_enabled() {
                     Some(counting_logger),
                 )
             } else {
+                // Event Mode and early return where the model has them (not the controller).
+                let plant = model != CONTROLLER;
                 fmi3InstantiateCoSimulation(
                     c"cs".as_ptr(),
                     token.as_ptr(),
                     null(),
                     false,
                     false,
-                    true,
-                    true,
+                    plant,
+                    plant,
                     null(),
                     0,
                     env,
@@ -487,7 +662,7 @@ fn fmi3_logging_off_calls_no_logger_until_enabled() {
         assert_eq!(fmi3Reset(c), OK);
         // SAFETY: arrays of length 1.
         assert_eq!(
-            unsafe { fmi3SetFloat64(c, [MODELS[0].vr("J_m")].as_ptr(), 1, [-1.0].as_ptr(), 1) },
+            unsafe { fmi3SetFloat64(c, [model_at(model).vr(positive)].as_ptr(), 1, [-1.0].as_ptr(), 1) },
             ERROR
         );
         assert_eq!(calls.load(SeqCst), 0, "the logger was called with loggingOn = false");

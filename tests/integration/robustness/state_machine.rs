@@ -6,6 +6,10 @@
 //! illegal call must return fmi2Error, log "not allowed in state X" (or, for a function of the
 //! other interface, "belongs to FMI for ...") and leave the instance in state Error; a legal one
 //! must do its work.
+//!
+//! The Co-Simulation tables cover the controller too ([`CONTROLLER`], docs/model.md §9), with its
+//! own rows where it refuses a call the state table allows: the FMU-state calls (it has none),
+//! input and output derivatives; it never enters StepFailed (no FMU state to reach it through).
 
 use crate::robustness_common::*;
 use backlash_fmu::ffi::*;
@@ -50,15 +54,33 @@ fn in_phase(model: usize, phase: &str) -> Fmu {
     }
 }
 
-type Call = fn(fmi2Component) -> fmi2Status;
+type Call = fn(&Fmu) -> fmi2Status;
 
-fn vr(name: &str) -> [u32; 1] {
-    [MODELS[0].vr(name)]
+/// The value reference of the plant's variable `plant`, or of the controller's `controller`: a
+/// variable of the same kind in each.
+fn vr(f: &Fmu, plant: &str, controller: &str) -> [u32; 1] {
+    [f.vr(if f.model.is_controller() { controller } else { plant })]
+}
+
+/// The controller's own answer to a call the table allows (docs/model.md §9): refused, naming the
+/// flag of its description that says it is not offered.
+fn controller_refusal(function: &str) -> Option<&'static str> {
+    match function {
+        "fmi2GetFMUstate"
+        | "fmi2SetFMUstate"
+        | "fmi2SerializedFMUstateSize"
+        | "fmi2SerializeFMUstate"
+        | "fmi2DeSerializeFMUstate" => Some("canGetAndSetFMUstate = false"),
+        "fmi2SetRealInputDerivatives" => Some("canInterpolateInputs = false"),
+        "fmi2GetRealOutputDerivatives" => Some("maxOutputDerivativeOrder = 0"),
+        _ => None,
+    }
 }
 
 /// (function, call with valid arguments, legal in [I, M, C, F, T, E], status when legal).
 /// The masks are the "x" columns of the Co-Simulation table of FMI 2.0.4 §4.2.4; StepInProgress
-/// and StepCanceled are never entered by a synchronous FMU.
+/// and StepCanceled are never entered by a synchronous FMU. Each call takes its variables from
+/// the instance's model (a plant's or the controller's), and any FMU state from a shaft.
 #[rustfmt::skip]
 fn table() -> Vec<(&'static str, Call, [bool; 6], fmi2Status)> {
     const ALL: [bool; 6] = [true; 6];
@@ -66,97 +88,121 @@ fn table() -> Vec<(&'static str, Call, [bool; 6], fmi2Status)> {
     // SAFETY (every entry): pointers to locals or statics of the announced length.
     unsafe {
         vec![
-            ("fmi2SetDebugLogging", |c| fmi2SetDebugLogging(c, 1, 1, [c"logCalls".as_ptr()].as_ptr()), ALL, OK),
-            ("fmi2SetupExperiment", |c| fmi2SetupExperiment(c, 1, 1e-6, 0.0, 1, 10.0), [true, false, false, false, false, false], OK),
-            ("fmi2EnterInitializationMode", |c| fmi2EnterInitializationMode(c), [true, false, false, false, false, false], OK),
-            ("fmi2ExitInitializationMode", |c| fmi2ExitInitializationMode(c), [false, true, false, false, false, false], OK),
-            ("fmi2Terminate", |c| fmi2Terminate(c), [false, false, true, true, false, false], OK),
-            ("fmi2Reset", |c| fmi2Reset(c), ALL, OK),
-            ("fmi2GetReal", |c| fmi2GetReal(c, vr("theta_m").as_ptr(), 1, [0.0].as_mut_ptr()), [false, true, true, true, true, true], OK),
-            ("fmi2GetInteger", |c| fmi2GetInteger(c, vr("contact").as_ptr(), 1, [0].as_mut_ptr()), [false, true, true, true, true, true], OK),
-            ("fmi2GetBoolean", |c| fmi2GetBoolean(c, null(), 0, null_mut()), [false, true, true, true, true, true], OK),
-            ("fmi2GetString", |c| fmi2GetString(c, null(), 0, null_mut()), [false, true, true, true, true, true], OK),
-            ("fmi2SetReal", |c| fmi2SetReal(c, vr("tau_m").as_ptr(), 1, [0.5].as_ptr()), [true, true, true, false, false, false], OK),
-            ("fmi2SetInteger", |c| fmi2SetInteger(c, null(), 0, null()), [true, true, true, false, false, false], OK),
-            ("fmi2SetBoolean", |c| fmi2SetBoolean(c, null(), 0, null()), [true, true, true, false, false, false], OK),
-            ("fmi2SetString", |c| fmi2SetString(c, null(), 0, null()), [true, true, true, false, false, false], OK),
-            ("fmi2GetFMUstate", |c| {
+            ("fmi2SetDebugLogging", |f| fmi2SetDebugLogging(f.c, 1, 1, [c"logCalls".as_ptr()].as_ptr()), ALL, OK),
+            ("fmi2SetupExperiment", |f| fmi2SetupExperiment(f.c, 1, 1e-6, 0.0, 1, 10.0), [true, false, false, false, false, false], OK),
+            ("fmi2EnterInitializationMode", |f| fmi2EnterInitializationMode(f.c), [true, false, false, false, false, false], OK),
+            ("fmi2ExitInitializationMode", |f| fmi2ExitInitializationMode(f.c), [false, true, false, false, false, false], OK),
+            ("fmi2Terminate", |f| fmi2Terminate(f.c), [false, false, true, true, false, false], OK),
+            ("fmi2Reset", |f| fmi2Reset(f.c), ALL, OK),
+            ("fmi2GetReal", |f| fmi2GetReal(f.c, vr(f, "theta_m", "tau_m").as_ptr(), 1, [0.0].as_mut_ptr()), [false, true, true, true, true, true], OK),
+            ("fmi2GetInteger", |f| fmi2GetInteger(f.c, vr(f, "contact", "reference").as_ptr(), 1, [0].as_mut_ptr()), [false, true, true, true, true, true], OK),
+            ("fmi2GetBoolean", |f| fmi2GetBoolean(f.c, null(), 0, null_mut()), [false, true, true, true, true, true], OK),
+            ("fmi2GetString", |f| fmi2GetString(f.c, null(), 0, null_mut()), [false, true, true, true, true, true], OK),
+            ("fmi2SetReal", |f| fmi2SetReal(f.c, vr(f, "tau_m", "omega_m").as_ptr(), 1, [0.5].as_ptr()), [true, true, true, false, false, false], OK),
+            ("fmi2SetInteger", |f| fmi2SetInteger(f.c, null(), 0, null()), [true, true, true, false, false, false], OK),
+            ("fmi2SetBoolean", |f| fmi2SetBoolean(f.c, null(), 0, null()), [true, true, true, false, false, false], OK),
+            ("fmi2SetString", |f| fmi2SetString(f.c, null(), 0, null()), [true, true, true, false, false, false], OK),
+            ("fmi2GetFMUstate", |f| {
                 let mut s = null_mut();
-                let status = fmi2GetFMUstate(c, &mut s);
-                fmi2FreeFMUstate(c, &mut s);
+                let status = fmi2GetFMUstate(f.c, &mut s);
+                fmi2FreeFMUstate(f.c, &mut s);
                 status
             }, ALL, OK),
-            ("fmi2SetFMUstate", |c| {
+            ("fmi2SetFMUstate", |f| {
                 // A state of the same model taken from another instance in StepComplete.
                 let donor = Fmu::initialized(0, None);
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2SetFMUstate(c, s)
+                fmi2SetFMUstate(f.c, s)
             }, ALL, OK),
-            ("fmi2FreeFMUstate", |c| {
+            ("fmi2FreeFMUstate", |f| {
+                if f.model.is_controller() {
+                    // No state of its own to free: freeing none is ignored.
+                    return fmi2FreeFMUstate(f.c, &mut null_mut());
+                }
                 let donor = Fmu::new(0);
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2FreeFMUstate(c, &mut s)
+                fmi2FreeFMUstate(f.c, &mut s)
             }, ALL, OK),
-            ("fmi2SerializedFMUstateSize", |c| {
+            ("fmi2SerializedFMUstateSize", |f| {
                 let donor = Fmu::new(0);
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2SerializedFMUstateSize(c, s, &mut 0)
+                fmi2SerializedFMUstateSize(f.c, s, &mut 0)
             }, ALL, OK),
-            ("fmi2SerializeFMUstate", |c| {
+            ("fmi2SerializeFMUstate", |f| {
                 let donor = Fmu::new(0);
                 let mut s = null_mut();
                 assert_eq!(fmi2GetFMUstate(donor.c, &mut s), OK);
-                fmi2SerializeFMUstate(c, s, [0; 4096].as_mut_ptr(), 4096)
+                fmi2SerializeFMUstate(f.c, s, [0; 4096].as_mut_ptr(), 4096)
             }, ALL, OK),
-            ("fmi2DeSerializeFMUstate", |c| {
+            ("fmi2DeSerializeFMUstate", |f| {
                 let bytes = serialized(&Fmu::new(0));
-                fmi2DeSerializeFMUstate(c, bytes.as_ptr().cast(), bytes.len(), &mut null_mut())
+                fmi2DeSerializeFMUstate(f.c, bytes.as_ptr().cast(), bytes.len(), &mut null_mut())
             }, ALL, OK),
-            ("fmi2GetDirectionalDerivative", |c| {
-                fmi2GetDirectionalDerivative(c, vr("omega_m").as_ptr(), 1, vr("tau_m").as_ptr(), 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
+            ("fmi2GetDirectionalDerivative", |f| {
+                fmi2GetDirectionalDerivative(f.c, vr(f, "omega_m", "tau_m").as_ptr(), 1, vr(f, "tau_m", "omega_m").as_ptr(), 1, [1.0].as_ptr(), [0.0].as_mut_ptr())
             }, [false, true, true, true, true, true], ERROR),
-            ("fmi2SetRealInputDerivatives", |c| {
-                fmi2SetRealInputDerivatives(c, vr("tau_m").as_ptr(), 1, [1].as_ptr(), [0.5].as_ptr())
+            ("fmi2SetRealInputDerivatives", |f| {
+                fmi2SetRealInputDerivatives(f.c, vr(f, "tau_m", "omega_m").as_ptr(), 1, [1].as_ptr(), [0.5].as_ptr())
             }, [true, true, true, false, false, false], OK),
-            ("fmi2GetRealOutputDerivatives", |c| {
-                fmi2GetRealOutputDerivatives(c, vr("omega_m").as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
+            ("fmi2GetRealOutputDerivatives", |f| {
+                fmi2GetRealOutputDerivatives(f.c, vr(f, "omega_m", "tau_m").as_ptr(), 1, [1].as_ptr(), [0.0].as_mut_ptr())
             }, [false, false, true, true, true, true], OK),
-            ("fmi2DoStep", |c| fmi2DoStep(c, 0.0, 1e-3, 1), [false, false, true, false, false, false], OK),
-            ("fmi2CancelStep", |c| fmi2CancelStep(c), NONE, OK),
-            ("fmi2GetStatus", |c| fmi2GetStatus(c, fmi2DoStepStatus, &mut fmi2Status::fmi2Error), [false, false, true, true, true, false], OK),
-            ("fmi2GetRealStatus", |c| fmi2GetRealStatus(c, fmi2LastSuccessfulTime, &mut 0.0), [false, false, true, true, true, false], OK),
-            ("fmi2GetIntegerStatus", |c| fmi2GetIntegerStatus(c, fmi2DoStepStatus, &mut 0), [false, false, true, true, true, false], DISCARD),
-            ("fmi2GetBooleanStatus", |c| fmi2GetBooleanStatus(c, fmi2Terminated, &mut 0), [false, false, true, true, true, false], OK),
-            ("fmi2GetStringStatus", |c| fmi2GetStringStatus(c, fmi2PendingStatus, &mut null()), [false, false, true, true, true, false], DISCARD),
-            ("fmi2EnterEventMode", |c| fmi2EnterEventMode(c), NONE, OK),
-            ("fmi2NewDiscreteStates", |c| fmi2NewDiscreteStates(c, null_mut()), NONE, OK),
-            ("fmi2EnterContinuousTimeMode", |c| fmi2EnterContinuousTimeMode(c), NONE, OK),
-            ("fmi2CompletedIntegratorStep", |c| fmi2CompletedIntegratorStep(c, 1, &mut 0, &mut 0), NONE, OK),
-            ("fmi2SetTime", |c| fmi2SetTime(c, 0.0), NONE, OK),
-            ("fmi2SetContinuousStates", |c| fmi2SetContinuousStates(c, [0.0; 4].as_ptr(), 4), NONE, OK),
-            ("fmi2GetDerivatives", |c| fmi2GetDerivatives(c, [0.0; 4].as_mut_ptr(), 4), NONE, OK),
-            ("fmi2GetEventIndicators", |c| fmi2GetEventIndicators(c, [0.0; 1].as_mut_ptr(), 0), NONE, OK),
-            ("fmi2GetContinuousStates", |c| fmi2GetContinuousStates(c, [0.0; 4].as_mut_ptr(), 4), NONE, OK),
-            ("fmi2GetNominalsOfContinuousStates", |c| fmi2GetNominalsOfContinuousStates(c, [0.0; 4].as_mut_ptr(), 4), NONE, OK),
+            ("fmi2DoStep", |f| fmi2DoStep(f.c, 0.0, 1e-3, 1), [false, false, true, false, false, false], OK),
+            ("fmi2CancelStep", |f| fmi2CancelStep(f.c), NONE, OK),
+            ("fmi2GetStatus", |f| fmi2GetStatus(f.c, fmi2DoStepStatus, &mut fmi2Status::fmi2Error), [false, false, true, true, true, false], OK),
+            ("fmi2GetRealStatus", |f| fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut 0.0), [false, false, true, true, true, false], OK),
+            ("fmi2GetIntegerStatus", |f| fmi2GetIntegerStatus(f.c, fmi2DoStepStatus, &mut 0), [false, false, true, true, true, false], DISCARD),
+            ("fmi2GetBooleanStatus", |f| fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut 0), [false, false, true, true, true, false], OK),
+            ("fmi2GetStringStatus", |f| fmi2GetStringStatus(f.c, fmi2PendingStatus, &mut null()), [false, false, true, true, true, false], DISCARD),
+            ("fmi2EnterEventMode", |f| fmi2EnterEventMode(f.c), NONE, OK),
+            ("fmi2NewDiscreteStates", |f| fmi2NewDiscreteStates(f.c, null_mut()), NONE, OK),
+            ("fmi2EnterContinuousTimeMode", |f| fmi2EnterContinuousTimeMode(f.c), NONE, OK),
+            ("fmi2CompletedIntegratorStep", |f| fmi2CompletedIntegratorStep(f.c, 1, &mut 0, &mut 0), NONE, OK),
+            ("fmi2SetTime", |f| fmi2SetTime(f.c, 0.0), NONE, OK),
+            ("fmi2SetContinuousStates", |f| fmi2SetContinuousStates(f.c, [0.0; 4].as_ptr(), 4), NONE, OK),
+            ("fmi2GetDerivatives", |f| fmi2GetDerivatives(f.c, [0.0; 4].as_mut_ptr(), 4), NONE, OK),
+            ("fmi2GetEventIndicators", |f| fmi2GetEventIndicators(f.c, [0.0; 1].as_mut_ptr(), 0), NONE, OK),
+            ("fmi2GetContinuousStates", |f| fmi2GetContinuousStates(f.c, [0.0; 4].as_mut_ptr(), 4), NONE, OK),
+            ("fmi2GetNominalsOfContinuousStates", |f| fmi2GetNominalsOfContinuousStates(f.c, [0.0; 4].as_mut_ptr(), 4), NONE, OK),
         ]
     }
 }
 
+/// On a plant and on the controller, with the controller's own rows ([`controller_refusal`]) and
+/// no StepFailed column for it.
 #[test]
 fn every_call_in_every_state_follows_the_standard_table() {
     let table = table();
     assert_eq!(table.len(), 40, "every FMI 2.0 function that takes an instance");
     let mut checked = 0;
-    for (name, call, legal, when_legal) in &table {
+    for ((name, call, legal, when_legal), model) in table.iter().flat_map(|row| [(row, SHAFT), (row, CONTROLLER)]) {
         let model_exchange = legal == &[false; 6] && *name != "fmi2CancelStep";
+        let controller = model == CONTROLLER;
         for (phase, legal) in PHASES.iter().zip(legal) {
-            let f = in_phase(0, phase);
+            if controller && *phase == "StepFailed" {
+                continue;
+            }
+            let f = in_phase(model, phase);
             let before = f.log_len();
-            let status = call(f.c);
-            let context = format!("{name} in {phase}");
+            let context = format!("{name} in {phase} ({})", f.model.identifier);
+            if let (true, true, Some(reason)) = (controller, *legal, controller_refusal(name)) {
+                // Its own row: refused with the reason, nothing changed (where values are
+                // readable: not in Instantiated), and then in state Error.
+                let status = if *phase == "Instantiated" {
+                    f.refuses(reason, |_| call(&f))
+                } else {
+                    f.refuses_changing_nothing(reason, |_| call(&f))
+                };
+                assert_eq!(status, ERROR, "{context}");
+                f.refuses("not allowed in state Error", |c| fmi2EnterInitializationMode(c));
+                f.reset_and_check();
+                checked += 1;
+                continue;
+            }
+            let status = call(&f);
             if *legal {
                 assert_eq!(status, *when_legal, "{context}: {:?}", f.entries().get(before..));
                 if *when_legal == OK {
@@ -182,10 +228,12 @@ fn every_call_in_every_state_follows_the_standard_table() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 240);
+    assert_eq!(checked, 240 + 200);
     fresh_instance_works(SHAFT);
+    fresh_instance_works(CONTROLLER);
 }
 
+/// On a plant and on the controller (no FMU state to go with it, no StepFailed).
 #[test]
 fn an_instance_can_be_freed_in_every_state_and_is_gone_after() {
     for phase in PHASES {
@@ -200,11 +248,33 @@ fn an_instance_can_be_freed_in_every_state_and_is_gone_after() {
         let other = Fmu::new(BELT);
         other.refuses("not a live FMU state", |o| fmi2SetFMUstate(o, s));
     }
+    for phase in PHASES.into_iter().filter(|phase| *phase != "StepFailed") {
+        let f = in_phase(CONTROLLER, phase);
+        let c = f.c;
+        drop(f);
+        assert_eq!(fmi2Reset(c), ERROR, "{phase}: a freed controller answered");
+        assert_eq!(
+            fmi2DoStep(c, 0.0, 1e-3, 1),
+            ERROR,
+            "{phase}: a freed controller stepped"
+        );
+    }
     fresh_instance_works(BELT);
+    fresh_instance_works(CONTROLLER);
 }
 
+/// The controller has no FMU state: fmi2Reset alone leads it out of Error (its own rows).
 #[test]
 fn error_is_left_only_by_reset_or_an_fmu_state() {
+    let f = in_phase(CONTROLLER, "Error");
+    f.refuses_changing_nothing("canGetAndSetFMUstate = false", |c| {
+        let mut s = null_mut();
+        // SAFETY: pointer to a local.
+        unsafe { fmi2GetFMUstate(c, &mut s) }
+    });
+    f.refuses("not allowed in state Error", |c| fmi2DoStep(c, 0.0, 1e-3, 1));
+    f.reset_and_check();
+
     // fmi2Reset leads back to Instantiated.
     let f = in_phase(SHAFT, "Error");
     f.reset_and_check();
@@ -534,6 +604,7 @@ fn me_table() -> Vec<MeCase> {
     }
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn every_call_in_every_model_exchange_state_follows_the_standard_table() {
     let table = me_table();
@@ -596,6 +667,7 @@ fn every_call_in_every_model_exchange_state_follows_the_standard_table() {
     fresh_instances_of_every_model_work();
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them() {
     for model in 0..MODELS.len() {
@@ -634,7 +706,7 @@ fn model_exchange_instances_move_through_their_states_as_the_standard_draws_them
 }
 
 /// The rules of FMI 2.0.4 on time and states that the state table does not show, on every
-/// model, each with its sentence.
+/// model, each with its sentence (Model Exchange: the plants only; the controller has none).
 #[test]
 fn model_exchange_time_and_states_follow_the_text_beside_the_table() {
     for model in 0..MODELS.len() {
@@ -718,6 +790,14 @@ fn calls_of_the_other_interface_are_refused_with_the_reason() {
         |c| fmi2SetTime(c, 0.0),
     );
     cs.reset_and_check();
+    // The controller, Co-Simulation only, alike (each function of the other interface in every
+    // state: the table above).
+    let pi = Fmu::initialized(CONTROLLER, None);
+    pi.refuses_changing_nothing(
+        "fmi2SetTime belongs to FMI for Model Exchange; this instance was instantiated for Co-Simulation",
+        |c| fmi2SetTime(c, 0.0),
+    );
+    pi.reset_and_check();
     // FMU states do not cross interfaces either (the refusal changes nothing but the state).
     let me = Fmu::me_continuous(BELT);
     let cs = Fmu::initialized(BELT, None);
@@ -746,6 +826,7 @@ fn calls_of_the_other_interface_are_refused_with_the_reason() {
     cs.reset_and_check();
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn a_model_exchange_instance_can_be_freed_in_every_state_and_is_gone_after() {
     for (phase, _) in ME_COLUMNS {
@@ -763,6 +844,7 @@ fn a_model_exchange_instance_can_be_freed_in_every_state_and_is_gone_after() {
     fresh_me_instance_works(BELT);
 }
 
+/// Model Exchange: the plants only (the controller has no Model Exchange, refused at instantiation).
 #[test]
 fn model_exchange_error_is_left_only_by_reset_or_an_fmu_state() {
     let f = in_me_phase(SHAFT, "Error");

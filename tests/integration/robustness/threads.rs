@@ -4,6 +4,8 @@
 //! neither corrupt nor couple instances, of either interface. Bit for bit is the contract: a
 //! run is the same calls with the same arguments in one process (one libm), the same
 //! arithmetic whichever thread runs it, and a cached plant is a copy of a deterministic build.
+//! The controller ([`CONTROLLER`], docs/model.md §9) runs beside the plants with a scenario of its
+//! own (no FMU state, no input derivatives, one step size); Model Exchange runs are the plants'.
 
 use crate::robustness_common::*;
 use backlash_fmu::ffi::*;
@@ -13,6 +15,8 @@ use std::sync::{Arc, Barrier};
 
 const OK: fmi2Status = fmi2Status::fmi2OK;
 const RUNS: usize = 12;
+/// Controller runs beside the plants' runs.
+const CONTROLLER_RUNS: usize = 4;
 /// Model Exchange runs, and Co-Simulation runs beside them.
 const ME_RUNS: usize = 8;
 const CS_BESIDE: usize = 2;
@@ -80,15 +84,57 @@ fn scenario(i: usize, start: Option<&Barrier>) -> Vec<u64> {
     trace
 }
 
+/// Controller run `i`: its own gains, reference and sample period, measured speeds and tensions
+/// that change every sample; a step of another size refused (the instance then in Error), fmi2Reset
+/// and a rerun. Returns the bits of every variable after every step.
+fn controller_scenario(i: usize, start: Option<&Barrier>) -> Vec<u64> {
+    let f = Fmu::named(CONTROLLER, &format!("controller {i}"));
+    if let Some(b) = start {
+        b.wait();
+    }
+    let mut trace = Vec::new();
+    for round in 0..2 {
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(f.set_integer("reference", 1 + (i % 3) as i32), OK);
+        assert_eq!(f.set_real("Kp", 1.0 + 0.5 * i as f64), OK);
+        assert_eq!(f.set_real("Ki", 10.0 * (i % 4) as f64), OK);
+        assert_eq!(f.set_real("Kp_T", 0.01 * round as f64), OK);
+        let h = 1e-3 * (1 + i % 3) as f64;
+        assert_eq!(f.set_real("h", h), OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        for k in 0..40 {
+            assert_eq!(f.set_real("omega_m", 0.01 * ((k + i) % 7) as f64 - 0.03), OK);
+            assert_eq!(f.set_real("T", 0.5 * (k % 3) as f64), OK);
+            assert_eq!(fmi2DoStep(f.c, k as f64 * h, h, 1), OK);
+            let (s, v) = f.all_values();
+            assert_eq!(s, OK);
+            trace.extend(v.iter().map(|(_, x)| x.to_bits()));
+        }
+        let before = f.log_len();
+        let s = fmi2DoStep(f.c, 40.0 * h, 2.0 * h, 1);
+        f.assert_refused(s, before, "is not the sample period");
+        assert_eq!(fmi2Reset(f.c), OK);
+    }
+    trace
+}
+
+/// The plants' runs and the controller's, all at once.
 #[test]
 fn concurrent_runs_are_bit_identical_to_sequential_ones() {
     let sequential: Vec<Vec<u64>> = (0..RUNS).map(|i| scenario(i, None)).collect();
+    let controllers: Vec<Vec<u64>> = (0..CONTROLLER_RUNS).map(|i| controller_scenario(i, None)).collect();
     for round in 0..2 {
-        let barrier = Arc::new(Barrier::new(RUNS));
+        let barrier = Arc::new(Barrier::new(RUNS + CONTROLLER_RUNS));
         let handles: Vec<_> = (0..RUNS)
             .map(|i| {
                 let barrier = Arc::clone(&barrier);
                 std::thread::spawn(move || scenario(i, Some(&barrier)))
+            })
+            .collect();
+        let controller_handles: Vec<_> = (0..CONTROLLER_RUNS)
+            .map(|i| {
+                let barrier = Arc::clone(&barrier);
+                std::thread::spawn(move || controller_scenario(i, Some(&barrier)))
             })
             .collect();
         for (i, h) in handles.into_iter().enumerate() {
@@ -99,14 +145,24 @@ fn concurrent_runs_are_bit_identical_to_sequential_ones() {
                 "run {i} differs when run concurrently (round {round})"
             );
         }
+        for (i, h) in controller_handles.into_iter().enumerate() {
+            let concurrent = h.join().expect("no panic in a thread");
+            assert!(
+                concurrent == controllers[i],
+                "controller run {i} differs when run concurrently (round {round})"
+            );
+        }
     }
     // Distinct runs of one model really differ (the comparison above is not between identical
     // constants).
     assert_ne!(sequential[0], sequential[MODELS.len()]);
+    assert_ne!(controllers[0], controllers[1]);
     fresh_instance_works(SHAFT);
+    fresh_instance_works(CONTROLLER);
 }
 
-/// Run `i` as Model Exchange: its own model, parameters and inputs; the importer's side of an
+/// Run `i` as Model Exchange (the plants only: the controller has no Model Exchange): its own
+/// model, parameters and inputs; the importer's side of an
 /// integration (explicit Euler through fmi2SetTime, fmi2SetContinuousStates, fmi2GetDerivatives,
 /// with the event iteration at each sign change of an indicator), time set back and forth, an FMU
 /// state restored into the same instance and into a second one, a refused call, fmi2Reset and a
@@ -253,6 +309,15 @@ fn instantiate_and_free_race_without_corrupting_the_tables() {
                     let c = f.c;
                     drop(f);
                     assert_eq!(fmi2Reset(c), fmi2Status::fmi2Error);
+                    // A controller (Co-Simulation only), whose fmi2GetFMUstate is refused.
+                    let g = Fmu::new(CONTROLLER);
+                    let before = g.log_len();
+                    // SAFETY: pointer to a local.
+                    let s = unsafe { fmi2GetFMUstate(g.c, &mut null_mut()) };
+                    g.assert_refused(s, before, "canGetAndSetFMUstate = false");
+                    let c = g.c;
+                    drop(g);
+                    assert_eq!(fmi2Reset(c), fmi2Status::fmi2Error);
                 }
             })
         })
@@ -260,7 +325,7 @@ fn instantiate_and_free_race_without_corrupting_the_tables() {
     for h in handles {
         h.join().expect("no panic in a thread");
     }
-    for model in 0..MODELS.len() {
+    for model in 0..=CONTROLLER {
         fresh_instance_works(model);
     }
 }

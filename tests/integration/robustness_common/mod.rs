@@ -61,6 +61,10 @@ pub const BELT: usize = 1;
 /// BacklashBelt's drive pulling a web span (docs/model.md §8).
 pub const WEB: usize = 2;
 
+/// BacklashController, the first controller: Co-Simulation only, no continuous state, no FMU
+/// state, one sample per step of its period `h` (docs/model.md §9).
+pub const CONTROLLER: usize = MODELS.len();
+
 /// Number of event indicators of every model in Model Exchange: u ∓ g, the damped force's and
 /// the cap's surfaces (docs/model.md §6).
 pub const NI: usize = 6;
@@ -400,6 +404,22 @@ impl Fmu {
         status
     }
 
+    /// Runs `call` on this instance, which must be past initialization (its values readable),
+    /// then asserts it was refused with a logged reason containing `reason` and that no value
+    /// changed: every variable reads the same bits before and after (fmi2GetXXX stays legal in
+    /// state Error; both reads compute the outputs by the same code from the same stored values).
+    #[track_caller]
+    pub fn refuses_changing_nothing(&self, reason: &str, call: impl FnOnce(fmi2Component) -> fmi2Status) -> fmi2Status {
+        let bits = |values: Vec<(&str, f64)>| values.into_iter().map(|(_, x)| x.to_bits()).collect::<Vec<_>>();
+        let (s, before) = self.all_values();
+        assert_eq!(s, fmi2Status::fmi2OK, "the values before the call");
+        let status = self.refuses(reason, call);
+        let (s, after) = self.all_values();
+        assert_eq!(s, fmi2Status::fmi2OK, "the values after the refusal");
+        assert_eq!(bits(before), bits(after), "the refused call changed a value ({reason})");
+        status
+    }
+
     /// fmi2Reset, then the standard run (of its interface): the instance must behave like a
     /// new one.
     pub fn reset_and_check(&self) {
@@ -423,10 +443,14 @@ impl Drop for Fmu {
 }
 
 /// A short open-loop run from the start values (τ_m = 2, τ_L = 0.5, 20 steps of 5 ms), as the
-/// bits of every variable at the end. Used to prove an instance works normally: a fresh one,
-/// or one reset after misuse, must reproduce the run of an untouched instance bit for bit (the
-/// same calls with the same arguments in one process: the same arithmetic by construction).
+/// bits of every variable at the end; a controller's is [`standard_controller_run_on`]. Used to
+/// prove an instance works normally: a fresh one, or one reset after misuse, must reproduce the
+/// run of an untouched instance bit for bit (the same calls with the same arguments in one
+/// process: the same arithmetic by construction).
 pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
+    if f.model.is_controller() {
+        return standard_controller_run_on(f);
+    }
     assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), fmi2Status::fmi2OK);
     assert_eq!(fmi2EnterInitializationMode(f.c), fmi2Status::fmi2OK);
     assert_eq!(f.set_real("tau_m", 2.0), fmi2Status::fmi2OK);
@@ -439,6 +463,40 @@ pub fn standard_run_on(f: &Fmu) -> Vec<u64> {
     f.assert_all_finite("standard run");
     let (_, values) = f.all_values();
     assert_momentum_balance(f, &values, 20.0 * h);
+    values.into_iter().map(|(_, x)| x.to_bits()).collect()
+}
+
+/// A controller's standard run: a step reference of 1 (`reference` = 1, `amplitude` = 1), Kp = 2,
+/// Ki = 4, h = 0.25, and a measured speed held at 0.5, for 20 samples. docs/model.md §9 with the
+/// tension loop off (Kp_T = Ki_T = 0, its start values): e = 1 − 0.5 = 0.5 at every sample,
+/// x_c = k h e = k/8 before sample k, so u_k = Kp e + Ki x_c = 1 + k/2, the torque from the end of
+/// step k on, and `tau_m`'s start value before the first step ends. Binary fractions: every value
+/// is exact. Returns the bits of every variable at the end, as [`standard_run_on`].
+pub fn standard_controller_run_on(f: &Fmu) -> Vec<u64> {
+    const OK: fmi2Status = fmi2Status::fmi2OK;
+    assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), OK);
+    assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+    assert_eq!(f.set_integer("reference", 1), OK);
+    for (name, value) in [("amplitude", 1.0), ("Kp", 2.0), ("Ki", 4.0), ("h", 0.25)] {
+        assert_eq!(f.set_real(name, value), OK, "{name}");
+    }
+    assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+    let start = f
+        .model
+        .by_name("tau_m")
+        .and_then(|v| v.start)
+        .expect("tau_m has a start value");
+    assert_eq!(f.get_real("tau_m"), (OK, start), "before the first step ends");
+    assert_eq!(f.set_real("omega_m", 0.5), OK);
+    // The tension loop is off: a measured tension changes nothing.
+    assert_eq!(f.set_real("T", 7.0), OK);
+    for k in 0..20 {
+        assert_eq!(fmi2DoStep(f.c, k as f64 * 0.25, 0.25, fmi2True), OK, "sample {k}");
+        assert_eq!(f.get_real("tau_m"), (OK, 1.0 + k as f64 / 2.0), "sample {k}");
+    }
+    assert_eq!(f.time(), 5.0);
+    f.assert_all_finite("standard controller run");
+    let (_, values) = f.all_values();
     values.into_iter().map(|(_, x)| x.to_bits()).collect()
 }
 
@@ -481,6 +539,16 @@ pub fn assert_momentum_balance(f: &Fmu, values: &[(&'static str, f64)], t: f64) 
     );
     // (Not ω_m > 0: a web span pulling back makes the drive oscillate.)
     assert!(at("theta_m") > 0.0, "the motor did not turn: {values:?}");
+}
+
+/// A fresh initialized instance of `model` (StepComplete) for one refused call, since a refusal
+/// puts it in state Error: the call is refused with `reason` and changes nothing
+/// ([`Fmu::refuses_changing_nothing`]), and fmi2Reset gives a working instance.
+#[track_caller]
+pub fn refused_in_step_complete(model: usize, reason: &str, call: impl FnOnce(fmi2Component) -> fmi2Status) {
+    let f = Fmu::initialized(model, None);
+    f.refuses_changing_nothing(reason, call);
+    f.reset_and_check();
 }
 
 /// The standard run on a brand-new instance.
