@@ -8,6 +8,7 @@
 //! [`SampledPi`] is the sampled controller that closes the loops around it (§3, §8).
 
 pub mod bound;
+pub mod chain;
 pub mod closed_loop;
 pub mod controller;
 pub mod kernel;
@@ -22,6 +23,7 @@ pub mod vector_field;
 pub use bound::{
     BoundError, BoundState, PiGains, SpeedErrorBound, Trajectory, Unbounded, WebSpeedBound, WebTensionBound,
 };
+pub use chain::{Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, StageSwitch};
 pub use controller::{ControllerParams, Reference, SampleError, SampledPi};
 pub use mode::{contact_indicator, damped_mode_at, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, ContactLaw, Damping, Geometry, ParamError, Plant, PlantParams, WebSpan};
