@@ -130,3 +130,548 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
         assert!(worst_t <= 512.0 * EPS * t_end);
     }
 }
+
+/// ../shared/spec/model.md §11's numbers (`BacklashTwoStage`): a light intermediate shaft
+/// between two meshes, each with its compliance and its gap.
+struct TwoStage {
+    j: [f64; 3],
+    b: [f64; 3],
+    n: [f64; 2],
+    k: [f64; 2],
+    delta: [f64; 2],
+}
+
+const TWO_STAGE: TwoStage = TwoStage {
+    j: [2.28, 0.05, 2.55],
+    b: [0.05, 0.05, 0.05],
+    n: [2.0, 3.0],
+    k: [200.0, 400.0],
+    delta: [1e-3, 2e-3],
+};
+
+impl TwoStage {
+    fn chain(&self) -> Chain<2> {
+        let body = |i: usize| Body {
+            j: self.j[i],
+            b: self.b[i],
+        };
+        let stage = |i: usize| Stage {
+            a: 1.0,
+            c: self.n[i],
+            k: self.k[i],
+            g: self.delta[i],
+        };
+        Chain::new(ChainParams {
+            motor: body(0),
+            driven: [body(1), body(2)],
+            stages: [stage(0), stage(1)],
+        })
+        .unwrap()
+    }
+
+    /// §11's right-hand side for z = [θ_m, ω_m, θ_i, ω_i, θ_L, ω_L] with each stage's flank
+    /// given (the event location decides it): u_1 = θ_m − n_1 θ_i, u_2 = θ_i − n_2 θ_L,
+    /// ψ_j = k_j (u_j ∓ Δ_j) on a flank, 0 free; J_m ω_m' = τ_m − b_m ω_m − ψ_1,
+    /// J_i ω_i' = −b_i ω_i + n_1 ψ_1 − ψ_2, J_L ω_L' = τ_L − b_L ω_L + n_2 ψ_2.
+    fn rates(&self, z: &[f64; 6], modes: &[ContactMode; 2], tau_m: f64, tau_l: f64) -> [f64; 6] {
+        let u = [z[0] - self.n[0] * z[2], z[2] - self.n[1] * z[4]];
+        let psi: [f64; 2] = std::array::from_fn(|j| match modes[j] {
+            ContactMode::Positive => self.k[j] * (u[j] - self.delta[j]),
+            ContactMode::Negative => self.k[j] * (u[j] + self.delta[j]),
+            _ => 0.0,
+        });
+        [
+            z[1],
+            (tau_m - self.b[0] * z[1] - psi[0]) / self.j[0],
+            z[3],
+            (-self.b[1] * z[3] + self.n[0] * psi[0] - psi[1]) / self.j[1],
+            z[5],
+            (tau_l - self.b[2] * z[5] + self.n[1] * psi[1]) / self.j[2],
+        ]
+    }
+
+    /// How far each stage's u is inside its mode's region (< 0: it has left it).
+    fn margins(&self, z: &[f64; 6], modes: &[ContactMode; 2]) -> [f64; 2] {
+        let u = [z[0] - self.n[0] * z[2], z[2] - self.n[1] * z[4]];
+        std::array::from_fn(|j| {
+            let g = self.delta[j];
+            match modes[j] {
+                ContactMode::Positive => u[j] - g,
+                ContactMode::Negative => -u[j] - g,
+                _ => (g - u[j]).min(g + u[j]),
+            }
+        })
+    }
+}
+
+/// Classical Runge–Kutta over `dt` from time `t` in fixed modes, the motor torque τ(t) given.
+fn rk4(p: &TwoStage, z: &[f64; 6], modes: &[ContactMode; 2], t: f64, dt: f64, tau: &dyn Fn(f64) -> f64) -> [f64; 6] {
+    let add = |z: &[f64; 6], k: &[f64; 6], s: f64| -> [f64; 6] { std::array::from_fn(|i| z[i] + s * k[i]) };
+    let k1 = p.rates(z, modes, tau(t), 0.0);
+    let k2 = p.rates(&add(z, &k1, dt / 2.0), modes, tau(t + dt / 2.0), 0.0);
+    let k3 = p.rates(&add(z, &k2, dt / 2.0), modes, tau(t + dt / 2.0), 0.0);
+    let k4 = p.rates(&add(z, &k3, dt), modes, tau(t + dt), 0.0);
+    std::array::from_fn(|i| z[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+}
+
+/// The reference: RK4 with `substeps` steps per input interval of length h (so that the
+/// piecewise-linear input is smooth inside each RK step), switches located by bisection on
+/// the RK4 step length to the last bit and the state stepped onto them. Returns the state at
+/// each interval's end and each stage's switch instants.
+fn reference_run(p: &TwoStage, inputs: &[Inputs], h: f64, substeps: usize) -> (Vec<[f64; 6]>, [Vec<f64>; 2]) {
+    let mut z = [0.0; 6];
+    let mut modes = [ContactMode::Free; 2];
+    let mut states = Vec::new();
+    let mut switches = [Vec::new(), Vec::new()];
+    let dt = h / substeps as f64;
+    for (k, input) in inputs.iter().enumerate() {
+        let t0 = k as f64 * h;
+        let tau = |t: f64| input.tau_m + input.dtau_m * (t - t0);
+        let mut done = 0.0;
+        for sub in 0..substeps {
+            let target = if sub + 1 == substeps { h } else { (sub + 1) as f64 * dt };
+            while done < target {
+                let step = target - done;
+                let trial = rk4(p, &z, &modes, t0 + done, step, &tau);
+                if p.margins(&trial, &modes).iter().all(|&m| m >= 0.0) {
+                    z = trial;
+                    done = target;
+                    continue;
+                }
+                // Bisection for the first instant a margin goes negative.
+                let (mut lo, mut hi) = (0.0, step);
+                while hi - lo > 0.0 {
+                    let mid = lo + 0.5 * (hi - lo);
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    let at = rk4(p, &z, &modes, t0 + done, mid, &tau);
+                    if p.margins(&at, &modes).iter().all(|&m| m >= 0.0) {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                z = rk4(p, &z, &modes, t0 + done, hi, &tau);
+                done += hi;
+                let margins = p.margins(&z, &modes);
+                for j in 0..2 {
+                    if margins[j] < 0.0 {
+                        let u = if j == 0 {
+                            z[0] - p.n[0] * z[2]
+                        } else {
+                            z[2] - p.n[1] * z[4]
+                        };
+                        modes[j] = match modes[j] {
+                            ContactMode::Free if u > 0.0 => ContactMode::Positive,
+                            ContactMode::Free => ContactMode::Negative,
+                            _ => ContactMode::Free,
+                        };
+                        switches[j].push(t0 + done);
+                    }
+                }
+            }
+        }
+        states.push(z);
+    }
+    (states, switches)
+}
+
+/// S = 2 against RK4 written from §11's equations alone: the light intermediate shaft rattles
+/// in both gaps under a reversing motor torque. The reference's error is estimated by halving
+/// its step (RK4: the finer run is ~16x closer to the exact solution than the two runs are to
+/// each other); the exact chain must agree with the finer run within that difference (some 15
+/// times the finer run's own error) plus a round-off floor of 1000 ulps (the reference's
+/// 10⁵ steps), and locate the same switches of each stage at the same instants.
+#[test]
+fn two_stages_agree_with_an_independent_integrator() {
+    let p = TWO_STAGE;
+    let h = 1e-3;
+    let steps = 1000;
+    let inputs: Vec<Inputs> = (0..steps).map(|k| reversing(5.0, 2.0, k as f64 * h, h)).collect();
+    let (coarse, coarse_switches) = reference_run(&p, &inputs, h, 50);
+    let (fine, fine_switches) = reference_run(&p, &inputs, h, 100);
+
+    let chain = p.chain();
+    let mut stepper = TwoStageStepper::new(chain);
+    let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); 2]);
+    let mut switches = [Vec::new(), Vec::new()];
+    let mut states = Vec::new();
+    for (k, input) in inputs.iter().enumerate() {
+        let t = k as f64 * h;
+        stepper
+            .step(&mut state, input, h, &mut |e: StageSwitch| {
+                switches[e.stage].push(t + e.offset)
+            })
+            .unwrap();
+        states.push([
+            state.motor.theta,
+            state.motor.omega,
+            state.driven[0].theta,
+            state.driven[0].omega,
+            state.driven[1].theta,
+            state.driven[1].omega,
+        ]);
+    }
+    let mut scale = [0.0f64; 6];
+    let mut estimate = [0.0f64; 6];
+    let mut deviation = [0.0f64; 6];
+    for k in 0..steps {
+        for i in 0..6 {
+            scale[i] = scale[i].max(fine[k][i].abs());
+            estimate[i] = estimate[i].max((coarse[k][i] - fine[k][i]).abs());
+            deviation[i] = deviation[i].max((states[k][i] - fine[k][i]).abs());
+        }
+    }
+    eprintln!("switches per stage: {} {}", switches[0].len(), switches[1].len());
+    eprintln!("scale {scale:?}\nestimate {estimate:?}\ndeviation {deviation:?}");
+    for j in 0..2 {
+        assert_eq!(switches[j].len(), fine_switches[j].len(), "stage {j}");
+        assert_eq!(coarse_switches[j].len(), fine_switches[j].len(), "stage {j}");
+    }
+    let t_estimate = (0..2)
+        .flat_map(|j| {
+            coarse_switches[j]
+                .iter()
+                .zip(&fine_switches[j])
+                .map(|(a, b)| (a - b).abs())
+        })
+        .fold(0.0, f64::max);
+    let t_deviation = (0..2)
+        .flat_map(|j| switches[j].iter().zip(&fine_switches[j]).map(|(a, b)| (a - b).abs()))
+        .fold(0.0, f64::max);
+    eprintln!("switch times: estimate {t_estimate:e}, deviation {t_deviation:e}");
+    assert!(
+        switches[0].len() > 10 && switches[1].len() > 10,
+        "both gaps must be crossed often"
+    );
+    for i in 0..6 {
+        let tol = estimate[i] + 1e3 * EPS * scale[i];
+        assert!(deviation[i] <= tol, "component {i}: {} > {tol}", deviation[i]);
+    }
+    assert!(t_deviation <= t_estimate + 1e3 * EPS * steps as f64 * h);
+}
+
+/// x + e^{−x} − 1 = Σ_{k≥2} (−x)^k/k! by its series: without the cancellation of the formula
+/// for the small x of a short free flight.
+fn free_flight(x: f64) -> f64 {
+    let (mut term, mut sum) = (x * x / 2.0, 0.0);
+    for k in 3..40 {
+        sum += term;
+        term *= -x / k as f64;
+    }
+    sum
+}
+
+/// Both stages free (the chain starts at rest in the middle of both gaps), constant τ_m: the
+/// motor alone accelerates, ω_m = τ/b (1 − e^{−b t/J_m}), θ_m = τ J_m/b² (x + e^{−x} − 1) with
+/// x = b t/J_m, and the rest stays still until u_1 = θ_m reaches Δ_1 at the instant found here
+/// by Newton's method on the closed form. Agreement to 64 ulps: the chain's round-off over a few
+/// tens of pieces, a few ulps each.
+#[test]
+fn free_motor_follows_the_closed_form_until_the_first_contact() {
+    let p = TWO_STAGE;
+    let (tau, j, b) = (1.0, p.j[0], p.b[0]);
+    let omega = |t: f64| -tau / b * (-b * t / j).exp_m1();
+    let theta = |t: f64| tau * j / (b * b) * free_flight(b * t / j);
+    // Newton from the frictionless estimate: θ is convex and increasing, so it converges.
+    let mut contact = (2.0 * j * p.delta[0] / tau).sqrt();
+    for _ in 0..50 {
+        contact -= (theta(contact) - p.delta[0]) / omega(contact);
+    }
+    assert!((theta(contact) - p.delta[0]).abs() <= 4.0 * EPS * p.delta[0]);
+
+    let chain = p.chain();
+    let inputs = Inputs::held(tau, 0.0);
+    // Steps before the contact: the free motor on the closed form at each step end.
+    let mut stepper = TwoStageStepper::new(chain);
+    let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); 2]);
+    let h = 0.01;
+    let mut t = 0.0;
+    while t + h < contact {
+        let switches = stepper.step(&mut state, &inputs, h, &mut |_| {}).unwrap();
+        t += h;
+        assert_eq!(switches, 0);
+        assert!((state.motor.omega - omega(t)).abs() <= 64.0 * EPS * omega(t), "t = {t}");
+        assert!((state.motor.theta - theta(t)).abs() <= 64.0 * EPS * theta(t), "t = {t}");
+        // u_1 = θ_m − n_1·0, carried alongside θ_m rather than recomputed: equal to round-off.
+        assert!((state.u[0] - state.motor.theta).abs() <= 4.0 * EPS * theta(t));
+    }
+    // One long step to the first switch.
+    let mut stepper = TwoStageStepper::new(chain);
+    let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); 2]);
+    let mut events = Vec::new();
+    let at = stepper
+        .step_to_first_switch(&mut state, &inputs, 0.1, &mut |e| events.push(e))
+        .unwrap()
+        .expect("the motor reaches the gap's flank");
+    assert!((at - contact).abs() <= 64.0 * EPS * contact, "{at} vs {contact}");
+    assert_eq!(
+        events,
+        vec![StageSwitch {
+            offset: at,
+            stage: 0,
+            from: ContactMode::Free,
+            to: ContactMode::Positive
+        }]
+    );
+    assert_eq!(state.u[0], p.delta[0], "u is set exactly on the flank");
+    assert_eq!(state.mode.stages, [ContactMode::Positive, ContactMode::Free]);
+    assert!((state.motor.omega - omega(contact)).abs() <= 64.0 * EPS * omega(contact));
+    assert!((state.motor.theta - p.delta[0]).abs() <= 64.0 * EPS * p.delta[0]);
+    for body in state.driven {
+        assert_eq!(body, Motion::default(), "nothing has pushed the other bodies yet");
+    }
+}
+
+/// A chain whose motor coasts against a constant torque: u_1 = v_0 t − F t²/(2 J) (no
+/// friction on the motor, nothing else moving) peaks at v_0² J/(2F), just past the first gap's
+/// flank by `overshoot` of it.
+fn grazing_chain(overshoot: f64) -> (Chain<2>, f64, f64, f64, f64) {
+    let (j, v0, force) = (2.28, 0.01, 1.0);
+    let peak = v0 * v0 * j / (2.0 * force);
+    let g = peak / (1.0 + overshoot);
+    let p = TWO_STAGE;
+    let mut params = *p.chain().params();
+    params.motor = Body { j, b: 0.0 };
+    params.stages[0].g = g;
+    (Chain::new(params).unwrap(), j, v0, force, g)
+}
+
+/// A touch that begins and ends inside one piece of one step: the teeth meet as the motor
+/// comes to rest against the flank and part again. Both switches are reported, the first at
+/// the closed-form instant 2g/(v_0 + √(v_0² − 2F g/J)), to 64 ulps of g over the speed there
+/// (how far round-off in u moves the root), v_0 √ρ with g = peak/(1 + ρ) … 1/(1+ρ) ≈ 1 − ρ.
+#[test]
+fn a_graze_inside_one_step_reports_both_switches() {
+    for overshoot in [1e-4, 1e-8, 1e-11] {
+        let (chain, j, v0, force, g) = grazing_chain(overshoot);
+        let peak_time = v0 * j / force;
+        let h = 2.0 * peak_time;
+        let mut stepper = TwoStageStepper::new(chain);
+        assert!(h < 20.0 * 0.5 / chain.fastest_rate(), "the step is a few pieces");
+        let mut state = ChainState::new(&chain, Motion { theta: 0.0, omega: v0 }, [Motion::default(); 2]);
+        let mut events = Vec::new();
+        let switches = stepper
+            .step(&mut state, &Inputs::held(-force, 0.0), h, &mut |e| events.push(e))
+            .unwrap();
+        assert_eq!(switches, 2, "overshoot {overshoot}: {events:?}");
+        assert_eq!(
+            events.iter().map(|e| (e.stage, e.from, e.to)).collect::<Vec<_>>(),
+            vec![
+                (0, ContactMode::Free, ContactMode::Positive),
+                (0, ContactMode::Positive, ContactMode::Free)
+            ]
+        );
+        let speed_sq = v0 * v0 - 2.0 * force * g / j;
+        let touch = 2.0 * g / (v0 + speed_sq.sqrt());
+        let tol = 64.0 * EPS * (g / speed_sq.sqrt() + touch);
+        assert!(
+            (events[0].offset - touch).abs() <= tol,
+            "{overshoot}: {} vs {touch}",
+            events[0].offset
+        );
+        // The flank pushes back: contact ends no later than the free parabola would leave it.
+        assert!(events[1].offset > events[0].offset && events[1].offset <= 2.0 * peak_time - touch + tol);
+        assert_eq!(state.mode.stages[0], ContactMode::Free);
+    }
+    // Just short of the flank: no touch, no switch.
+    let (chain, j, v0, force, _) = grazing_chain(-1e-8);
+    let mut stepper = TwoStageStepper::new(chain);
+    let mut state = ChainState::new(&chain, Motion { theta: 0.0, omega: v0 }, [Motion::default(); 2]);
+    let h = 2.0 * v0 * j / force;
+    assert_eq!(
+        stepper.step(&mut state, &Inputs::held(-force, 0.0), h, &mut |_| {}),
+        Ok(0)
+    );
+}
+
+/// Two stages that reach their flanks at one instant switch together: `step_to_first_switch`
+/// stops there with both modes entered, and reports both switches at that instant. Exactly
+/// (a symmetric chain: the same polynomial for both u) and to round-off (the second u one ulp
+/// faster).
+#[test]
+fn simultaneous_switches_are_entered_together() {
+    let body = Body { j: 1.0, b: 0.0 };
+    let stage = Stage {
+        a: 1.0,
+        c: 1.0,
+        k: 100.0,
+        g: 1e-3,
+    };
+    let chain = Chain::new(ChainParams {
+        motor: body,
+        driven: [body; 2],
+        stages: [stage; 2],
+    })
+    .unwrap();
+    let w = 0.3;
+    for load_speed in [-w, -w * (1.0 + EPS)] {
+        let mut stepper = TwoStageStepper::new(chain);
+        let start = [
+            Motion::default(),
+            Motion {
+                theta: 0.0,
+                omega: load_speed,
+            },
+        ];
+        let mut state = ChainState::new(&chain, Motion { theta: 0.0, omega: w }, start);
+        let mut events = Vec::new();
+        let at = stepper
+            .step_to_first_switch(&mut state, &Inputs::default(), 0.01, &mut |e| events.push(e))
+            .unwrap()
+            .expect("both stages close their gaps");
+        assert!((at - stage.g / w).abs() <= 8.0 * EPS * at);
+        assert_eq!(state.mode.stages, [ContactMode::Positive; 2]);
+        assert_eq!(state.u, [stage.g; 2]);
+        assert_eq!(
+            events.iter().map(|e| (e.offset, e.stage)).collect::<Vec<_>>(),
+            vec![(at, 0), (at, 1)]
+        );
+    }
+}
+
+/// A change that spoils one parameter.
+type Spoil = fn(&mut ChainParams<2>);
+
+fn two_stage_params() -> ChainParams<2> {
+    *TWO_STAGE.chain().params()
+}
+
+/// Invalid parameters are named, with where they sit and their value.
+#[test]
+fn bad_parameters_are_refused() {
+    let cases: [(Spoil, ChainError); 8] = [
+        (
+            |p| p.motor.j = 0.0,
+            ChainError::NotPositive {
+                at: Part::Body(0),
+                name: "J",
+                value: 0.0,
+            },
+        ),
+        (
+            |p| p.driven[1].b = -1.0,
+            ChainError::Negative {
+                at: Part::Body(2),
+                name: "b",
+                value: -1.0,
+            },
+        ),
+        (
+            |p| p.stages[0].k = f64::NAN,
+            ChainError::NotFinite {
+                at: Part::Stage(0),
+                name: "K",
+                value: f64::NAN,
+            },
+        ),
+        (
+            |p| p.stages[1].g = -1e-3,
+            ChainError::Negative {
+                at: Part::Stage(1),
+                name: "g",
+                value: -1e-3,
+            },
+        ),
+        (
+            |p| p.stages[1].a = 0.0,
+            ChainError::NotPositive {
+                at: Part::Stage(1),
+                name: "a",
+                value: 0.0,
+            },
+        ),
+        (
+            |p| p.stages[0].c = f64::INFINITY,
+            ChainError::NotFinite {
+                at: Part::Stage(0),
+                name: "c",
+                value: f64::INFINITY,
+            },
+        ),
+        (
+            |p| p.driven[0].j = 1e200,
+            ChainError::OutOfScale {
+                at: Part::Body(1),
+                name: "J",
+                value: 1e200,
+            },
+        ),
+        (
+            |p| p.stages[0].c = -2.0,
+            ChainError::NotPositive {
+                at: Part::Stage(0),
+                name: "c",
+                value: -2.0,
+            },
+        ),
+    ];
+    for (spoil, expected) in cases {
+        let mut params = two_stage_params();
+        spoil(&mut params);
+        let err = Chain::new(params).unwrap_err();
+        // NaN ≠ NaN: compare the messages, which carry the same facts.
+        assert_eq!(err.to_string(), expected.to_string());
+    }
+    // Zero friction and zero gap are admissible.
+    let mut params = two_stage_params();
+    params.motor.b = 0.0;
+    params.stages[1].g = 0.0;
+    assert!(Chain::new(params).is_ok());
+}
+
+/// Bad steps are refused with the reason, the state left as it was; no panic, no NaN.
+#[test]
+fn bad_steps_are_refused() {
+    let chain = TWO_STAGE.chain();
+    let mut stepper = TwoStageStepper::new(chain);
+    let start = ChainState::new(&chain, Motion { theta: 0.0, omega: 1.0 }, [Motion::default(); 2]);
+    let max_h = stepper.max_step();
+    let good = Inputs::held(1.0, 0.0);
+    let nan_torque = Inputs::held(f64::NAN, 0.0);
+    let infinite_slope = Inputs {
+        dtau_l: f64::INFINITY,
+        ..good
+    };
+    let mut bad_state = start;
+    bad_state.du[1] = f64::NAN;
+    let cases = [
+        (start, good, f64::NAN, "BadStepSize"),
+        (start, good, -1e-3, "BadStepSize"),
+        (start, good, 0.0, "BadStepSize"),
+        (start, good, f64::INFINITY, "BadStepSize"),
+        (start, good, 2.0 * max_h, "StepTooLong"),
+        (start, nan_torque, 1e-3, "NonFiniteInput"),
+        (start, infinite_slope, 1e-3, "NonFiniteInput"),
+        (bad_state, good, 1e-3, "NonFiniteState"),
+    ];
+    for (state, inputs, h, reason) in cases {
+        let mut s = state;
+        let err = stepper
+            .step(&mut s, &inputs, h, &mut |_| panic!("no switch"))
+            .unwrap_err();
+        assert!(format!("{err:?}").starts_with(reason), "{h}: {err:?}");
+        let err2 = stepper
+            .step_to_first_switch(&mut s, &inputs, h, &mut |_| panic!("no switch"))
+            .unwrap_err();
+        assert_eq!(format!("{err:?}"), format!("{err2:?}"));
+        assert_eq!(format!("{s:?}"), format!("{state:?}"), "the state is unchanged");
+    }
+    assert!(matches!(
+        stepper.step(&mut start.clone(), &nan_torque, 1e-3, &mut |_| {}),
+        Err(StepError::NonFiniteInput { name: "tau_m", .. })
+    ));
+    // A huge torque that overflows the state is refused, not returned as infinity.
+    let mut s = start;
+    let huge = Inputs::held(1e308, 0.0);
+    assert_eq!(
+        stepper.step(&mut s, &huge, 0.1 * max_h, &mut |_| {}),
+        Err(StepError::Overflow)
+    );
+    assert_eq!(s, start);
+    // And the stepper still works after the refusals.
+    let mut s = start;
+    assert!(stepper.step(&mut s, &good, 1e-3, &mut |_| {}).is_ok());
+    assert!(s.is_finite());
+}
