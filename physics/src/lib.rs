@@ -6,6 +6,10 @@
 //! (docs/model.md §3 bounds), or for a web line [`WebSpeedBound`] and [`WebTensionBound`];
 //! `vector_field` gives the same plant as z' = f(z, τ) for solvers outside (docs/model.md §6);
 //! [`SampledPi`] is the sampled controller that closes the loops around it (§3, §8).
+//!
+//! [`chain`] is the plant as a chain of S stages (bodies joined by compliant members with
+//! backlash, ../shared/spec/model.md §11), stepped exactly by [`ChainStepper`]; the code above
+//! does not use it yet.
 
 pub mod bound;
 pub mod chain;

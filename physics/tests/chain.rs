@@ -11,13 +11,13 @@ const EPS: f64 = f64::EPSILON;
 
 /// A reversing motor torque A sin(2π f t), sampled at the step starts and held to first order
 /// over the step (the slope to the next sample): a piecewise-linear input both steppers take
-/// exactly.
-fn reversing(amplitude: f64, frequency: f64, t: f64, h: f64) -> Inputs {
+/// exactly; and a constant load torque.
+fn reversing(amplitude: f64, frequency: f64, load: f64, t: f64, h: f64) -> Inputs {
     let tau = |t: f64| amplitude * (2.0 * std::f64::consts::PI * frequency * t).sin();
     let (a, b) = (tau(t), tau(t + h));
     Inputs {
         dtau_m: (b - a) / h,
-        ..Inputs::held(a, 0.0)
+        ..Inputs::held(a, load)
     }
 }
 
@@ -45,10 +45,11 @@ fn plants() -> [PlantParams; 2] {
 /// S = 1 and the single-gap stepper (physics::Stepper) are two computations of one trajectory
 /// (the same augmented layout, but matrices composed differently, so their entries differ in
 /// the last bits): over many steps with a reversing torque that drives the motor across the
-/// gap again and again, the states and the switch instants agree to a few hundred ulps of each
-/// quantity's magnitude over the run (u′'s: that of r_m|ω_m| + r_L|ω_L|, of which it is the
-/// difference), and the switches are the same. A few hundred: an ulp of a matrix entry per
-/// piece, accumulated over thousands of pieces, and amplified where b_m/J_m − b_L/J_L cancels.
+/// gap again and again against a load torque, the states agree to a few hundred ulps of each
+/// quantity's magnitude over the run (u's and u′'s: those of r_m|θ_m| + r_L|θ_L| and
+/// r_m|ω_m| + r_L|ω_L|, of which they are the differences), the switch instants to a few
+/// hundred ulps of the run's length, and the switches are the same. A few hundred: an ulp of
+/// a matrix entry per piece, accumulated over thousands of pieces.
 #[test]
 fn one_stage_agrees_with_the_single_gap_stepper() {
     for params in plants() {
@@ -58,11 +59,14 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
         let mut stepper = OneStageStepper::new(chain);
         let mut a = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
         let mut b = ChainState::new(&chain, Motion::default(), [Motion::default()]);
-        // Torque: enough to cross the gap and load the member; period: many contact periods.
+        // Torque: 20 times the member's force at one gap's stretch, on the motor's arm, enough to
+        // cross the gap and load the member; its period: ten contact periods.
         let omega0 = plant.contact_frequency();
-        let amplitude = 20.0 * plant.stiffness() * plant.half_gap() / plant.r_m();
+        let amplitude = 20.0 * plant.stiffness() * plant.half_gap() * plant.r_m();
         let frequency = omega0 / (2.0 * std::f64::consts::PI) / 10.0;
         let h = 0.3 / omega0;
+        // A load torque that opposes the motor's with a fifth of its amplitude.
+        let load = -0.2 * amplitude * plant.r_l() / plant.r_m();
         let (mut switches_a, mut switches_b) = (Vec::new(), Vec::new());
         // Magnitudes over the run: θ_m, ω_m, θ_L, ω_L, u, u′; and the worst deviation in each.
         let mut scale = [0.0f64; 6];
@@ -70,7 +74,7 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
         let mut worst_t = 0.0f64;
         for k in 0..4000 {
             let t = k as f64 * h;
-            let inputs = reversing(amplitude, frequency, t, h);
+            let inputs = reversing(amplitude, frequency, load, t, h);
             reference
                 .step(&mut a, &inputs, h, &mut |e| {
                     switches_a.push((t + e.offset, e.from, e.to))
@@ -90,17 +94,12 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
                 b.u[0],
                 b.du[0],
             ];
-            // u′ = r_m ω_m − r_L ω_L is a difference: its scale is that of the terms (so is the
-            // scale of its rate, whose friction terms b/J nearly cancel on the paper's rig).
-            let relative = plant.r_m() * a.omega_m.abs() + plant.r_l() * a.omega_l.abs();
-            let magnitude = [
-                pa[0].abs(),
-                pa[1].abs(),
-                pa[2].abs(),
-                pa[3].abs(),
-                pa[4].abs(),
-                relative,
-            ];
+            // u = r_m θ_m − r_L θ_L and u′ = r_m ω_m − r_L ω_L are differences: a last-bit
+            // change of the model (κK, b/J) moves them as much as it moves their terms, so
+            // their scales are those of the terms (large once the load torque spins the drive).
+            let angles = plant.r_m() * a.theta_m.abs() + plant.r_l() * a.theta_l.abs();
+            let speeds = plant.r_m() * a.omega_m.abs() + plant.r_l() * a.omega_l.abs();
+            let magnitude = [pa[0].abs(), pa[1].abs(), pa[2].abs(), pa[3].abs(), angles, speeds];
             for i in 0..6 {
                 scale[i] = scale[i].max(magnitude[i]);
                 worst[i] = worst[i].max((pa[i] - pb[i]).abs());
@@ -204,13 +203,22 @@ impl TwoStage {
     }
 }
 
-/// Classical Runge–Kutta over `dt` from time `t` in fixed modes, the motor torque τ(t) given.
-fn rk4(p: &TwoStage, z: &[f64; 6], modes: &[ContactMode; 2], t: f64, dt: f64, tau: &dyn Fn(f64) -> f64) -> [f64; 6] {
+/// Classical Runge–Kutta over `dt` from time `t` in fixed modes, the motor torque τ(t) and the
+/// load torque τ_L given.
+fn rk4(
+    p: &TwoStage,
+    z: &[f64; 6],
+    modes: &[ContactMode; 2],
+    t: f64,
+    dt: f64,
+    tau: &dyn Fn(f64) -> f64,
+    tau_l: f64,
+) -> [f64; 6] {
     let add = |z: &[f64; 6], k: &[f64; 6], s: f64| -> [f64; 6] { std::array::from_fn(|i| z[i] + s * k[i]) };
-    let k1 = p.rates(z, modes, tau(t), 0.0);
-    let k2 = p.rates(&add(z, &k1, dt / 2.0), modes, tau(t + dt / 2.0), 0.0);
-    let k3 = p.rates(&add(z, &k2, dt / 2.0), modes, tau(t + dt / 2.0), 0.0);
-    let k4 = p.rates(&add(z, &k3, dt), modes, tau(t + dt), 0.0);
+    let k1 = p.rates(z, modes, tau(t), tau_l);
+    let k2 = p.rates(&add(z, &k1, dt / 2.0), modes, tau(t + dt / 2.0), tau_l);
+    let k3 = p.rates(&add(z, &k2, dt / 2.0), modes, tau(t + dt / 2.0), tau_l);
+    let k4 = p.rates(&add(z, &k3, dt), modes, tau(t + dt), tau_l);
     std::array::from_fn(|i| z[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
 }
 
@@ -232,7 +240,7 @@ fn reference_run(p: &TwoStage, inputs: &[Inputs], h: f64, substeps: usize) -> (V
             let target = if sub + 1 == substeps { h } else { (sub + 1) as f64 * dt };
             while done < target {
                 let step = target - done;
-                let trial = rk4(p, &z, &modes, t0 + done, step, &tau);
+                let trial = rk4(p, &z, &modes, t0 + done, step, &tau, input.tau_l);
                 if p.margins(&trial, &modes).iter().all(|&m| m >= 0.0) {
                     z = trial;
                     done = target;
@@ -245,14 +253,14 @@ fn reference_run(p: &TwoStage, inputs: &[Inputs], h: f64, substeps: usize) -> (V
                     if mid <= lo || mid >= hi {
                         break;
                     }
-                    let at = rk4(p, &z, &modes, t0 + done, mid, &tau);
+                    let at = rk4(p, &z, &modes, t0 + done, mid, &tau, input.tau_l);
                     if p.margins(&at, &modes).iter().all(|&m| m >= 0.0) {
                         lo = mid;
                     } else {
                         hi = mid;
                     }
                 }
-                z = rk4(p, &z, &modes, t0 + done, hi, &tau);
+                z = rk4(p, &z, &modes, t0 + done, hi, &tau, input.tau_l);
                 done += hi;
                 let margins = p.margins(&z, &modes);
                 for j in 0..2 {
@@ -288,7 +296,7 @@ fn two_stages_agree_with_an_independent_integrator() {
     let p = TWO_STAGE;
     let h = 1e-3;
     let steps = 1000;
-    let inputs: Vec<Inputs> = (0..steps).map(|k| reversing(5.0, 2.0, k as f64 * h, h)).collect();
+    let inputs: Vec<Inputs> = (0..steps).map(|k| reversing(5.0, 2.0, -2.0, k as f64 * h, h)).collect();
     let (coarse, coarse_switches) = reference_run(&p, &inputs, h, 50);
     let (fine, fine_switches) = reference_run(&p, &inputs, h, 100);
 
