@@ -2,7 +2,7 @@
 //! integrator of ../shared/spec/model.md §11, a closed form, a graze and its refusals.
 
 use backlash_physics::chain::{
-    Body, Chain, ChainError, ChainParams, ChainState, Motion, OneStageStepper, Part, Stage, StageSwitch,
+    Body, Chain, ChainError, ChainParams, ChainState, ChainStepper, Motion, OneStageStepper, Part, Stage, StageSwitch,
     TwoStageStepper,
 };
 use backlash_physics::{ContactMode, Damping, Geometry, Inputs, Plant, PlantParams, PlantState, StepError, Stepper};
@@ -130,26 +130,42 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
     }
 }
 
-/// ../shared/spec/model.md §11's numbers (`BacklashTwoStage`): a light intermediate shaft
-/// between two meshes, each with its compliance and its gap.
-struct TwoStage {
-    j: [f64; 3],
-    b: [f64; 3],
-    n: [f64; 2],
-    k: [f64; 2],
-    delta: [f64; 2],
+/// A gear train as ../shared/spec/model.md §11 writes it, for any number of stages: bodies
+/// (J, b), stage j (from 0) with ratio n_j, u_j = θ_j − n_j θ_{j+1}, stiffness k_j, half gap Δ_j.
+struct Drive {
+    j: Vec<f64>,
+    b: Vec<f64>,
+    n: Vec<f64>,
+    k: Vec<f64>,
+    delta: Vec<f64>,
 }
 
-const TWO_STAGE: TwoStage = TwoStage {
-    j: [2.28, 0.05, 2.55],
-    b: [0.05, 0.05, 0.05],
-    n: [2.0, 3.0],
-    k: [200.0, 400.0],
-    delta: [1e-3, 2e-3],
-};
+/// §11's numbers (`BacklashTwoStage`): a light intermediate shaft between two meshes, each
+/// with its compliance and its gap.
+fn two_stage() -> Drive {
+    Drive {
+        j: vec![2.28, 0.05, 2.55],
+        b: vec![0.05; 3],
+        n: vec![2.0, 3.0],
+        k: vec![200.0, 400.0],
+        delta: vec![1e-3, 2e-3],
+    }
+}
 
-impl TwoStage {
-    fn chain(&self) -> Chain<2> {
+/// §11's train with a third mesh: a second light shaft before the load.
+fn three_stage() -> Drive {
+    Drive {
+        j: vec![2.28, 0.05, 0.04, 2.55],
+        b: vec![0.05; 4],
+        n: vec![2.0, 3.0, 1.5],
+        k: vec![200.0, 400.0, 300.0],
+        delta: vec![1e-3, 2e-3, 1.5e-3],
+    }
+}
+
+impl Drive {
+    fn chain<const S: usize>(&self) -> Chain<S> {
+        assert_eq!(self.n.len(), S);
         let body = |i: usize| Body {
             j: self.j[i],
             b: self.b[i],
@@ -162,148 +178,156 @@ impl TwoStage {
         };
         Chain::new(ChainParams {
             motor: body(0),
-            driven: [body(1), body(2)],
-            stages: [stage(0), stage(1)],
+            driven: std::array::from_fn(|i| body(i + 1)),
+            stages: std::array::from_fn(stage),
         })
         .unwrap()
     }
 
-    /// §11's right-hand side for z = [θ_m, ω_m, θ_i, ω_i, θ_L, ω_L] with each stage's flank
-    /// given (the event location decides it): u_1 = θ_m − n_1 θ_i, u_2 = θ_i − n_2 θ_L,
-    /// ψ_j = k_j (u_j ∓ Δ_j) on a flank, 0 free; J_m ω_m' = τ_m − b_m ω_m − ψ_1,
-    /// J_i ω_i' = −b_i ω_i + n_1 ψ_1 − ψ_2, J_L ω_L' = τ_L − b_L ω_L + n_2 ψ_2.
-    fn rates(&self, z: &[f64; 6], modes: &[ContactMode; 2], tau_m: f64, tau_l: f64) -> [f64; 6] {
-        let u = [z[0] - self.n[0] * z[2], z[2] - self.n[1] * z[4]];
-        let psi: [f64; 2] = std::array::from_fn(|j| match modes[j] {
-            ContactMode::Positive => self.k[j] * (u[j] - self.delta[j]),
-            ContactMode::Negative => self.k[j] * (u[j] + self.delta[j]),
-            _ => 0.0,
-        });
-        [
-            z[1],
-            (tau_m - self.b[0] * z[1] - psi[0]) / self.j[0],
-            z[3],
-            (-self.b[1] * z[3] + self.n[0] * psi[0] - psi[1]) / self.j[1],
-            z[5],
-            (tau_l - self.b[2] * z[5] + self.n[1] * psi[1]) / self.j[2],
-        ]
+    /// u_j = θ_j − n_j θ_{j+1} from z = [θ_0, ω_0, θ_1, ω_1, …].
+    fn coordinates(&self, z: &[f64]) -> Vec<f64> {
+        (0..self.n.len()).map(|j| z[2 * j] - self.n[j] * z[2 * j + 2]).collect()
+    }
+
+    /// §11's right-hand side with each stage's flank given (the event location decides it):
+    /// ψ_j = k_j (u_j ∓ Δ_j) on a flank, 0 free; J_i ω_i' = −b_i ω_i + n_{i−1} ψ_{i−1} − ψ_i,
+    /// with τ_m added on the motor (body 0) and τ_L on the load (the last body).
+    fn rates(&self, z: &[f64], modes: &[ContactMode], tau_m: f64, tau_l: f64) -> Vec<f64> {
+        let u = self.coordinates(z);
+        let psi: Vec<f64> = (0..self.n.len())
+            .map(|j| match modes[j] {
+                ContactMode::Positive => self.k[j] * (u[j] - self.delta[j]),
+                ContactMode::Negative => self.k[j] * (u[j] + self.delta[j]),
+                _ => 0.0,
+            })
+            .collect();
+        let last = self.j.len() - 1;
+        let mut rates = Vec::with_capacity(z.len());
+        for i in 0..=last {
+            let mut torque = -self.b[i] * z[2 * i + 1];
+            if i == 0 {
+                torque += tau_m;
+            }
+            if i == last {
+                torque += tau_l;
+            }
+            if i > 0 {
+                torque += self.n[i - 1] * psi[i - 1];
+            }
+            if i < last {
+                torque -= psi[i];
+            }
+            rates.extend([z[2 * i + 1], torque / self.j[i]]);
+        }
+        rates
     }
 
     /// How far each stage's u is inside its mode's region (< 0: it has left it).
-    fn margins(&self, z: &[f64; 6], modes: &[ContactMode; 2]) -> [f64; 2] {
-        let u = [z[0] - self.n[0] * z[2], z[2] - self.n[1] * z[4]];
-        std::array::from_fn(|j| {
-            let g = self.delta[j];
-            match modes[j] {
-                ContactMode::Positive => u[j] - g,
-                ContactMode::Negative => -u[j] - g,
-                _ => (g - u[j]).min(g + u[j]),
-            }
-        })
+    fn margins(&self, z: &[f64], modes: &[ContactMode]) -> Vec<f64> {
+        let u = self.coordinates(z);
+        (0..self.n.len())
+            .map(|j| {
+                let g = self.delta[j];
+                match modes[j] {
+                    ContactMode::Positive => u[j] - g,
+                    ContactMode::Negative => -u[j] - g,
+                    _ => (g - u[j]).min(g + u[j]),
+                }
+            })
+            .collect()
     }
-}
 
-/// Classical Runge–Kutta over `dt` from time `t` in fixed modes, the motor torque τ(t) and the
-/// load torque τ_L given.
-fn rk4(
-    p: &TwoStage,
-    z: &[f64; 6],
-    modes: &[ContactMode; 2],
-    t: f64,
-    dt: f64,
-    tau: &dyn Fn(f64) -> f64,
-    tau_l: f64,
-) -> [f64; 6] {
-    let add = |z: &[f64; 6], k: &[f64; 6], s: f64| -> [f64; 6] { std::array::from_fn(|i| z[i] + s * k[i]) };
-    let k1 = p.rates(z, modes, tau(t), tau_l);
-    let k2 = p.rates(&add(z, &k1, dt / 2.0), modes, tau(t + dt / 2.0), tau_l);
-    let k3 = p.rates(&add(z, &k2, dt / 2.0), modes, tau(t + dt / 2.0), tau_l);
-    let k4 = p.rates(&add(z, &k3, dt), modes, tau(t + dt), tau_l);
-    std::array::from_fn(|i| z[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
-}
+    /// Classical Runge–Kutta over `dt` from time `t` in fixed modes, the motor torque τ(t)
+    /// and the load torque τ_L given.
+    fn rk4(&self, z: &[f64], modes: &[ContactMode], t: f64, dt: f64, tau: &dyn Fn(f64) -> f64, tau_l: f64) -> Vec<f64> {
+        let add = |k: &[f64], s: f64| -> Vec<f64> { z.iter().zip(k).map(|(z, k)| z + s * k).collect() };
+        let k1 = self.rates(z, modes, tau(t), tau_l);
+        let k2 = self.rates(&add(&k1, dt / 2.0), modes, tau(t + dt / 2.0), tau_l);
+        let k3 = self.rates(&add(&k2, dt / 2.0), modes, tau(t + dt / 2.0), tau_l);
+        let k4 = self.rates(&add(&k3, dt), modes, tau(t + dt), tau_l);
+        (0..z.len())
+            .map(|i| z[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+            .collect()
+    }
 
-/// The reference: RK4 with `substeps` steps per input interval of length h (so that the
-/// piecewise-linear input is smooth inside each RK step), switches located by bisection on
-/// the RK4 step length to the last bit and the state stepped onto them. Returns the state at
-/// each interval's end and each stage's switch instants.
-fn reference_run(p: &TwoStage, inputs: &[Inputs], h: f64, substeps: usize) -> (Vec<[f64; 6]>, [Vec<f64>; 2]) {
-    let mut z = [0.0; 6];
-    let mut modes = [ContactMode::Free; 2];
-    let mut states = Vec::new();
-    let mut switches = [Vec::new(), Vec::new()];
-    let dt = h / substeps as f64;
-    for (k, input) in inputs.iter().enumerate() {
-        let t0 = k as f64 * h;
-        let tau = |t: f64| input.tau_m + input.dtau_m * (t - t0);
-        let mut done = 0.0;
-        for sub in 0..substeps {
-            let target = if sub + 1 == substeps { h } else { (sub + 1) as f64 * dt };
-            while done < target {
-                let step = target - done;
-                let trial = rk4(p, &z, &modes, t0 + done, step, &tau, input.tau_l);
-                if p.margins(&trial, &modes).iter().all(|&m| m >= 0.0) {
-                    z = trial;
-                    done = target;
-                    continue;
-                }
-                // Bisection for the first instant a margin goes negative.
-                let (mut lo, mut hi) = (0.0, step);
-                while hi - lo > 0.0 {
-                    let mid = lo + 0.5 * (hi - lo);
-                    if mid <= lo || mid >= hi {
-                        break;
+    /// The reference: RK4 from rest with `substeps` steps per input interval of length h (so
+    /// that the piecewise-linear input is smooth inside each RK step), switches located by
+    /// bisection on the RK4 step length to the last bit and the state stepped onto them.
+    /// Returns the state at each interval's end and each stage's switch instants.
+    fn reference_run(&self, inputs: &[Inputs], h: f64, substeps: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        let stages = self.n.len();
+        let mut z = vec![0.0; 2 * self.j.len()];
+        let mut modes = vec![ContactMode::Free; stages];
+        let mut states = Vec::new();
+        let mut switches = vec![Vec::new(); stages];
+        let inside = |z: &[f64], modes: &[ContactMode]| self.margins(z, modes).iter().all(|&m| m >= 0.0);
+        let dt = h / substeps as f64;
+        for (k, input) in inputs.iter().enumerate() {
+            let t0 = k as f64 * h;
+            let tau = |t: f64| input.tau_m + input.dtau_m * (t - t0);
+            let mut done = 0.0;
+            for sub in 0..substeps {
+                let target = if sub + 1 == substeps { h } else { (sub + 1) as f64 * dt };
+                while done < target {
+                    let step = target - done;
+                    let trial = self.rk4(&z, &modes, t0 + done, step, &tau, input.tau_l);
+                    if inside(&trial, &modes) {
+                        z = trial;
+                        done = target;
+                        continue;
                     }
-                    let at = rk4(p, &z, &modes, t0 + done, mid, &tau, input.tau_l);
-                    if p.margins(&at, &modes).iter().all(|&m| m >= 0.0) {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
-                z = rk4(p, &z, &modes, t0 + done, hi, &tau, input.tau_l);
-                done += hi;
-                let margins = p.margins(&z, &modes);
-                for j in 0..2 {
-                    if margins[j] < 0.0 {
-                        let u = if j == 0 {
-                            z[0] - p.n[0] * z[2]
+                    // Bisection for the first instant a margin goes negative.
+                    let (mut lo, mut hi) = (0.0, step);
+                    loop {
+                        let mid = lo + 0.5 * (hi - lo);
+                        if mid <= lo || mid >= hi {
+                            break;
+                        }
+                        if inside(&self.rk4(&z, &modes, t0 + done, mid, &tau, input.tau_l), &modes) {
+                            lo = mid;
                         } else {
-                            z[2] - p.n[1] * z[4]
-                        };
-                        modes[j] = match modes[j] {
-                            ContactMode::Free if u > 0.0 => ContactMode::Positive,
-                            ContactMode::Free => ContactMode::Negative,
-                            _ => ContactMode::Free,
-                        };
-                        switches[j].push(t0 + done);
+                            hi = mid;
+                        }
+                    }
+                    z = self.rk4(&z, &modes, t0 + done, hi, &tau, input.tau_l);
+                    done += hi;
+                    let (margins, u) = (self.margins(&z, &modes), self.coordinates(&z));
+                    for j in 0..stages {
+                        if margins[j] < 0.0 {
+                            modes[j] = match modes[j] {
+                                ContactMode::Free if u[j] > 0.0 => ContactMode::Positive,
+                                ContactMode::Free => ContactMode::Negative,
+                                _ => ContactMode::Free,
+                            };
+                            switches[j].push(t0 + done);
+                        }
                     }
                 }
             }
+            states.push(z.clone());
         }
-        states.push(z);
+        (states, switches)
     }
-    (states, switches)
 }
 
-/// S = 2 against RK4 written from §11's equations alone: the light intermediate shaft rattles
-/// in both gaps under a reversing motor torque. The reference's error is estimated by halving
-/// its step (RK4: the finer run is ~16x closer to the exact solution than the two runs are to
-/// each other); the exact chain must agree with the finer run within that difference (some 15
-/// times the finer run's own error) plus a round-off floor of 1000 ulps (the reference's
-/// 10⁵ steps), and locate the same switches of each stage at the same instants.
-#[test]
-fn two_stages_agree_with_an_independent_integrator() {
-    let p = TWO_STAGE;
+/// The chain of S stages against RK4 written from §11's equations alone, from rest under a
+/// reversing motor torque against a load torque: the light shafts rattle in their gaps. The
+/// reference's error is estimated by halving its step (RK4: the finer run is ~16x closer to
+/// the exact solution than the two runs are to each other); the exact chain must agree with
+/// the finer run within that difference (some 15 times the finer run's own error) plus a
+/// round-off floor of 1000 ulps (the reference's 10⁵ steps), and locate the same switches of
+/// each stage at the same instants.
+fn agrees_with_the_reference<const S: usize, const N: usize>(drive: &Drive, min_switches: usize) {
     let h = 1e-3;
     let steps = 1000;
     let inputs: Vec<Inputs> = (0..steps).map(|k| reversing(5.0, 2.0, -2.0, k as f64 * h, h)).collect();
-    let (coarse, coarse_switches) = reference_run(&p, &inputs, h, 50);
-    let (fine, fine_switches) = reference_run(&p, &inputs, h, 100);
+    let (coarse, coarse_switches) = drive.reference_run(&inputs, h, 50);
+    let (fine, fine_switches) = drive.reference_run(&inputs, h, 100);
 
-    let chain = p.chain();
-    let mut stepper = TwoStageStepper::new(chain);
-    let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); 2]);
-    let mut switches = [Vec::new(), Vec::new()];
+    let chain = drive.chain::<S>();
+    let mut stepper = ChainStepper::<S, N>::new(chain);
+    let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); S]);
+    let mut switches = vec![Vec::new(); S];
     let mut states = Vec::new();
     for (k, input) in inputs.iter().enumerate() {
         let t = k as f64 * h;
@@ -312,52 +336,54 @@ fn two_stages_agree_with_an_independent_integrator() {
                 switches[e.stage].push(t + e.offset)
             })
             .unwrap();
-        states.push([
-            state.motor.theta,
-            state.motor.omega,
-            state.driven[0].theta,
-            state.driven[0].omega,
-            state.driven[1].theta,
-            state.driven[1].omega,
-        ]);
+        states.push(
+            (0..=S)
+                .flat_map(|j| [state.body(j).theta, state.body(j).omega])
+                .collect::<Vec<_>>(),
+        );
     }
-    let mut scale = [0.0f64; 6];
-    let mut estimate = [0.0f64; 6];
-    let mut deviation = [0.0f64; 6];
+    let dim = 2 * (S + 1);
+    let (mut scale, mut estimate, mut deviation) = (vec![0.0f64; dim], vec![0.0f64; dim], vec![0.0f64; dim]);
     for k in 0..steps {
-        for i in 0..6 {
+        for i in 0..dim {
             scale[i] = scale[i].max(fine[k][i].abs());
             estimate[i] = estimate[i].max((coarse[k][i] - fine[k][i]).abs());
             deviation[i] = deviation[i].max((states[k][i] - fine[k][i]).abs());
         }
     }
-    eprintln!("switches per stage: {} {}", switches[0].len(), switches[1].len());
+    let counts: Vec<usize> = switches.iter().map(Vec::len).collect();
+    eprintln!("S = {S}: switches per stage {counts:?}");
     eprintln!("scale {scale:?}\nestimate {estimate:?}\ndeviation {deviation:?}");
-    for j in 0..2 {
+    for j in 0..S {
         assert_eq!(switches[j].len(), fine_switches[j].len(), "stage {j}");
         assert_eq!(coarse_switches[j].len(), fine_switches[j].len(), "stage {j}");
+        assert!(switches[j].len() >= min_switches, "stage {j} must cross its gap often");
     }
-    let t_estimate = (0..2)
-        .flat_map(|j| {
-            coarse_switches[j]
-                .iter()
-                .zip(&fine_switches[j])
-                .map(|(a, b)| (a - b).abs())
-        })
-        .fold(0.0, f64::max);
-    let t_deviation = (0..2)
-        .flat_map(|j| switches[j].iter().zip(&fine_switches[j]).map(|(a, b)| (a - b).abs()))
-        .fold(0.0, f64::max);
+    let differences = |a: &[Vec<f64>], b: &[Vec<f64>]| {
+        (0..S)
+            .flat_map(|j| a[j].iter().zip(&b[j]).map(|(a, b)| (a - b).abs()).collect::<Vec<_>>())
+            .fold(0.0, f64::max)
+    };
+    let t_estimate = differences(&coarse_switches, &fine_switches);
+    let t_deviation = differences(&switches, &fine_switches);
     eprintln!("switch times: estimate {t_estimate:e}, deviation {t_deviation:e}");
-    assert!(
-        switches[0].len() > 10 && switches[1].len() > 10,
-        "both gaps must be crossed often"
-    );
-    for i in 0..6 {
+    for i in 0..dim {
         let tol = estimate[i] + 1e3 * EPS * scale[i];
         assert!(deviation[i] <= tol, "component {i}: {} > {tol}", deviation[i]);
     }
     assert!(t_deviation <= t_estimate + 1e3 * EPS * steps as f64 * h);
+}
+
+/// S = 2: §11's `BacklashTwoStage`.
+#[test]
+fn two_stages_agree_with_an_independent_integrator() {
+    agrees_with_the_reference::<2, 13>(&two_stage(), 10);
+}
+
+/// S = 3: the same code over one more stage (ChainStepper<3, 16>).
+#[test]
+fn three_stages_agree_with_an_independent_integrator() {
+    agrees_with_the_reference::<3, 16>(&three_stage(), 5);
 }
 
 /// x + e^{−x} − 1 = Σ_{k≥2} (−x)^k/k! by its series: without the cancellation of the formula
@@ -378,7 +404,7 @@ fn free_flight(x: f64) -> f64 {
 /// tens of pieces, a few ulps each.
 #[test]
 fn free_motor_follows_the_closed_form_until_the_first_contact() {
-    let p = TWO_STAGE;
+    let p = two_stage();
     let (tau, j, b) = (1.0, p.j[0], p.b[0]);
     let omega = |t: f64| -tau / b * (-b * t / j).exp_m1();
     let theta = |t: f64| tau * j / (b * b) * free_flight(b * t / j);
@@ -389,7 +415,7 @@ fn free_motor_follows_the_closed_form_until_the_first_contact() {
     }
     assert!((theta(contact) - p.delta[0]).abs() <= 4.0 * EPS * p.delta[0]);
 
-    let chain = p.chain();
+    let chain = p.chain::<2>();
     let inputs = Inputs::held(tau, 0.0);
     // Steps before the contact: the free motor on the closed form at each step end.
     let mut stepper = TwoStageStepper::new(chain);
@@ -439,8 +465,8 @@ fn grazing_chain(overshoot: f64) -> (Chain<2>, f64, f64, f64, f64) {
     let (j, v0, force) = (2.28, 0.01, 1.0);
     let peak = v0 * v0 * j / (2.0 * force);
     let g = peak / (1.0 + overshoot);
-    let p = TWO_STAGE;
-    let mut params = *p.chain().params();
+    let p = two_stage();
+    let mut params = *p.chain::<2>().params();
     params.motor = Body { j, b: 0.0 };
     params.stages[0].g = g;
     (Chain::new(params).unwrap(), j, v0, force, g)
@@ -543,7 +569,7 @@ fn simultaneous_switches_are_entered_together() {
 type Spoil = fn(&mut ChainParams<2>);
 
 fn two_stage_params() -> ChainParams<2> {
-    *TWO_STAGE.chain().params()
+    *two_stage().chain::<2>().params()
 }
 
 /// Invalid parameters are named, with where they sit and their value.
@@ -632,7 +658,7 @@ fn bad_parameters_are_refused() {
 /// Bad steps are refused with the reason, the state left as it was; no panic, no NaN.
 #[test]
 fn bad_steps_are_refused() {
-    let chain = TWO_STAGE.chain();
+    let chain = two_stage().chain::<2>();
     let mut stepper = TwoStageStepper::new(chain);
     let start = ChainState::new(&chain, Motion { theta: 0.0, omega: 1.0 }, [Motion::default(); 2]);
     let max_h = stepper.max_step();
