@@ -575,7 +575,7 @@ fn two_stage_params() -> ChainParams<2> {
 /// Invalid parameters are named, with where they sit and their value.
 #[test]
 fn bad_parameters_are_refused() {
-    let cases: [(Spoil, ChainError); 8] = [
+    let cases: [(Spoil, ChainError); 9] = [
         (
             |p| p.motor.j = 0.0,
             ChainError::NotPositive {
@@ -638,6 +638,17 @@ fn bad_parameters_are_refused() {
                 at: Part::Stage(0),
                 name: "c",
                 value: -2.0,
+            },
+        ),
+        (
+            |p| {
+                p.stages[1].k = 1e100;
+                p.driven[1].j = 1e-100;
+            },
+            ChainError::DerivedOutOfScale {
+                at: Part::Stage(1),
+                name: "K*c^2/J",
+                value: 1e100 * 9.0 / 1e-100,
             },
         ),
     ];

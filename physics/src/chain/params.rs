@@ -100,6 +100,8 @@ pub enum ChainError {
     Negative { at: Part, name: &'static str, value: f64 },
     #[error("parameter {name} of {at} = {value:e} is outside the range the chain integrates: 0 or 1e-100 ..= 1e100 in magnitude")]
     OutOfScale { at: Part, name: &'static str, value: f64 },
+    #[error("{name} of {at} = {value:e}, derived from the parameters, is outside 1e-200 ..= 1e200: the time scales of the chain are too far apart to integrate")]
+    DerivedOutOfScale { at: Part, name: &'static str, value: f64 },
 }
 
 /// `value` checked finite, in scale (as params.rs's [`SCALE_LIMIT`]: products of a few
@@ -141,6 +143,30 @@ impl<const S: usize> Chain<S> {
             check(Part::Stage(i), "c", stage.c, true)?;
             check(Part::Stage(i), "K", stage.k, true)?;
             check(Part::Stage(i), "g", stage.g, false)?;
+        }
+        // The rates and forces the integration works with, as params.rs's Plant::new checks
+        // them: square rates K a²/J and K c²/J, damping rates b/J, input accelerations 1/J, the
+        // gap force K g and the lever ratio c/a. Outside 1e±200 they over- or underflow in
+        // products.
+        let (first, last) = (params.body(0), params.body(S));
+        let inputs = [
+            ("1/J", Part::Body(0), 1.0 / first.j),
+            ("1/J", Part::Body(S), 1.0 / last.j),
+        ];
+        let bodies = (0..=S).map(|j| ("b/J", Part::Body(j), params.body(j).b / params.body(j).j));
+        let stages = params.stages.iter().enumerate().flat_map(|(i, s)| {
+            let (driving, driven) = (params.body(i).j, params.body(i + 1).j);
+            [
+                ("K*a^2/J", Part::Stage(i), s.k * s.a * s.a / driving),
+                ("K*c^2/J", Part::Stage(i), s.k * s.c * s.c / driven),
+                ("K*g", Part::Stage(i), s.k * s.g),
+                ("c/a", Part::Stage(i), s.c / s.a),
+            ]
+        });
+        for (name, at, value) in inputs.into_iter().chain(bodies).chain(stages) {
+            if value != 0.0 && !(1e-200..=1e200).contains(&value) {
+                return Err(ChainError::DerivedOutOfScale { at, name, value });
+            }
         }
         Ok(Chain { params })
     }
