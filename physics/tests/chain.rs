@@ -2,8 +2,8 @@
 //! integrator of ../shared/spec/model.md §11, a closed form, a graze and its refusals.
 
 use backlash_physics::chain::{
-    Body, Chain, ChainError, ChainParams, ChainState, ChainStepper, Motion, OneStageStepper, Part, Stage, StageSwitch,
-    TwoStageStepper,
+    Body, Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, Motion, OneStageStepper, Part, Stage,
+    StageSwitch, TwoStageStepper,
 };
 use backlash_physics::{ContactMode, Damping, Geometry, Inputs, Plant, PlantParams, PlantState, StepError, Stepper};
 
@@ -104,7 +104,7 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
                 scale[i] = scale[i].max(magnitude[i]);
                 worst[i] = worst[i].max((pa[i] - pb[i]).abs());
             }
-            assert_eq!(a.mode, b.mode.stages[0], "step {k}");
+            assert_eq!(a.mode, b.mode.stages()[0], "step {k}");
         }
         assert_eq!(switches_a.len(), switches_b.len());
         assert!(
@@ -450,7 +450,7 @@ fn free_motor_follows_the_closed_form_until_the_first_contact() {
         }]
     );
     assert_eq!(state.u[0], p.delta[0], "u is set exactly on the flank");
-    assert_eq!(state.mode.stages, [ContactMode::Positive, ContactMode::Free]);
+    assert_eq!(*state.mode.stages(), [ContactMode::Positive, ContactMode::Free]);
     assert!((state.motor.omega - omega(contact)).abs() <= 64.0 * EPS * omega(contact));
     assert!((state.motor.theta - p.delta[0]).abs() <= 64.0 * EPS * p.delta[0]);
     for body in state.driven {
@@ -507,7 +507,7 @@ fn a_graze_inside_one_step_reports_both_switches() {
         );
         // The flank pushes back: contact ends no later than the free parabola would leave it.
         assert!(events[1].offset > events[0].offset && events[1].offset <= 2.0 * peak_time - touch + tol);
-        assert_eq!(state.mode.stages[0], ContactMode::Free);
+        assert_eq!(state.mode.stages()[0], ContactMode::Free);
     }
     // Just short of the flank: no touch, no switch.
     let (chain, j, v0, force, _) = grazing_chain(-1e-8);
@@ -556,7 +556,7 @@ fn simultaneous_switches_are_entered_together() {
             .unwrap()
             .expect("both stages close their gaps");
         assert!((at - stage.g / w).abs() <= 8.0 * EPS * at);
-        assert_eq!(state.mode.stages, [ContactMode::Positive; 2]);
+        assert_eq!(*state.mode.stages(), [ContactMode::Positive; 2]);
         assert_eq!(state.u, [stage.g; 2]);
         assert_eq!(
             events.iter().map(|e| (e.offset, e.stage)).collect::<Vec<_>>(),
@@ -659,6 +659,9 @@ fn bad_parameters_are_refused() {
         // NaN ≠ NaN: compare the messages, which carry the same facts.
         assert_eq!(err.to_string(), expected.to_string());
     }
+    // A mode is the stages' modes without a damper: the damper's modes cannot be put in.
+    assert!(ChainMode::new([ContactMode::SlackPositive, ContactMode::Free]).is_none());
+    assert!(ChainMode::new([ContactMode::Negative, ContactMode::Positive]).is_some());
     // Zero friction and zero gap are admissible.
     let mut params = two_stage_params();
     params.motor.b = 0.0;

@@ -4,13 +4,27 @@ use super::params::Chain;
 use crate::mode::{mode_at, ContactMode};
 
 /// The mode of a chain: the tuple of its stages' modes. Each stage is `Negative`, `Free` or
-/// `Positive` (no dampers yet), so there are 3^S modes, each linear (docs/model.md §2).
+/// `Positive` (no dampers yet), so there are 3^S modes, each linear (docs/model.md §2). The
+/// damper's modes cannot be put in ([`ChainMode::new`]), so the stepper never meets one.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ChainMode<const S: usize> {
-    pub stages: [ContactMode; S],
+    pub(crate) stages: [ContactMode; S],
 }
 
 impl<const S: usize> ChainMode<S> {
+    /// The mode with these stage modes; None if one is a damper's mode (slack, capped).
+    pub fn new(stages: [ContactMode; S]) -> Option<ChainMode<S>> {
+        stages
+            .iter()
+            .all(|m| matches!(m, ContactMode::Negative | ContactMode::Free | ContactMode::Positive))
+            .then_some(ChainMode { stages })
+    }
+
+    /// Each stage's mode.
+    pub fn stages(&self) -> &[ContactMode; S] {
+        &self.stages
+    }
+
     /// How many modes there are: 3^S.
     pub const COUNT: usize = 3usize.pow(S as u32);
 
