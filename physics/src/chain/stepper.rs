@@ -32,12 +32,16 @@ struct ModeDynamics<const S: usize, const N: usize> {
     u_rows: [SignalRows<N>; S],
 }
 
-/// One mode's maps over a whole piece of the current step size: e^{M len}, and per stage the
-/// row that bounds how far u‴ moves over the piece (roots.rs, `SignalRows::remainder_row`).
+/// One mode's maps over a whole piece of the current step size: e^{M len}, and per stage (one
+/// row each) u″ and u‴ at the piece start and the bound on how far u‴ moves over the piece
+/// (roots.rs, `SignalRows::remainder_row`, which multiplies |y|): a whole piece is certified
+/// by three small products.
 #[derive(Clone, Copy, Debug)]
 struct PieceMaps<const S: usize, const N: usize> {
     phi: SMatrix<f64, N, N>,
-    remainder: [SVector<f64, N>; S],
+    second: SMatrix<f64, S, N>,
+    third: SMatrix<f64, S, N>,
+    remainder: SMatrix<f64, S, N>,
 }
 
 /// A located crossing of one stage's threshold.
@@ -273,9 +277,14 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
     fn fill_maps(&mut self, index: usize) {
         if self.maps[index].is_none() {
             let ModeDynamics { m, sparse, u_rows } = &self.modes[index];
+            let rows = |row: &dyn Fn(&SignalRows<N>) -> SVector<f64, N>| {
+                SMatrix::<f64, S, N>::from_fn(|i, j| row(&u_rows[i])[j])
+            };
             self.maps[index] = Some(PieceMaps {
                 phi: exp_series(sparse, self.len),
-                remainder: std::array::from_fn(|i| u_rows[i].remainder_row(m, self.len)),
+                second: rows(&|r| *r.row(2)),
+                third: rows(&|r| *r.row(3)),
+                remainder: rows(&|r| r.remainder_row(m, self.len)),
             });
         }
     }
@@ -291,19 +300,25 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
         y: &SVector<f64, N>,
         span: f64,
     ) -> bool {
+        // u″ and the bound on |u‴| over the span, per stage.
+        let (second, third) = match maps {
+            Some(maps) => {
+                let third = (maps.third * y).abs() + maps.remainder * y.abs();
+                (maps.second * y, third)
+            }
+            None => (
+                SVector::<f64, S>::from_fn(|i, _| dynamics.u_rows[i].derivative(2, y)),
+                SVector::<f64, S>::from_fn(|i, _| dynamics.u_rows[i].third_bound(y, span)),
+            ),
+        };
         (0..S).all(|i| {
             let g = self.chain.stage(i).g;
             if g == 0.0 {
                 // No free region: both flanks carry K u.
                 return true;
             }
-            let rows = &dynamics.u_rows[i];
-            let u = y[Layout::<S>::u(i)];
-            let (du, d2) = (y[Layout::<S>::v(i)], rows.derivative(2, y));
-            let c3 = match maps {
-                Some(maps) => rows.derivative(3, y).abs() + maps.remainder[i].dot(&y.abs()),
-                None => rows.third_bound(y, span),
-            };
+            let (u, du) = (y[Layout::<S>::u(i)], y[Layout::<S>::v(i)]);
+            let (d2, c3) = (second[i], third[i]);
             let tol = floor(u, g);
             sides(mode.stages[i], g, tol)
                 .into_iter()
