@@ -841,3 +841,11 @@ fn bad_steps_are_refused() {
     assert!(stepper.step(&mut s, &good, 1e-3, &mut |_| {}).is_ok());
     assert!(s.is_finite());
 }
+
+/// The augmented dimension is a parameter only because stable Rust cannot compute 3S + 7 in a
+/// type: one that does not fit S is refused at construction.
+#[test]
+#[should_panic(expected = "augmented dimension 10 is not 3S + 7 = 13")]
+fn an_augmented_dimension_that_does_not_fit_is_refused() {
+    let _ = ChainStepper::<2, 10>::new(two_stage().chain::<2>());
+}

@@ -9,6 +9,14 @@
 //!
 //! Data flow: [`ChainParams`] → [`Chain`] (validated) → [`ChainStepper`] over [`ChainState`]
 //! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2). Not yet: dampers, the web span.
+//!
+//! Stepping is docs/model.md §2 with one switching coordinate per stage: a piece is accepted
+//! whole only when the cubic test certifies every stage's u free of its thresholds over it;
+//! otherwise each uncertified stage's u is searched on the piece's Taylor expansion, the
+//! earliest crossing among all stages is refined to round-off, every stage that crosses
+//! within a few ulps of the step's time of it switches there too, and the piece continues
+//! in the new mode. A touch that begins and ends inside one piece is therefore found: the
+//! piece cannot be certified across it.
 
 mod linear;
 mod params;
