@@ -601,7 +601,10 @@ fn a_graze_inside_one_step_reports_both_switches() {
         let peak_time = v0 * j / force;
         let h = 2.0 * peak_time;
         let mut stepper = TwoStageStepper::new(chain);
-        assert!(h < 20.0 * 0.5 / chain.fastest_rate(), "the step is a few pieces");
+        // The stepper's pieces (PIECE_RATE = 0.5 over the fastest rate, docs/model.md §2).
+        let pieces = (h * chain.fastest_rate() / 0.5).ceil();
+        let piece = |t: f64| (t / (h / pieces)).floor();
+        assert!(pieces > 1.0, "the step is cut into pieces");
         let mut state = ChainState::new(&chain, Motion { theta: 0.0, omega: v0 }, [Motion::default(); 2]);
         let mut events = Vec::new();
         let switches = stepper
@@ -626,6 +629,11 @@ fn a_graze_inside_one_step_reports_both_switches() {
         // The flank pushes back: contact ends no later than the free parabola would leave it.
         assert!(events[1].offset > events[0].offset && events[1].offset <= 2.0 * peak_time - touch + tol);
         assert_eq!(state.mode.stages()[0], ContactMode::Free);
+        assert_eq!(
+            piece(events[0].offset),
+            piece(events[1].offset),
+            "the touch is inside one piece"
+        );
     }
     // Just short of the flank: no touch, no switch.
     let (chain, j, v0, force, _) = grazing_chain(-1e-8);
