@@ -6,8 +6,13 @@
 //! (docs/model.md §3 bounds), or for a web line [`WebSpeedBound`] and [`WebTensionBound`];
 //! `vector_field` gives the same plant as z' = f(z, τ) for solvers outside (docs/model.md §6);
 //! [`SampledPi`] is the sampled controller that closes the loops around it (§3, §8).
+//!
+//! [`chain`] is the plant as a chain of S stages (bodies joined by compliant members with
+//! backlash, ../shared/spec/model.md §11), stepped exactly by [`ChainStepper`]; the code above
+//! does not use it yet.
 
 pub mod bound;
+pub mod chain;
 pub mod closed_loop;
 pub mod controller;
 pub mod kernel;
@@ -22,6 +27,7 @@ pub mod vector_field;
 pub use bound::{
     BoundError, BoundState, PiGains, SpeedErrorBound, Trajectory, Unbounded, WebSpeedBound, WebTensionBound,
 };
+pub use chain::{Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, StageSwitch};
 pub use controller::{ControllerParams, Reference, SampleError, SampledPi};
 pub use mode::{contact_indicator, damped_mode_at, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, ContactLaw, Damping, Geometry, ParamError, Plant, PlantParams, WebSpan};

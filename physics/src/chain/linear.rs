@@ -1,0 +1,116 @@
+//! The affine dynamics of each chain mode as one augmented linear system (docs/model.md §2,
+//! written over S stages).
+//!
+//! Augmented state y (`3S + 7` entries): `[u_0..u_S, v_0..v_S, ω_S, δθ_0..=δθ_S, τ_m, τ_L, 1,
+//! τ̇_m, τ̇_L]`: each stage's coordinate and its rate v_i = u_i′, the last body's speed, the
+//! angle increments since the piece start, the inputs with their slopes and a constant 1 for
+//! the flanks' ∓K g. For S = 1 this is docs/model.md §2's vector, entry for entry. The other
+//! speeds follow from v and ω_S as ω_i = (v_i + c_i ω_{i+1})/a_i: with the v_i as states the
+//! gaps never see the cancellation of a_i ω_i − c_i ω_{i+1} when the drive turns fast.
+
+use super::params::Chain;
+use super::state::ChainMode;
+use nalgebra::{SMatrix, SVector};
+
+/// Where each quantity sits in the augmented vector of a chain of S stages.
+pub struct Layout<const S: usize>;
+
+impl<const S: usize> Layout<S> {
+    /// The augmented dimension, 3S + 7.
+    pub const DIM: usize = 3 * S + 7;
+    /// The last body's speed ω_S.
+    pub const OMEGA_LAST: usize = 2 * S;
+    pub const TAU_M: usize = 3 * S + 2;
+    pub const TAU_L: usize = 3 * S + 3;
+    pub const ONE: usize = 3 * S + 4;
+    pub const DTAU_M: usize = 3 * S + 5;
+    pub const DTAU_L: usize = 3 * S + 6;
+
+    /// u_i.
+    pub const fn u(i: usize) -> usize {
+        i
+    }
+    /// v_i = u_i′.
+    pub const fn v(i: usize) -> usize {
+        S + i
+    }
+    /// δθ_j, body j's angle increment since the piece start (j ≤ S).
+    pub const fn dtheta(j: usize) -> usize {
+        2 * S + 1 + j
+    }
+}
+
+/// M of `mode` (y′ = M y): bodies J_j ω_j′ = −b_j ω_j + c_{j−1} ψ_{j−1} − a_j ψ_j (+ τ_m on
+/// body 0, + τ_L on body S) with ψ_i = K_i (u_i ∓ g_i) on a flank and 0 free (docs/model.md
+/// §1, ../shared/spec/model.md §11). N must be 3S + 7.
+pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &ChainMode<S>) -> SMatrix<f64, N, N> {
+    assert!(
+        N == Layout::<S>::DIM,
+        "augmented dimension {N} is not 3S + 7 = {}",
+        Layout::<S>::DIM
+    );
+    let unit = |k: usize| {
+        let mut e = SVector::<f64, N>::zeros();
+        e[k] = 1.0;
+        e
+    };
+    // Each body's speed as a row over y: ω_S, then ω_i = (v_i + c_i ω_{i+1})/a_i downwards.
+    // (Built once per mode, at construction: the Vec is not on the stepping path.)
+    let mut speed = vec![SVector::<f64, N>::zeros(); S + 1];
+    speed[S] = unit(Layout::<S>::OMEGA_LAST);
+    for i in (0..S).rev() {
+        let s = chain.stage(i);
+        speed[i] = (unit(Layout::<S>::v(i)) + speed[i + 1] * s.c) / s.a;
+    }
+    // ψ_i = ks u_i + kc·1 in this mode.
+    let force = |i: usize| {
+        let s = chain.stage(i);
+        let m = mode.stages[i];
+        let (ks, _) = m.force_slopes(s.k, 0.0);
+        let kc = if m.side() > 0.0 {
+            -ks * s.g
+        } else if m.side() < 0.0 {
+            ks * s.g
+        } else {
+            0.0
+        };
+        unit(Layout::<S>::u(i)) * ks + unit(Layout::<S>::ONE) * kc
+    };
+    // ω_j′ as a row over y.
+    let accel = |j: usize| {
+        let body = chain.body(j);
+        let mut row = speed[j] * (-body.b);
+        if j == 0 {
+            row += unit(Layout::<S>::TAU_M);
+        }
+        if j == S {
+            row += unit(Layout::<S>::TAU_L);
+        }
+        if j > 0 {
+            row += force(j - 1) * chain.stage(j - 1).c;
+        }
+        if j < S {
+            row -= force(j) * chain.stage(j).a;
+        }
+        row / body.j
+    };
+    let mut m = SMatrix::<f64, N, N>::zeros();
+    for i in 0..S {
+        let s = chain.stage(i);
+        m[(Layout::<S>::u(i), Layout::<S>::v(i))] = 1.0;
+        let v_rate = accel(i) * s.a - accel(i + 1) * s.c;
+        m.set_row(Layout::<S>::v(i), &v_rate.transpose());
+    }
+    m.set_row(Layout::<S>::OMEGA_LAST, &accel(S).transpose());
+    for (j, row) in speed.iter().enumerate() {
+        m.set_row(Layout::<S>::dtheta(j), &row.transpose());
+    }
+    m[(Layout::<S>::TAU_M, Layout::<S>::DTAU_M)] = 1.0;
+    m[(Layout::<S>::TAU_L, Layout::<S>::DTAU_L)] = 1.0;
+    m
+}
+
+/// Length of a piece times the fastest rate, as the single-gap stepper's
+/// ([`crate::linear::PIECE_RATE`]): Taylor expansions over a piece converge fast and the
+/// remainder bounds stay tight.
+pub const PIECE_RATE: f64 = crate::linear::PIECE_RATE;

@@ -1,0 +1,202 @@
+//! The chain's parameters and their validation: bodies (J, b) joined by stages (a, c, K, g)
+//! (docs/model.md §1 for one stage, ../shared/spec/model.md §11 for two).
+
+use crate::params::{Plant, SCALE_LIMIT};
+use std::fmt;
+use thiserror::Error;
+
+/// One rigid body of the chain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Body {
+    /// Inertia J [kg·m²].
+    pub j: f64,
+    /// Viscous friction b [N·m·s/rad].
+    pub b: f64,
+}
+
+/// One stage: a compliant member in series with a backlash between body i and body i + 1.
+/// Its coordinate is u = a θ_i − c θ_{i+1}, its force ψ = K dz(u, g); body i receives −a ψ and
+/// body i + 1 receives +c ψ (docs/model.md §1 with r_m = a, r_L = c).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stage {
+    /// Lever arm of the driving body, a (the shaft's 1, the belt's R_1 [m]).
+    pub a: f64,
+    /// Lever arm of the driven body, c (the shaft's 1, the belt's α_1 [m], §11's n_j).
+    pub c: f64,
+    /// Stiffness K [N·m/rad, or N/m when u is a length].
+    pub k: f64,
+    /// Half gap g in u [rad, or m] (the shaft's Δ, the belt's α_2 Δ).
+    pub g: f64,
+}
+
+/// Parameters of a chain of S stages as a user gives them: body 0 (the motor, which τ_m
+/// drives), then stage i joining body i to body i + 1, body S being the load (which τ_L acts on).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainParams<const S: usize> {
+    /// Body 0, the motor.
+    pub motor: Body,
+    /// Bodies 1..=S; `driven[i]` is the body stage i drives.
+    pub driven: [Body; S],
+    /// Stages 0..S; stage i joins body i to body i + 1 (§11's stage j = i + 1).
+    pub stages: [Stage; S],
+}
+
+impl<const S: usize> ChainParams<S> {
+    /// Body `j` (0 ..= S).
+    pub fn body(&self, j: usize) -> &Body {
+        if j == 0 {
+            &self.motor
+        } else {
+            &self.driven[j - 1]
+        }
+    }
+}
+
+impl ChainParams<1> {
+    /// The one-stage chain of a plant of docs/model.md §1 (shaft or belt): a = r_m, c = r_L,
+    /// K, g. None for a plant the chain does not model yet: with a damper or a web span.
+    pub fn from_plant(plant: &Plant) -> Option<ChainParams<1>> {
+        if plant.damping() != 0.0 || plant.web().is_some() {
+            return None;
+        }
+        let p = plant.params();
+        Some(ChainParams {
+            motor: Body { j: p.j_m, b: p.b_m },
+            driven: [Body { j: p.j_l, b: p.b_l }],
+            stages: [Stage {
+                a: plant.r_m(),
+                c: plant.r_l(),
+                k: plant.stiffness(),
+                g: plant.half_gap(),
+            }],
+        })
+    }
+}
+
+/// Where an invalid parameter sits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    Body(usize),
+    Stage(usize),
+}
+
+impl fmt::Display for Part {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Part::Body(j) => write!(f, "body {j}"),
+            Part::Stage(i) => write!(f, "stage {i}"),
+        }
+    }
+}
+
+/// An invalid chain parameter: names it, where it sits, and its value.
+#[derive(Clone, Copy, Debug, PartialEq, Error)]
+pub enum ChainError {
+    #[error("parameter {name} of {at} = {value} must be finite")]
+    NotFinite { at: Part, name: &'static str, value: f64 },
+    #[error("parameter {name} of {at} = {value} must be > 0")]
+    NotPositive { at: Part, name: &'static str, value: f64 },
+    #[error("parameter {name} of {at} = {value} must be >= 0")]
+    Negative { at: Part, name: &'static str, value: f64 },
+    #[error("parameter {name} of {at} = {value:e} is outside the range the chain integrates: 0 or 1e-100 ..= 1e100 in magnitude")]
+    OutOfScale { at: Part, name: &'static str, value: f64 },
+    #[error("{name} of {at} = {value:e}, derived from the parameters, is outside 1e-200 ..= 1e200: the time scales of the chain are too far apart to integrate")]
+    DerivedOutOfScale { at: Part, name: &'static str, value: f64 },
+}
+
+/// `value` checked finite, in scale (as params.rs's [`SCALE_LIMIT`]: products of a few
+/// parameters must stay in f64), and > 0 when `positive`, else ≥ 0.
+fn check(at: Part, name: &'static str, value: f64, positive: bool) -> Result<(), ChainError> {
+    if !value.is_finite() {
+        return Err(ChainError::NotFinite { at, name, value });
+    }
+    if positive && value <= 0.0 {
+        return Err(ChainError::NotPositive { at, name, value });
+    }
+    if value < 0.0 {
+        return Err(ChainError::Negative { at, name, value });
+    }
+    if value != 0.0 && !(1.0 / SCALE_LIMIT..=SCALE_LIMIT).contains(&value) {
+        return Err(ChainError::OutOfScale { at, name, value });
+    }
+    Ok(())
+}
+
+/// A validated chain of S stages.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Chain<const S: usize> {
+    params: ChainParams<S>,
+}
+
+impl<const S: usize> Chain<S> {
+    /// Validates `params`: J > 0, b ≥ 0 for every body; a, c, K > 0 and g ≥ 0 for every stage;
+    /// all finite and in scale. A chain has at least one stage.
+    pub fn new(params: ChainParams<S>) -> Result<Chain<S>, ChainError> {
+        assert!(S >= 1, "a chain has at least one stage");
+        for j in 0..=S {
+            let body = params.body(j);
+            check(Part::Body(j), "J", body.j, true)?;
+            check(Part::Body(j), "b", body.b, false)?;
+        }
+        for (i, stage) in params.stages.iter().enumerate() {
+            check(Part::Stage(i), "a", stage.a, true)?;
+            check(Part::Stage(i), "c", stage.c, true)?;
+            check(Part::Stage(i), "K", stage.k, true)?;
+            check(Part::Stage(i), "g", stage.g, false)?;
+        }
+        // The rates and forces the integration works with, as params.rs's Plant::new checks
+        // them: square rates K a²/J and K c²/J, damping rates b/J, input accelerations 1/J, the
+        // gap force K g and the lever ratio c/a. Outside 1e±200 they over- or underflow in
+        // products.
+        let (first, last) = (params.body(0), params.body(S));
+        let inputs = [
+            ("1/J", Part::Body(0), 1.0 / first.j),
+            ("1/J", Part::Body(S), 1.0 / last.j),
+        ];
+        let bodies = (0..=S).map(|j| ("b/J", Part::Body(j), params.body(j).b / params.body(j).j));
+        let stages = params.stages.iter().enumerate().flat_map(|(i, s)| {
+            let (driving, driven) = (params.body(i).j, params.body(i + 1).j);
+            [
+                ("K*a^2/J", Part::Stage(i), s.k * s.a * s.a / driving),
+                ("K*c^2/J", Part::Stage(i), s.k * s.c * s.c / driven),
+                ("K*g", Part::Stage(i), s.k * s.g),
+                ("c/a", Part::Stage(i), s.c / s.a),
+            ]
+        });
+        for (name, at, value) in inputs.into_iter().chain(bodies).chain(stages) {
+            if value != 0.0 && !(1e-200..=1e200).contains(&value) {
+                return Err(ChainError::DerivedOutOfScale { at, name, value });
+            }
+        }
+        Ok(Chain { params })
+    }
+
+    pub fn params(&self) -> &ChainParams<S> {
+        &self.params
+    }
+
+    /// Body `j` (0 ..= S).
+    pub fn body(&self, j: usize) -> &Body {
+        self.params.body(j)
+    }
+
+    /// Stage `i` (0 .. S).
+    pub fn stage(&self, i: usize) -> &Stage {
+        &self.params.stages[i]
+    }
+
+    /// The chain's fastest rate [1/s]: the larger of the damping rates b/J and the bound
+    /// √(Σ_i K_i (a_i²/J_i + c_i²/J_{i+1})) on the contact frequencies, the trace of the
+    /// mass-normalized stiffness (for one stage exactly docs/model.md §2's ω_0).
+    pub fn fastest_rate(&self) -> f64 {
+        let stiff: f64 = (0..S)
+            .map(|i| {
+                let s = self.stage(i);
+                s.k * (s.a * s.a / self.body(i).j + s.c * s.c / self.body(i + 1).j)
+            })
+            .sum();
+        (0..=S)
+            .map(|j| self.body(j).b / self.body(j).j)
+            .fold(stiff.sqrt(), f64::max)
+    }
+}

@@ -1,0 +1,134 @@
+//! The chain's mode (one contact mode per stage) and its state.
+
+use super::params::Chain;
+use crate::mode::{mode_at, ContactMode};
+
+/// The mode of a chain: the tuple of its stages' modes. Each stage is `Negative`, `Free` or
+/// `Positive` (no dampers yet), so there are 3^S modes, each linear (docs/model.md §2). The
+/// damper's modes cannot be put in ([`ChainMode::new`]), so the stepper never meets one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ChainMode<const S: usize> {
+    pub(crate) stages: [ContactMode; S],
+}
+
+impl<const S: usize> ChainMode<S> {
+    /// The mode with these stage modes; None if one is a damper's mode (slack, capped).
+    pub fn new(stages: [ContactMode; S]) -> Option<ChainMode<S>> {
+        stages
+            .iter()
+            .all(|m| matches!(m, ContactMode::Negative | ContactMode::Free | ContactMode::Positive))
+            .then_some(ChainMode { stages })
+    }
+
+    /// Each stage's mode.
+    pub fn stages(&self) -> &[ContactMode; S] {
+        &self.stages
+    }
+
+    /// How many modes there are: 3^S.
+    pub const COUNT: usize = 3usize.pow(S as u32);
+
+    /// A number in 0..COUNT: the stages' modes as base-3 digits (Negative 0, Free 1,
+    /// Positive 2), stage 0 the lowest.
+    pub fn index(&self) -> usize {
+        self.stages.iter().rev().fold(0, |acc, m| 3 * acc + m.index())
+    }
+
+    /// The mode of an [`ChainMode::index`] (< COUNT).
+    pub fn from_index(mut index: usize) -> ChainMode<S> {
+        ChainMode {
+            stages: std::array::from_fn(|_| {
+                let digit = index % 3;
+                index /= 3;
+                // ContactMode::ALL begins Negative, Free, Positive: digits 0, 1, 2.
+                ContactMode::ALL[digit]
+            }),
+        }
+    }
+}
+
+/// Angle and speed of one body.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Motion {
+    /// Angle θ [rad].
+    pub theta: f64,
+    /// Speed ω [rad/s].
+    pub omega: f64,
+}
+
+/// State of a chain: every body's angle and speed, every stage's u and u′ carried alongside
+/// (advanced exactly rather than recomputed from the angles and speeds, which would cancel when
+/// the drive turns fast: docs/model.md §2, "One linear system per mode"), and the mode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainState<const S: usize> {
+    /// Body 0, the motor.
+    pub motor: Motion,
+    /// Bodies 1..=S.
+    pub driven: [Motion; S],
+    /// u_i = a_i θ_i − c_i θ_{i+1} of each stage [rad, or m].
+    pub u: [f64; S],
+    /// u_i′ = a_i ω_i − c_i ω_{i+1} [rad/s, or m/s].
+    pub du: [f64; S],
+    /// The mode in force at this instant (on ±g: the mode being entered).
+    pub mode: ChainMode<S>,
+}
+
+impl<const S: usize> ChainState<S> {
+    /// A state from the bodies' motions; u and u′ from them, the mode as [`mode_of`].
+    pub fn new(chain: &Chain<S>, motor: Motion, driven: [Motion; S]) -> ChainState<S> {
+        let body = |j: usize| if j == 0 { motor } else { driven[j - 1] };
+        let u = std::array::from_fn(|i| {
+            let s = chain.stage(i);
+            s.a * body(i).theta - s.c * body(i + 1).theta
+        });
+        let du = std::array::from_fn(|i| {
+            let s = chain.stage(i);
+            s.a * body(i).omega - s.c * body(i + 1).omega
+        });
+        ChainState {
+            motor,
+            driven,
+            u,
+            du,
+            mode: mode_of(chain, &u, &du),
+        }
+    }
+
+    /// Body `j` (0 ..= S).
+    pub fn body(&self, j: usize) -> &Motion {
+        if j == 0 {
+            &self.motor
+        } else {
+            &self.driven[j - 1]
+        }
+    }
+
+    pub(crate) fn body_mut(&mut self, j: usize) -> &mut Motion {
+        if j == 0 {
+            &mut self.motor
+        } else {
+            &mut self.driven[j - 1]
+        }
+    }
+
+    /// ψ_i = K_i dz(u_i, g_i) of each stage (docs/model.md §1).
+    pub fn forces(&self, chain: &Chain<S>) -> [f64; S] {
+        std::array::from_fn(|i| {
+            let s = chain.stage(i);
+            s.k * crate::params::dead_zone(self.u[i], s.g)
+        })
+    }
+
+    /// All fields finite.
+    pub fn is_finite(&self) -> bool {
+        (0..=S).all(|j| self.body(j).theta.is_finite() && self.body(j).omega.is_finite())
+            && self.u.iter().chain(&self.du).all(|x| x.is_finite())
+    }
+}
+
+/// The mode of each stage from its u and u′ ([`mode_at`]): on ±g the mode being entered.
+pub fn mode_of<const S: usize>(chain: &Chain<S>, u: &[f64; S], du: &[f64; S]) -> ChainMode<S> {
+    ChainMode {
+        stages: std::array::from_fn(|i| mode_at(u[i], du[i], chain.stage(i).g)),
+    }
+}
