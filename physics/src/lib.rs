@@ -8,7 +8,7 @@
 //! [`SampledPi`] is the sampled controller that closes the loops around it (§3, §8).
 //!
 //! [`chain`] is the plant as a chain of S stages (bodies joined by compliant members with
-//! backlash, ../shared/spec/model.md §11), stepped exactly by [`ChainStepper`]; the code above
+//! backlash, docs/model.md §10), stepped exactly by [`ChainStepper`]; the code above
 //! does not use it yet.
 
 pub mod bound;

@@ -1,5 +1,5 @@
 //! The chain of stages (physics/src/chain) against the single-gap stepper, an independent
-//! integrator of ../shared/spec/model.md §11, a closed form, a graze and its refusals.
+//! integrator of docs/model.md §10, a closed form, a graze and its refusals.
 
 use backlash_physics::chain::{
     Body, Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, Motion, OneStageStepper, Part, Stage,
@@ -137,7 +137,7 @@ fn one_stage_agrees_with_the_single_gap_stepper() {
     }
 }
 
-/// A gear train as ../shared/spec/model.md §11 writes it, for any number of stages: bodies
+/// A gear train as docs/model.md §10 writes it, for any number of stages: bodies
 /// (J, b), stage j (from 0) with ratio n_j, u_j = θ_j − n_j θ_{j+1}, stiffness k_j, half gap Δ_j.
 struct Drive {
     j: Vec<f64>,
@@ -147,7 +147,7 @@ struct Drive {
     delta: Vec<f64>,
 }
 
-/// §11's numbers (`BacklashTwoStage`): a light intermediate shaft between two meshes, each
+/// docs/model.md §10's numbers (`BacklashTwoStage`): a light intermediate shaft between two meshes, each
 /// with its compliance and its gap.
 fn two_stage() -> Drive {
     Drive {
@@ -159,7 +159,7 @@ fn two_stage() -> Drive {
     }
 }
 
-/// §11's train with a third mesh: a second light shaft before the load.
+/// docs/model.md §10's train with a third mesh: a second light shaft before the load.
 fn three_stage() -> Drive {
     Drive {
         j: vec![2.28, 0.05, 0.04, 2.55],
@@ -196,7 +196,7 @@ impl Drive {
         (0..self.n.len()).map(|j| z[2 * j] - self.n[j] * z[2 * j + 2]).collect()
     }
 
-    /// §11's right-hand side with each stage's flank given (the event location decides it):
+    /// docs/model.md §10's right-hand side with each stage's flank given (the event location decides it):
     /// ψ_j = k_j (u_j ∓ Δ_j) on a flank, 0 free; J_i ω_i' = −b_i ω_i + n_{i−1} ψ_{i−1} − ψ_i,
     /// with τ_m added on the motor (body 0) and τ_L on the load (the last body).
     fn rates(&self, z: &[f64], modes: &[ContactMode], tau_m: f64, tau_l: f64) -> Vec<f64> {
@@ -321,7 +321,7 @@ impl Drive {
     }
 }
 
-/// The chain of S stages against RK4 written from §11's equations alone, from rest under a
+/// The chain of S stages against RK4 written from docs/model.md §10's equations alone, from rest under a
 /// reversing motor torque against a load torque: the light shafts rattle in their gaps. The
 /// reference's error is estimated by halving its step (RK4: the finer run is ~16x closer to
 /// the exact solution than the two runs are to each other); the exact chain must agree with
@@ -483,7 +483,7 @@ fn stepping_from_switch_to_switch_takes_the_same_trajectory() {
     }
 }
 
-/// S = 2: §11's `BacklashTwoStage`.
+/// S = 2: docs/model.md §10's `BacklashTwoStage`.
 #[test]
 fn two_stages_agree_with_an_independent_integrator() {
     agrees_with_the_reference::<2, 13>(&two_stage(), 10);

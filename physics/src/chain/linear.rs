@@ -42,7 +42,7 @@ impl<const S: usize> Layout<S> {
 
 /// M of `mode` (y′ = M y): bodies J_j ω_j′ = −b_j ω_j + c_{j−1} ψ_{j−1} − a_j ψ_j (+ τ_m on
 /// body 0, + τ_L on body S) with ψ_i = K_i (u_i ∓ g_i) on a flank and 0 free (docs/model.md
-/// §1, ../shared/spec/model.md §11). N must be 3S + 7.
+/// §1, docs/model.md §10). N must be 3S + 7.
 pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &ChainMode<S>) -> SMatrix<f64, N, N> {
     assert!(
         N == Layout::<S>::DIM,

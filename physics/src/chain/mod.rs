@@ -1,10 +1,10 @@
 //! The plant as a chain: bodies (J, b) joined by S stages, each a compliant member in series
-//! with a backlash (docs/model.md §1 for one stage, ../shared/spec/model.md §11 for two),
+//! with a backlash (docs/model.md §1 for one stage, docs/model.md §10 for several),
 //! stepped exactly between switches of any stage (docs/model.md §2).
 //!
 //! Stage i joins body i to body i + 1: u_i = a_i θ_i − c_i θ_{i+1}, ψ_i = K_i dz(u_i, g_i), body i
 //! receives −a_i ψ_i and body i + 1 receives +c_i ψ_i; τ_m drives body 0 and τ_L acts on body S.
-//! §1's shaft is a = c = 1, K = k, g = Δ; the belt a = R_1, c = α_1, K = K_b, g = α_2 Δ; §11's
+//! §1's shaft is a = c = 1, K = k, g = Δ; the belt a = R_1, c = α_1, K = K_b, g = α_2 Δ; docs/model.md §10's
 //! stages a = 1, c = n_j. A mode is the tuple of the stages' modes.
 //!
 //! Data flow: [`ChainParams`] → [`Chain`] (validated) → [`ChainStepper`] over [`ChainState`]

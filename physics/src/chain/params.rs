@@ -1,5 +1,5 @@
 //! The chain's parameters and their validation: bodies (J, b) joined by stages (a, c, K, g)
-//! (docs/model.md §1 for one stage, ../shared/spec/model.md §11 for two).
+//! (docs/model.md §1 for one stage, docs/model.md §10 for several).
 
 use crate::params::{Plant, SCALE_LIMIT};
 use std::fmt;
@@ -21,7 +21,7 @@ pub struct Body {
 pub struct Stage {
     /// Lever arm of the driving body, a (the shaft's 1, the belt's R_1 [m]).
     pub a: f64,
-    /// Lever arm of the driven body, c (the shaft's 1, the belt's α_1 [m], §11's n_j).
+    /// Lever arm of the driven body, c (the shaft's 1, the belt's α_1 [m], docs/model.md §10's n_j).
     pub c: f64,
     /// Stiffness K [N·m/rad, or N/m when u is a length].
     pub k: f64,
@@ -37,7 +37,7 @@ pub struct ChainParams<const S: usize> {
     pub motor: Body,
     /// Bodies 1..=S; `driven[i]` is the body stage i drives.
     pub driven: [Body; S],
-    /// Stages 0..S; stage i joins body i to body i + 1 (§11's stage j = i + 1).
+    /// Stages 0..S; stage i joins body i to body i + 1 (docs/model.md §10's stage j = i + 1).
     pub stages: [Stage; S],
 }
 

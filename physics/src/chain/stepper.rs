@@ -77,7 +77,7 @@ pub struct ChainStepper<const S: usize, const N: usize> {
 
 /// One stage (docs/model.md §1's shaft or belt): 10 augmented entries.
 pub type OneStageStepper = ChainStepper<1, 10>;
-/// Two stages (../shared/spec/model.md §11): 13 augmented entries.
+/// Two stages (docs/model.md §10): 13 augmented entries.
 pub type TwoStageStepper = ChainStepper<2, 13>;
 
 impl<const S: usize, const N: usize> ChainStepper<S, N> {
