@@ -1,5 +1,6 @@
-"""The package backlash_fmu as installed in the venv (`pip install .`): its design(), its
-shipped archives, and the `backlash` command on the venv's PATH.
+"""The package backlash_fmu as installed in the venv (the wheel of `cargo xtask wheel` in
+`cargo xtask test`, `pip install .` in `cargo xtask pytest`): its design(), its shipped archives,
+and the `backlash` command on the venv's PATH.
 
 design() and the `backlash` command run the design library through its Python binding;
 `cargo xtask design` runs the same library compiled into the build tool. They are separate
@@ -22,7 +23,7 @@ import backlash_fmu
 from test_design import run_design
 
 REPO = Path(__file__).resolve().parents[2]
-# The three design questions of the README, as (model, keywords, flags).
+# The three design questions of docs/design-a-drive.md, as (model, keywords, flags).
 QUESTIONS = [
     ("shaft", {"accuracy": 0.02}, ["--accuracy", "0.02"]),
     ("belt", {"accuracy": 2.2}, ["--model", "belt", "--accuracy", "2.2"]),
@@ -98,7 +99,7 @@ def test_bad_input_raises_value_error_with_the_reason(model, keywords, reason):
     assert reason in str(refused.value)
 
 
-def test_the_six_archives_are_shipped_and_simulate():
+def test_every_archive_is_shipped_and_simulates():
     """Every model of the package's manifest, FMI 2.0 and 3.0: fmpy reads the archive, finds
     the model it is named for, and simulates it (a torque on the motor moves the load)."""
     assert len(backlash_fmu.MODELS) == 3, backlash_fmu.MODELS

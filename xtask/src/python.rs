@@ -4,13 +4,14 @@
 //! repository, and the pytest run over the package's FMUs.
 
 use std::fs;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::platform::{self, Platform};
 use crate::util::{self, step};
 
-/// `cargo xtask pytest`: the venv, the package, the suite and the README examples.
+/// `cargo xtask pytest`: the venv, the package, the suite and the Python examples of README.md and
+/// docs/.
 pub fn run(args: &[String]) -> Result<(), String> {
     if let Some(arg) = args.first() {
         return Err(format!("`cargo xtask pytest` takes no arguments, got `{arg}`"));
@@ -34,28 +35,63 @@ pub fn install_package_for(platforms: &[&'static Platform]) -> Result<(), String
     step("the Python package backlash_fmu (pip install . into .venv)");
     let mut install = Command::new(venv_python());
     // maturin's build hooks run the `maturin` program the venv installed, found on PATH.
-    let path = std::env::var_os("PATH").unwrap_or_default();
-    let dirs = std::iter::once(venv_dir().join("bin")).chain(std::env::split_paths(&path));
-    let path = std::env::join_paths(dirs).map_err(|e| format!("PATH with .venv/bin: {e}"))?;
-    install.env("PATH", path).current_dir(util::repo_root()).args([
-        "-m",
-        "pip",
-        "install",
-        "--disable-pip-version-check",
-        "--quiet",
-        "--no-deps",
-        "--no-build-isolation",
-        "--force-reinstall",
-        ".",
-    ]);
+    install
+        .env("PATH", path_with_venv()?)
+        .current_dir(util::repo_root())
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--disable-pip-version-check",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "--force-reinstall",
+            ".",
+        ]);
     if platforms.len() > 1 {
         install.args(["--config-settings", "platforms=all"]);
     }
     util::run(&mut install)
 }
 
+/// Installs the wheel `wheel` (`cargo xtask wheel`) into `.venv` in place of any installed
+/// version; the venv's pinned packages are its dependencies (`--no-deps`).
+pub fn install_wheel(wheel: &Path) -> Result<(), String> {
+    step(&format!(
+        "the Python package backlash_fmu (pip install {} into .venv)",
+        util::shown(wheel)
+    ));
+    util::run(
+        Command::new(venv_python())
+            .current_dir(util::repo_root())
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--disable-pip-version-check",
+                "--quiet",
+                "--no-deps",
+                "--force-reinstall",
+            ])
+            .arg(wheel),
+    )
+}
+
+/// `PATH` with `.venv/bin` first, where the build finds the venv's `maturin`.
+pub fn path_with_venv() -> Result<std::ffi::OsString, String> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    let dirs = std::iter::once(venv_dir().join("bin")).chain(std::env::split_paths(&path));
+    std::env::join_paths(dirs).map_err(|e| format!("PATH with .venv/bin: {e}"))
+}
+
 fn venv_dir() -> PathBuf {
     util::repo_root().join(".venv")
+}
+
+/// A program the venv installed (`maturin`, `auditwheel`).
+pub fn venv_bin(program: &str) -> PathBuf {
+    venv_dir().join("bin").join(program)
 }
 
 /// The venv's interpreter (made by [`ensure_venv`]).
@@ -161,37 +197,89 @@ pub fn libclang_dir() -> Option<PathBuf> {
     site_package_dir(&["clang", "native"], "libclang.so")
 }
 
-/// Runs every ```python block of README.md in the venv from the repository root, each in a
-/// fresh interpreter, so the examples shown to users are known to work: the fmpy one on
-/// target/fmu, and the package's.
+/// The pages whose ```python blocks run: the README, then every page of docs/ (sorted), so that
+/// what a user copies from the front page and the user guide is known to work.
+pub fn example_pages() -> Result<Vec<PathBuf>, String> {
+    let root = util::repo_root();
+    let docs = root.join("docs");
+    let mut pages: Vec<PathBuf> = fs::read_dir(&docs)
+        .map_err(|e| format!("reading {}: {e}", util::shown(&docs)))?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|path| path.extension().is_some_and(|x| x == "md"))
+        .collect();
+    pages.sort();
+    pages.insert(0, root.join("README.md"));
+    Ok(pages)
+}
+
+/// Runs every ```python block of README.md and of the pages of docs/ in the venv from the
+/// repository root, each in a fresh interpreter. A block whose fence says ```python no-run is
+/// shown only (kept rare: each says why). README.md must have at least one block.
 pub fn run_readme_example() -> Result<(), String> {
-    step("README.md Python examples");
-    let readme_path = util::repo_root().join("README.md");
-    let readme = fs::read_to_string(&readme_path).map_err(|e| format!("reading README.md: {e}"))?;
-    let blocks = python_blocks(&readme);
-    if blocks.is_empty() {
-        return Err("README.md has no ```python block".into());
-    }
-    for code in blocks {
-        util::run(
-            Command::new(venv_python())
-                .current_dir(util::repo_root())
-                .arg("-c")
-                .arg(code),
-        )?;
+    step("Python examples of README.md and docs/");
+    let root = util::repo_root();
+    for page in example_pages()? {
+        let shown = page.strip_prefix(&root).unwrap_or(&page).display().to_string();
+        let text = fs::read_to_string(&page).map_err(|e| format!("reading {shown}: {e}"))?;
+        let blocks = python_blocks(&text);
+        if blocks.is_empty() && shown == "README.md" {
+            return Err("README.md has no ```python block".into());
+        }
+        for (n, code) in blocks.iter().enumerate() {
+            println!("{shown}: Python block {} of {}", n + 1, blocks.len());
+            util::run(Command::new(venv_python()).current_dir(&root).arg("-c").arg(code))
+                .map_err(|e| format!("{shown}, Python block {}: {e}", n + 1))?;
+        }
     }
     Ok(())
 }
 
-fn python_blocks(markdown: &str) -> Vec<&str> {
-    const OPEN: &str = "```python\n";
+/// The bodies of the fenced blocks whose info string is exactly `python` (a fence of three
+/// backticks at the start of a line; ```python no-run and other languages are skipped).
+fn python_blocks(markdown: &str) -> Vec<String> {
     let mut blocks = Vec::new();
-    let mut rest = markdown;
-    while let Some(start) = rest.find(OPEN) {
-        let body = &rest[start + OPEN.len()..];
-        let Some(end) = body.find("```") else { break };
-        blocks.push(&body[..end]);
-        rest = &body[end..];
+    let mut open: Option<(bool, String)> = None;
+    for line in markdown.lines() {
+        match &mut open {
+            None => {
+                if let Some(info) = line.strip_prefix("```") {
+                    open = Some((info.trim() == "python", String::new()));
+                }
+            }
+            Some((runs, body)) => {
+                if line.trim_end() == "```" {
+                    if *runs {
+                        blocks.push(std::mem::take(body));
+                    }
+                    open = None;
+                } else {
+                    body.push_str(line);
+                    body.push('\n');
+                }
+            }
+        }
     }
     blocks
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn python_blocks_are_the_fences_that_say_python() {
+        let page =
+            "text\n```python\nprint(1)\n```\n```sh\nls\n```\n```python no-run\nx\n```\n```python\na = 2\nb = 3\n```\n";
+        assert_eq!(
+            python_blocks(page),
+            vec!["print(1)\n".to_string(), "a = 2\nb = 3\n".to_string()]
+        );
+    }
+
+    #[test]
+    fn every_page_with_examples_is_found() {
+        let pages = example_pages().unwrap();
+        assert!(pages[0].ends_with("README.md"));
+        assert!(pages.iter().any(|p| p.ends_with("docs/simulate-an-fmu.md")));
+    }
 }

@@ -38,7 +38,7 @@ plots; --resume continues an interrupted sweep from the rows already written.
   --workers N       LocalCluster worker processes (default: one per core); with
                     --scheduler, how many workers to wait for (default 1)
   --chunk N         samples per task (default: about a second of work a task)
-  --config FILE     TOML distributions and settings (format: README.md,
+  --config FILE     TOML distributions and settings (format: docs/sweep-tolerances.md,
                     python/backlash_fmu/sweep/config.py)
   --out DIR         output directory (default: results/sweep)
   --resume          continue the sweep interrupted in --out (same seed, model and config)

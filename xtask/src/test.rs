@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::platform::{self, Built};
 use crate::util::{self, step};
-use crate::{abi, cross, fmu, python};
+use crate::{abi, cross, fmu, python, wheel};
 
 /// The package of tests/importer, and its integration test that loads the archives with the
 /// `fmi` crate.
@@ -17,7 +17,7 @@ const IMPORTER_TEST: &str = "fmi_crate";
 
 const USAGE: &str = "usage: cargo xtask test [--cross | --no-cross]";
 
-/// Whether step 9 (the win64 and aarch64-linux builds and their test) runs.
+/// Whether step 11 (the win64 and aarch64-linux builds and their test) runs.
 #[derive(Clone, Copy, PartialEq)]
 enum Cross {
     /// When this machine has the tools (the default).
@@ -34,13 +34,13 @@ pub fn run(args: &[String]) -> Result<(), String> {
         [flag] if flag == "--no-cross" => Cross::Skipped,
         [other, ..] => return Err(format!("unexpected argument `{other}`\n{USAGE}")),
     };
-    // Decided up front, so that steps 3 and 6 build every platform when step 9 will test them.
+    // Decided up front, so that steps 3 and 6 build every platform when step 11 will test them.
     let cross_enabled = match (cross_mode, cross::unavailable()) {
         (Cross::Skipped, _) => false,
         (_, None) => true,
         (Cross::Required, Some(line)) => return Err(format!("--cross: {line}")),
         (Cross::IfAvailable, Some(line)) => {
-            println!("step 9 (win64, aarch64-linux) will be skipped: {line}");
+            println!("step 11 (win64, aarch64-linux) will be skipped: {line}");
             false
         }
     };
@@ -50,6 +50,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
         vec![&platform::LINUX64]
     };
     let built: RefCell<Vec<Built>> = RefCell::new(Vec::new());
+    let distribution: RefCell<Option<wheel::Distribution>> = RefCell::new(None);
     let started = Instant::now();
     let mut timings: Vec<(&str, f64)> = Vec::new();
     let mut timed = |name: &'static str, work: &dyn Fn() -> Result<(), String>| {
@@ -62,13 +63,13 @@ pub fn run(args: &[String]) -> Result<(), String> {
     // 1. The venv first: it carries the libclang that step 5 builds with, and fmpy's copy of
     //    the official FMI headers for step 4.
     timed("python venv", &|| {
-        step("1/9 Python venv");
+        step("1/11 Python venv");
         python::ensure_venv()
     })?;
     // 2. Unit and integration tests of every crate but the importer test, which needs the
     //    archives that step 3 writes and runs in step 5.
     timed("cargo test --workspace", &|| {
-        step("2/9 cargo test --workspace");
+        step("2/11 cargo test --workspace");
         util::run(util::cargo().args([
             "test",
             "--workspace",
@@ -78,14 +79,14 @@ pub fn run(args: &[String]) -> Result<(), String> {
             PYTHON_BINDING,
         ]))
     })?;
-    // 3. The archives in target/fmu/ (with the win64 DLL when step 8 runs).
+    // 3. The archives in target/fmu/ (with the win64 DLL when step 11 runs).
     let fmu_command = if cross_enabled {
         "cargo xtask fmu --all-platforms"
     } else {
         "cargo xtask fmu"
     };
     timed(fmu_command, &|| {
-        step(&format!("3/9 {fmu_command}"));
+        step(&format!("3/11 {fmu_command}"));
         *built.borrow_mut() = fmu::package(&platforms)?;
         Ok(())
     })?;
@@ -93,7 +94,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
     //    the leak check's C driver, natively and briefly, so that the longer run in CI (with
     //    valgrind) finds a driver that still fits the models' interface.
     timed("ABI check", &|| {
-        step("4/9 ABI check, and the leak check's driver (200 cycles, native)");
+        step("4/11 ABI check, and the leak check's driver (200 cycles, native)");
         abi::check(&built.borrow())?;
         util::run(
             Command::new("bash")
@@ -105,7 +106,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
     // 5. A Rust importer (the `fmi` crate) loads the packaged archive. --include-ignored runs
     //    the tests that a plain `cargo test` skips; they fail if an archive is missing.
     timed("importer test", &|| {
-        step("5/9 importer test (fmi crate on target/fmu/*.fmu)");
+        step("5/11 importer test (fmi crate on target/fmu/*.fmu)");
         let mut test = util::cargo();
         bindgen_environment(&mut test)?;
         util::run(test.env("BACKLASH_FMU_DIR", util::fmu_dir()).args([
@@ -118,30 +119,50 @@ pub fn run(args: &[String]) -> Result<(), String> {
             "--include-ignored",
         ]))
     })?;
-    // 6. The Python package, installed into the venv as a user installs it (`pip install .`),
-    //    with the archives of the same platforms: the suite runs against it.
-    timed("Python package", &|| {
-        step("6/9 Python package (pip install . into .venv)");
-        python::install_package_for(&platforms)
+    // 6. The Python package as a user gets it: `cargo xtask wheel` (the wheel, audited, and the
+    //    sdist in dist/, the archives with the same platforms), the wheel installed into the
+    //    venv; the suite runs against it, and steps 9 and 10 install the same files afresh.
+    timed("wheel and sdist", &|| {
+        step("6/11 Python package (cargo xtask wheel; the wheel installed into .venv)");
+        let built = wheel::build(&platforms)?;
+        python::install_wheel(&built.wheel)?;
+        *distribution.borrow_mut() = Some(built);
+        Ok(())
     })?;
     // 7. The pytest suite drives the package's FMUs through fmpy.
     timed("pytest", &|| {
-        step("7/9 pytest");
+        step("7/11 pytest");
         python::run_pytest()
     })?;
-    // 8. The Python examples of README.md, so that what a new user copies works.
-    timed("README examples", &|| {
-        step("8/9 README.md Python examples");
+    // 8. The Python examples of README.md and of the user guide (docs/), so that what a new
+    //    user copies works.
+    timed("README and docs examples", &|| {
+        step("8/11 Python examples of README.md and docs/");
         python::run_readme_example()
     })?;
-    // 8. The win64 DLL under Wine and the aarch64 library under qemu against linux64.
+    // 9. The wheel where no Rust toolchain is: a fresh venv, PATH without cargo or rustc; the
+    //    command, the package's example, an FMU in fmpy, a shipped system in fmpy's SSP runner.
+    timed("wheel without cargo", &|| {
+        step("9/11 the wheel in a fresh venv, no cargo or rustc on PATH (tests/install/check_installed.py)");
+        let distribution = distribution.borrow();
+        let built = distribution.as_ref().ok_or("step 6 wrote no wheel")?;
+        wheel::test_without_cargo(&built.wheel)
+    })?;
+    // 10. The sdist where cargo is: pip builds the whole workspace from it.
+    timed("sdist with cargo", &|| {
+        step("10/11 the sdist installed with pip into a fresh venv, cargo present");
+        let distribution = distribution.borrow();
+        let built = distribution.as_ref().ok_or("step 6 wrote no sdist")?;
+        wheel::test_sdist(&built.sdist)
+    })?;
+    // 11. The win64 DLL under Wine and the aarch64 library under qemu against linux64.
     if cross_enabled {
         timed("cross-platform test", &|| {
-            step("9/9 win64 and aarch64-linux against linux64 (cargo xtask cross-test)");
+            step("11/11 win64 and aarch64-linux against linux64 (cargo xtask cross-test)");
             cross::test(&built.borrow())
         })?;
     } else {
-        step("9/9 cross-platform test skipped");
+        step("11/11 cross-platform test skipped");
     }
 
     step("cargo xtask test: every step succeeded");

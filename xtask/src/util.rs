@@ -4,9 +4,18 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitStatus};
 
-/// Top level of the repository (the directory holding the workspace `Cargo.toml`).
+/// Top level of the repository (the directory holding the workspace `Cargo.toml`): the parent of
+/// xtask's folder as `cargo run` names it to this process (`CARGO_MANIFEST_DIR`), else as it was
+/// when this program was built. Cargo reuses a build of the same sources moved elsewhere that
+/// share the target directory (pip unpacks each sdist into a folder of its own), and the folder
+/// of that build may be gone.
 pub fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+    let built = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let given = std::env::var_os("CARGO_MANIFEST_DIR").map(PathBuf::from);
+    let manifest = given
+        .filter(|dir| dir.file_name() == built.file_name() && dir.join("Cargo.toml").is_file())
+        .unwrap_or_else(|| built.to_path_buf());
+    manifest
         .parent()
         .expect("xtask lives one level below the repository root")
         .to_path_buf()
