@@ -187,7 +187,7 @@ fn crossing_json(c: &Option<Crossing>) -> Value {
     }
 }
 
-/// The answer as one JSON object (keys documented in the README's design section): each
+/// The answer as one JSON object (keys documented in docs/design-a-drive.md): each
 /// top-level key on its line, its value on that line (no final newline). Numbers are shortest
 /// round-trip; JSON has no infinity or NaN, so those become null.
 pub fn to_json(a: &Answer) -> String {

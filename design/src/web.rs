@@ -246,7 +246,7 @@ pub fn to_text(a: &Answer) -> String {
     out.join("\n")
 }
 
-/// The answer as one JSON object (keys in the README's design section), laid out as
+/// The answer as one JSON object (keys in docs/design-a-drive.md), laid out as
 /// [`crate::speed::to_json`] lays out the speed answer.
 pub fn to_json(a: &Answer) -> String {
     crate::layout::laid_out(&to_value(a))

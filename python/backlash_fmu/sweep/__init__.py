@@ -87,7 +87,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--chunk", type=_positive_int,
                     help="samples per Dask task (default: sized from the measured time of a sample, "
                          "about a second a task)")
-    ap.add_argument("--config", type=Path, help="TOML config (format: backlash_fmu/sweep/config.py, README.md)")
+    ap.add_argument("--config", type=Path, help="TOML config (format: backlash_fmu/sweep/config.py, docs/sweep-tolerances.md)")
     ap.add_argument("--out", type=Path, default=Path("results/sweep"), help="output directory")
     ap.add_argument("--resume", action="store_true",
                     help="continue the sweep interrupted in --out: the samples already in its samples.csv are "

@@ -4,7 +4,7 @@
 //! reason, and a fresh instance works afterwards. FMU states under misuse are in
 //! `crate::fmu_state::misuse`.
 //!
-//! The long fuzz (README, `.ci/run`) runs the `fuzz` module alone:
+//! The long fuzz (docs/testing.md, `.ci/run`) runs the `fuzz` module alone:
 //! `FUZZ_SECONDS=120 FUZZ_EXTREME=1 cargo test --release --test integration robustness::fuzz -- --nocapture`.
 
 mod arguments;
