@@ -33,22 +33,11 @@ pub fn install_package() -> Result<(), String> {
 /// and the venv's pinned packages are its dependencies (`--no-deps`).
 pub fn install_package_for(platforms: &[&'static Platform]) -> Result<(), String> {
     step("the Python package backlash_fmu (pip install . into .venv)");
-    let mut install = Command::new(venv_python());
+    let mut install = venv_pip_install();
     // maturin's build hooks run the `maturin` program the venv installed, found on PATH.
     install
         .env("PATH", path_with_venv()?)
-        .current_dir(util::repo_root())
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "--disable-pip-version-check",
-            "--quiet",
-            "--no-deps",
-            "--no-build-isolation",
-            "--force-reinstall",
-            ".",
-        ]);
+        .args(["--no-build-isolation", "."]);
     if platforms.len() > 1 {
         install.args(["--config-settings", "platforms=all"]);
     }
@@ -62,20 +51,23 @@ pub fn install_wheel(wheel: &Path) -> Result<(), String> {
         "the Python package backlash_fmu (pip install {} into .venv)",
         util::shown(wheel)
     ));
-    util::run(
-        Command::new(venv_python())
-            .current_dir(util::repo_root())
-            .args([
-                "-m",
-                "pip",
-                "install",
-                "--disable-pip-version-check",
-                "--quiet",
-                "--no-deps",
-                "--force-reinstall",
-            ])
-            .arg(wheel),
-    )
+    util::run(venv_pip_install().arg(wheel))
+}
+
+/// `pip install` into `.venv` from the repository root, replacing any installed version, with
+/// the venv's pinned packages as the dependencies (`--no-deps`).
+fn venv_pip_install() -> Command {
+    let mut pip = Command::new(venv_python());
+    pip.current_dir(util::repo_root()).args([
+        "-m",
+        "pip",
+        "install",
+        "--disable-pip-version-check",
+        "--quiet",
+        "--no-deps",
+        "--force-reinstall",
+    ]);
+    pip
 }
 
 /// `PATH` with `.venv/bin` first, where the build finds the venv's `maturin`.
