@@ -251,9 +251,9 @@ impl Instance {
         );
         takes_inputs
             && vrs.iter().zip(values).all(|(vr, value)| {
-                self.model.by_vr(*vr).is_some_and(|v| {
-                    (v.causality == Causality::Input) & (v.ty == ty) && v.range.admits(*value)
-                })
+                self.model
+                    .by_vr(*vr)
+                    .is_some_and(|v| (v.causality == Causality::Input) & (v.ty == ty) && v.range.admits(*value))
             })
     }
 
