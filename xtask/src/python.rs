@@ -73,8 +73,13 @@ fn venv_pip_install() -> Command {
 /// `PATH` with `.venv/bin` first, where the build finds the venv's `maturin`.
 pub fn path_with_venv() -> Result<std::ffi::OsString, String> {
     let path = std::env::var_os("PATH").unwrap_or_default();
-    let dirs = std::iter::once(venv_dir().join("bin")).chain(std::env::split_paths(&path));
-    std::env::join_paths(dirs).map_err(|e| format!("PATH with .venv/bin: {e}"))
+    path_with_bin(&venv_dir(), std::env::split_paths(&path))
+}
+
+/// A `PATH` of `venv`'s `bin` in front of `dirs`.
+pub fn path_with_bin(venv: &Path, dirs: impl Iterator<Item = PathBuf>) -> Result<std::ffi::OsString, String> {
+    std::env::join_paths(std::iter::once(venv.join("bin")).chain(dirs))
+        .map_err(|e| format!("PATH with {}: {e}", venv.join("bin").display()))
 }
 
 fn venv_dir() -> PathBuf {
@@ -88,7 +93,7 @@ pub fn venv_bin(program: &str) -> PathBuf {
 
 /// The venv's interpreter (made by [`ensure_venv`]).
 pub fn venv_python() -> PathBuf {
-    venv_dir().join("bin").join("python")
+    venv_bin("python")
 }
 
 /// The pinned requirements installed into `.venv`: the pytest suite's, and the libclang that

@@ -370,7 +370,7 @@ fn path_without_cargo(venv: &Path) -> Result<std::ffi::OsString, String> {
         "PATH without the folders that hold cargo or rustc: {}",
         dropped.join(", ")
     );
-    std::env::join_paths(std::iter::once(venv.join("bin")).chain(kept)).map_err(|e| format!("PATH: {e}"))
+    python::path_with_bin(venv, kept.into_iter())
 }
 
 /// The wheel installed into a fresh venv and run there with a `PATH` that holds no cargo or
@@ -404,10 +404,10 @@ pub fn test_sdist(sdist: &Path) -> Result<(), String> {
     let started = Instant::now();
     let dir = util::target_dir().join("install-test").join("sdist");
     let venv = fresh_venv(&dir)?;
-    let path = std::env::join_paths(
-        std::iter::once(venv.join("bin")).chain(std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())),
-    )
-    .map_err(|e| format!("PATH: {e}"))?;
+    let path = python::path_with_bin(
+        &venv,
+        std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default()),
+    )?;
     println!("pip builds the workspace from the sdist: minutes while target/sdist-build is cold");
     util::run(
         in_venv(&venv, "python", &path, &dir)

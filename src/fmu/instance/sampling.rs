@@ -10,8 +10,9 @@ use crate::fmu::variables::ModelInfo;
 use crate::fmu::variables::Symbol;
 use crate::physics::{finite, ControllerParams, Reference, SampleError, SampledPi};
 
-/// What a controller says when asked for an FMU state, naming both standards' spellings of the flag (FMI 2.0 `canGetAndSetFMUstate`, FMI 3.0
-/// `canGetAndSetFMUState`): the snapshot code that refuses it does not know the standard.
+/// What a controller says when asked for an FMU state, naming both standards' spellings of the
+/// flag (FMI 2.0 `canGetAndSetFMUstate`, FMI 3.0 `canGetAndSetFMUState`): the snapshot code that
+/// refuses it does not know the standard.
 pub(crate) const NO_FMU_STATE: &str =
     "a controller's FMU state (canGetAndSetFMUstate = false; FMI 3.0: canGetAndSetFMUState = false)";
 
