@@ -150,6 +150,35 @@ impl<const N: usize, const BA: usize, const KO: usize> PieceKernel<N, BA, KO> {
     }
 }
 
+/// How a backlash disturbance φ enters a loop of `N` states (docs/model.md §3): along the column
+/// D, with |φ| ≤ K g (`scale`), from a plant whose fastest rate is `rate`; a damper D (`damping`)
+/// in the compliant member with half gap g (`half_gap`) adds the trajectory terms of
+/// [`LoopBound::damped_bound`].
+pub(crate) struct Disturbance<const N: usize> {
+    pub(crate) column: [f64; N],
+    pub(crate) scale: f64,
+    pub(crate) rate: f64,
+    pub(crate) damping: f64,
+    pub(crate) half_gap: f64,
+}
+
+impl<const N: usize> Disturbance<N> {
+    /// The single gap of a plant of docs/model.md §1: D_1 = r_m/J_m at ω_m, −r_L/J_L at ω_L.
+    fn of_plant(plant: &Plant) -> Self {
+        let p = plant.params();
+        let mut column = [0.0; N];
+        column[1] = plant.r_m() / p.j_m;
+        column[OMEGA_L] = -plant.r_l() / p.j_l;
+        Disturbance {
+            column,
+            scale: plant.stiffness() * plant.half_gap(),
+            rate: linear::fastest_rate(plant),
+            damping: plant.damping(),
+            half_gap: plant.half_gap(),
+        }
+    }
+}
+
 /// The bounds of the speed loop of docs/model.md §3 (`bound`, `bound_paper`, `bound_sup`).
 pub type SpeedErrorBound = LoopBound<CL, { 2 * CL }, 16, 4, OMEGA_L>;
 /// A bound of the web line (docs/model.md §8) on the entry `OUT` of its loop state.
@@ -224,7 +253,7 @@ fn variation_bound(d: [f64; 3], c3: f64, w: f64, dh: f64) -> f64 {
 }
 
 /// Refuses gains that are not finite or not in scale.
-fn check_gains(named: &[(&'static str, f64)]) -> Result<(), BoundError> {
+pub(crate) fn check_gains(named: &[(&'static str, f64)]) -> Result<(), BoundError> {
     for &(name, value) in named {
         if !value.is_finite() {
             return Err(BoundError::NonFiniteGain { name, value });
@@ -240,7 +269,7 @@ impl SpeedErrorBound {
     pub fn new(plant: &Plant, gains: PiGains) -> Result<SpeedErrorBound, BoundError> {
         check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
         Ok(Self::build(
-            plant,
+            &Disturbance::of_plant(plant),
             closed_loop(plant, gains),
             Reduced::new(plant, gains),
         ))
@@ -258,26 +287,29 @@ impl<const OUT: usize> WebLoopBound<OUT> {
             ("Ki_T", tension.ki),
         ])?;
         let reduced = Reduced::web(plant, speed, tension, OUT);
-        Ok(Self::build(plant, web_loop(plant, speed, tension), reduced))
+        Ok(Self::build(
+            &Disturbance::of_plant(plant),
+            web_loop(plant, speed, tension),
+            reduced,
+        ))
     }
 }
 
 impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT: usize> LoopBound<N, BA, KO, R, OUT> {
-    /// The bound of loop `a` on the response of entry `OUT`, with the reduced loop for its tail.
-    fn build(plant: &Plant, a: SMatrix<f64, N, N>, reduced: Reduced) -> Self {
+    /// The bound of loop `a` on the response of entry `OUT` to `disturbance`, with the reduced
+    /// loop for its tail.
+    pub(crate) fn build(disturbance: &Disturbance<N>, a: SMatrix<f64, N, N>, reduced: Reduced) -> Self {
         let mut m = BoundMatrix::<BA>::zeros();
         m.fixed_view_mut::<N, N>(0, 0).copy_from(&a);
         m.fixed_view_mut::<N, N>(N, 0)
             .copy_from(&SMatrix::<f64, N, N>::identity());
-        let p = plant.params();
         let mut start = BoundVector::<BA>::zeros();
-        start[1] = plant.r_m() / p.j_m;
-        start[OMEGA_L] = -plant.r_l() / p.j_l;
-        let rate = linear::fastest_rate(plant).max(spectral_radius(&a));
+        start.as_mut_slice()[..N].copy_from_slice(&disturbance.column);
+        let rate = disturbance.rate.max(spectral_radius(&a));
         let len_ref = linear::PIECE_RATE / rate;
         let mut c = BoundVector::<BA>::zeros();
         c[OUT] = 1.0;
-        let scale = plant.stiffness() * plant.half_gap();
+        let scale = disturbance.scale;
         let mut bound = LoopBound {
             scale,
             m,
@@ -294,8 +326,8 @@ impl<const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT
             // Then the squares in ‖integral‖₂ stay finite, and K g ‖integral‖₂ ≤ K g √N reach
             // is below f64::MAX.
             reach_limit: (f64::MAX / (4.0 * scale)).min(1e150),
-            damping: plant.damping(),
-            half_gap: plant.half_gap(),
+            damping: disturbance.damping,
+            half_gap: disturbance.half_gap,
         };
         bound.tail = reduced.tail_bound().ok();
         bound.reset();

@@ -108,6 +108,16 @@ fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
     Some(schur.complex_eigenvalues().iter().copied().collect())
 }
 
+/// u = r_m θ_m − r_L θ_L over the loop state [θ_m, ω_m, θ_L, ω_L, ...].
+fn gap(plant: &Plant) -> Coord {
+    Coord::Gap {
+        a: plant.r_m(),
+        i: 0,
+        c: plant.r_l(),
+        j: 2,
+    }
+}
+
 /// The web line's loop state [θ_m, ω_m, θ_L, ω_L, x_c, T, x_T] (docs/model.md §8): the speed
 /// loop's with the span tension and the tension PI's integrator.
 pub const WEB_CL: usize = 7;
@@ -144,18 +154,37 @@ pub fn web_loop(plant: &Plant, speed: PiGains, tension: PiGains) -> SMatrix<f64,
     a
 }
 
+/// One coordinate of a reduced loop state, read from the full loop state v.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Coord {
+    /// A gap a v[i] − c v[j] (u = r_m θ_m − r_L θ_L, or a chain stage's a θ_i − c θ_{i+1}).
+    Gap { a: f64, i: usize, c: f64, j: usize },
+    /// v[i] as it is.
+    Entry(usize),
+    /// Padding: 0.
+    Zero,
+}
+
+impl Coord {
+    fn of<const N: usize>(self, v: &[f64; N]) -> f64 {
+        match self {
+            Coord::Gap { a, i, c, j } => a * v[i] - c * v[j],
+            Coord::Entry(i) => v[i],
+            Coord::Zero => 0.0,
+        }
+    }
+}
+
 /// The loop in the coordinates an output's impulse response depends on: for the speed loop
-/// [u, ω_m, ω_L] and x_c when Ki ≠ 0; for the web line also T and x_T when Ki_T ≠ 0. The angle
-/// translation (u fixed) is neither excited by D_1 nor seen by ω_L or T, and an integrator
-/// without gain feeds nothing back, so these are exactly the modes that the response excites
-/// (docs/model.md §3, and §4 `bound_sup`). The coordinates are u = r_m θ_m − r_L θ_L and the
-/// entries `kept` of the loop state.
+/// [u, ω_m, ω_L] and x_c when Ki ≠ 0; for the web line also T and x_T when Ki_T ≠ 0; for a chain
+/// every stage's gap, every body's speed and x_c when Ki ≠ 0. The angle translation (every gap
+/// fixed) is neither excited by a backlash disturbance nor seen by a speed or T, and an
+/// integrator without gain feeds nothing back, so these are exactly the modes that the response
+/// excites (docs/model.md §3, and §4 `bound_sup`).
 pub(crate) struct Reduced {
     a: DMatrix<f64>,
     out: DVector<f64>,
-    r_m: f64,
-    r_l: f64,
-    kept: Vec<usize>,
+    coords: Vec<Coord>,
 }
 
 /// A bound on ∫_T^∞ |h| from the reduced state x(T). With ε = −α/2 (α the spectral abscissa),
@@ -168,13 +197,10 @@ pub(crate) struct Reduced {
 pub(crate) struct TailBound<const N: usize, const R: usize> {
     /// W in the reduced coordinates, zero-padded to R×R.
     gramian: SMatrix<f64, R, R>,
-    /// The reduced coordinates: u = r_m v[0] − r_L v[2], then v[kept[i]] (None: padding, 0).
-    r_m: f64,
-    r_l: f64,
-    kept: [Option<usize>; R],
+    /// The reduced coordinates, padded with [`Coord::Zero`].
+    coords: [Coord; R],
     epsilon: f64,
 }
-
 impl<const N: usize, const R: usize> TailBound<N, R> {
     /// The bound for the full response v (projected on the reduced coordinates).
     pub(crate) fn of(&self, v: &[f64; N]) -> f64 {
@@ -188,11 +214,7 @@ impl<const N: usize, const R: usize> TailBound<N, R> {
     }
 
     fn squared(&self, v: &[f64; N]) -> f64 {
-        let x = SMatrix::<f64, R, 1>::from_fn(|i, _| match (i, self.kept[i]) {
-            (0, _) => self.r_m * v[0] - self.r_l * v[2],
-            (_, Some(j)) => v[j],
-            (_, None) => 0.0,
-        });
+        let x = SMatrix::<f64, R, 1>::from_fn(|i, _| self.coords[i].of(v));
         x.dot(&(self.gramian * x)).max(0.0)
     }
 }
@@ -206,25 +228,52 @@ impl Reduced {
         let mut out = DVector::zeros(n);
         out[2] = 1.0;
         // x = [r_m θ_m − r_L θ_L, ω_m, ω_L, x_c] from [θ_m, ω_m, θ_L, ω_L, x_c].
-        let kept = [1, OMEGA_L, 4][..n - 1].to_vec();
+        let kept = [1, OMEGA_L, 4][..n - 1].iter().map(|&j| Coord::Entry(j));
         Reduced {
             a,
             out,
-            r_m: plant.r_m(),
-            r_l: plant.r_l(),
-            kept,
+            coords: std::iter::once(gap(plant)).chain(kept).collect(),
         }
     }
 
     /// The map from the loop state (`cols` entries) onto the reduced coordinates.
     fn projection(&self, cols: usize) -> DMatrix<f64> {
-        let mut proj = DMatrix::zeros(1 + self.kept.len(), cols);
-        proj[(0, 0)] = self.r_m;
-        proj[(0, 2)] = -self.r_l;
-        for (i, &j) in self.kept.iter().enumerate() {
-            proj[(i + 1, j)] = 1.0;
+        let mut proj = DMatrix::zeros(self.coords.len(), cols);
+        for (row, coord) in self.coords.iter().enumerate() {
+            match *coord {
+                Coord::Gap { a, i, c, j } => {
+                    proj[(row, i)] = a;
+                    proj[(row, j)] = -c;
+                }
+                Coord::Entry(i) => proj[(row, i)] = 1.0,
+                Coord::Zero => {}
+            }
         }
         proj
+    }
+
+    /// The loop `full` (`cols` × `cols`) on the coordinates `coords` with the response of
+    /// entry `output` (one of the `Entry` coordinates): A_r = P A P⁺ with P the projection and
+    /// P⁺ a right inverse of it, which is A_r whenever P A = A_r P (the coordinates span
+    /// everything A feeds back through).
+    pub(crate) fn from_loop(full: &DMatrix<f64>, coords: Vec<Coord>, output: usize) -> Reduced {
+        let n = coords.len();
+        let mut reduced = Reduced {
+            a: DMatrix::zeros(n, n),
+            out: DVector::zeros(n),
+            coords,
+        };
+        let proj = reduced.projection(full.nrows());
+        let gram = &proj * proj.transpose();
+        let right_inverse = proj.transpose() * gram.try_inverse().expect("independent coordinates");
+        reduced.a = &proj * full * right_inverse;
+        let at = reduced
+            .coords
+            .iter()
+            .position(|&c| c == Coord::Entry(output))
+            .expect("the output is a coordinate");
+        reduced.out[at] = 1.0;
+        reduced
     }
 
     /// The web line's, for the response of ω_L or of T (`output`, an index of the loop state
@@ -240,13 +289,14 @@ impl Reduced {
         if tension.ki != 0.0 && (speed.kp != 0.0 || speed.ki != 0.0) {
             kept.push(X_T);
         }
-        let n = 1 + kept.len();
+        let coords = std::iter::once(gap(plant))
+            .chain(kept.into_iter().map(Coord::Entry))
+            .collect::<Vec<_>>();
+        let n = coords.len();
         let mut reduced = Reduced {
             a: DMatrix::zeros(n, n),
             out: DVector::zeros(n),
-            r_m: plant.r_m(),
-            r_l: plant.r_l(),
-            kept,
+            coords,
         };
         let proj = reduced.projection(WEB_CL);
         // A_r with P A = A_r P: the θ columns of A enter only through u = r_m θ_m − r_L θ_L
@@ -255,13 +305,28 @@ impl Reduced {
         let pa = &proj * &full;
         for i in 0..n {
             reduced.a[(i, 0)] = pa[(i, 0)] / plant.r_m();
-            for (k, &j) in reduced.kept.iter().enumerate() {
+            for (k, coord) in reduced.coords[1..].iter().enumerate() {
+                let Coord::Entry(j) = *coord else {
+                    unreachable!("entries follow the gap")
+                };
                 reduced.a[(i, k + 1)] = pa[(i, j)];
             }
         }
-        let at = reduced.kept.iter().position(|&j| j == output).expect("ω_L or T");
-        reduced.out[1 + at] = 1.0;
+        let at = reduced
+            .coords
+            .iter()
+            .position(|&c| c == Coord::Entry(output))
+            .expect("ω_L or T");
+        reduced.out[at] = 1.0;
         reduced
+    }
+
+    /// (P A, A_r P) for the loop `full` this was reduced from: equal when the coordinates
+    /// span everything the loop feeds back through.
+    #[cfg(test)]
+    pub(crate) fn commutation(&self, full: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
+        let proj = self.projection(full.nrows());
+        (&proj * full, &self.a * &proj)
     }
 
     pub(crate) fn tail_bound<const N: usize, const R: usize>(&self) -> Result<TailBound<N, R>, Unbounded> {
@@ -284,8 +349,13 @@ impl Reduced {
         let rhs = -DVector::from_iterator(n * n, (&self.out * self.out.transpose()).iter().copied());
         let vec_w = kron.lu().solve(&rhs).ok_or(Unbounded::Undamped)?;
         let w = DMatrix::from_iterator(n, n, vec_w.iter().copied());
+        let inside = |c: &Coord| match *c {
+            Coord::Gap { i, j, .. } => i < N && j < N,
+            Coord::Entry(i) => i < N,
+            Coord::Zero => true,
+        };
         assert!(
-            n <= R && self.kept.iter().all(|&j| j < N),
+            n <= R && self.coords.iter().all(inside),
             "a tail bound of {R} coordinates for a loop of {N}"
         );
         let mut gramian = SMatrix::<f64, R, R>::zeros();
@@ -296,9 +366,7 @@ impl Reduced {
         }
         Ok(TailBound {
             gramian,
-            r_m: self.r_m,
-            r_l: self.r_l,
-            kept: std::array::from_fn(|i| i.checked_sub(1).and_then(|k| self.kept.get(k).copied())),
+            coords: std::array::from_fn(|i| self.coords.get(i).copied().unwrap_or(Coord::Zero)),
             epsilon,
         })
     }

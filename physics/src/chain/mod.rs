@@ -8,7 +8,9 @@
 //! stages a = 1, c = n_j. A mode is the tuple of the stages' modes.
 //!
 //! Data flow: [`ChainParams`] → [`Chain`] (validated) → [`ChainStepper`] over [`ChainState`]
-//! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2). Not yet: dampers, the web span.
+//! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2), and [`ChainBound`]: the speed-error
+//! bound under a PI loop on the motor speed, one disturbance per stage. Not yet: dampers, the
+//! web span.
 //!
 //! Stepping is docs/model.md §2 with one switching coordinate per stage: a piece is accepted
 //! whole only when the cubic test certifies every stage's u free of its thresholds over it;
@@ -18,11 +20,13 @@
 //! in the new mode. A touch that begins and ends inside one piece is therefore found: the
 //! piece cannot be certified across it.
 
+mod bound;
 mod linear;
 mod params;
 mod state;
 mod stepper;
 
+pub use bound::{chain_loop, disturbance_column, ChainBound, LoopLayout, OneStageBound, TwoStageBound};
 pub use linear::{mode_matrix, Layout};
 pub use params::{Body, Chain, ChainError, ChainParams, Part, Stage};
 pub use state::{mode_of, ChainMode, ChainState, Motion};

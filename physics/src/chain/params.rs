@@ -73,6 +73,27 @@ impl ChainParams<1> {
     }
 }
 
+impl ChainParams<2> {
+    /// `BacklashTwoStage`'s drive (docs/model.md §10): the paper's rig (docs/model.md §4) with
+    /// its compliance and its gap split over two meshes of ratio 1: motor J_m = 2.28, load
+    /// J_L = 2.55 kg·m² (b = 0.05 N·m·s/rad each), a light intermediate shaft J_i = 0.1 kg·m²
+    /// (b_i = 0.01), each stage k = 400 N·m/rad (200 in series, the rig's k) and half gap
+    /// Δ = 0.3875 mrad (0.775 mrad in all, the rig's Δ of Fig. 11).
+    pub fn two_stage_rig() -> ChainParams<2> {
+        let stage = Stage {
+            a: 1.0,
+            c: 1.0,
+            k: 400.0,
+            g: 0.3875e-3,
+        };
+        ChainParams {
+            motor: Body { j: 2.28, b: 0.05 },
+            driven: [Body { j: 0.1, b: 0.01 }, Body { j: 2.55, b: 0.05 }],
+            stages: [stage; 2],
+        }
+    }
+}
+
 /// Where an invalid parameter sits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Part {

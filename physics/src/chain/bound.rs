@@ -1,0 +1,219 @@
+//! The speed-error bound of a chain under the PI loop of docs/model.md §3 on the motor speed,
+//! with one backlash disturbance per stage (docs/model.md §10).
+//!
+//! The backlash-free twin has every stage's ψ_i = K_i u_i; the chain with backlash has
+//! ψ_i = K_i u_i − φ_i with φ_i = K_i sat(u_i, g_i), |φ_i| ≤ K_i g_i. The difference e of the two
+//! loop states obeys e′ = A e + Σ_i D_i φ_i from e(0) = 0, so
+//! |ω_S^b − ω_S^0|(t) ≤ Σ_i K_i g_i ∫_0^t |h_i(s)| ds with h_i = L e^{A s} D_i, and the φ_i taking
+//! their worst signs independently attains it. Each term is a [`LoopBound`] of its own: the
+//! same loop, its own column D_i and scale K_i g_i.
+
+use super::params::Chain;
+use crate::bound::{check_gains, BoundError, Disturbance, LoopBound, PiGains, Unbounded};
+use crate::closed_loop::{Coord, Reduced};
+use nalgebra::{DMatrix, SMatrix};
+
+/// The loop state of an S-stage chain under the PI: [θ_0, ω_0, θ_1, ω_1, …, θ_S, ω_S, x_c].
+pub struct LoopLayout<const S: usize>;
+
+impl<const S: usize> LoopLayout<S> {
+    /// 2S + 3 entries.
+    pub const DIM: usize = 2 * S + 3;
+    /// The PI's integral of the speed error, x_c.
+    pub const X_C: usize = 2 * S + 2;
+    /// The load's speed ω_S, the bound's output.
+    pub const OMEGA_LAST: usize = 2 * S + 1;
+
+    /// θ_j.
+    pub const fn theta(j: usize) -> usize {
+        2 * j
+    }
+    /// ω_j.
+    pub const fn omega(j: usize) -> usize {
+        2 * j + 1
+    }
+}
+
+/// The backlash-free chain (every ψ_i = K_i u_i) under the PI on ω_0, τ_m = Kp e + Ki x_c,
+/// e = ω_ref − ω_0, x_c′ = e, in the loop state of [`LoopLayout`] (N = 2S + 3). For one stage
+/// this is [`crate::closed_loop::closed_loop`] entry for entry: K a²/J is rounded as one
+/// product, the same way. With Kp = Ki = 0 the x_c row and column are zero (open loop).
+pub fn chain_loop<const S: usize, const N: usize>(chain: &Chain<S>, gains: PiGains) -> SMatrix<f64, N, N> {
+    assert!(N == LoopLayout::<S>::DIM, "a loop of {N} entries for {S} stages");
+    let (theta, omega) = (LoopLayout::<S>::theta, LoopLayout::<S>::omega);
+    let mut a = SMatrix::<f64, N, N>::zeros();
+    for j in 0..=S {
+        let body = chain.body(j);
+        a[(theta(j), omega(j))] = 1.0;
+        a[(omega(j), omega(j))] = -if j == 0 { body.b + gains.kp } else { body.b } / body.j;
+    }
+    for i in 0..S {
+        let s = chain.stage(i);
+        let (driving, driven) = (chain.body(i).j, chain.body(i + 1).j);
+        // Body i receives −a ψ_i, body i + 1 receives +c ψ_i, ψ_i = K (a θ_i − c θ_{i+1}).
+        a[(omega(i), theta(i))] -= s.k * s.a * s.a / driving;
+        a[(omega(i), theta(i + 1))] += s.k * s.a * s.c / driving;
+        a[(omega(i + 1), theta(i))] += s.k * s.a * s.c / driven;
+        a[(omega(i + 1), theta(i + 1))] -= s.k * s.c * s.c / driven;
+    }
+    a[(omega(0), LoopLayout::<S>::X_C)] = gains.ki / chain.body(0).j;
+    if gains.kp != 0.0 || gains.ki != 0.0 {
+        a[(LoopLayout::<S>::X_C, omega(0))] = -1.0;
+    }
+    a
+}
+
+/// The column D_i along which stage i's disturbance φ_i enters the loop: +a_i/J_i at ω_i,
+/// −c_i/J_{i+1} at ω_{i+1} (docs/model.md §10).
+pub fn disturbance_column<const S: usize, const N: usize>(chain: &Chain<S>, stage: usize) -> [f64; N] {
+    let s = chain.stage(stage);
+    let mut column = [0.0; N];
+    column[LoopLayout::<S>::omega(stage)] = s.a / chain.body(stage).j;
+    column[LoopLayout::<S>::omega(stage + 1)] = -s.c / chain.body(stage + 1).j;
+    column
+}
+
+/// `bound(t)` and `bound_sup` of a chain of S stages (docs/model.md §10) under a PI loop on the
+/// motor speed: the sum over the stages of K_i g_i ∫|h_i|, each a [`LoopBound`] (N = 2S + 3
+/// loop entries, BA = 2N, KO kernel outputs, R = 2S + 2 reduced coordinates, OUT = ω_S).
+#[derive(Clone, Debug)]
+pub struct ChainBound<
+    const S: usize,
+    const N: usize,
+    const BA: usize,
+    const KO: usize,
+    const R: usize,
+    const OUT: usize,
+> {
+    stages: [LoopBound<N, BA, KO, R, OUT>; S],
+}
+
+/// The bound of [`crate::chain::TwoStageStepper`]'s chain.
+pub type TwoStageBound = ChainBound<2, 7, 14, 18, 6, 5>;
+/// The bound of a one-stage chain (the loop of docs/model.md §3).
+pub type OneStageBound = ChainBound<1, 5, 10, 16, 4, 3>;
+
+impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT: usize>
+    ChainBound<S, N, BA, KO, R, OUT>
+{
+    /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
+    /// not finite or not in scale.
+    pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
+        assert!(
+            N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
+            "a chain bound of sizes N = {N}, R = {R}, OUT = {OUT} for {S} stages"
+        );
+        check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
+        let a = chain_loop::<S, N>(chain, gains);
+        let full = DMatrix::from_iterator(N, N, a.iter().copied());
+        let rate = chain.fastest_rate();
+        Ok(ChainBound {
+            stages: std::array::from_fn(|i| {
+                let s = chain.stage(i);
+                let disturbance = Disturbance {
+                    column: disturbance_column::<S, N>(chain, i),
+                    scale: s.k * s.g,
+                    rate,
+                    damping: 0.0,
+                    half_gap: s.g,
+                };
+                let reduced = Reduced::from_loop(&full, reduced_coords(chain, gains), OUT);
+                LoopBound::build(&disturbance, a, reduced)
+            }),
+        })
+    }
+
+    /// Advances the time since the start by `h` ≥ 0 (every stage's term). On error nothing
+    /// changes.
+    pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
+        let before = self.stages.clone();
+        for stage in &mut self.stages {
+            if let Err(e) = stage.advance(h) {
+                self.stages = before;
+                return Err(e);
+            }
+        }
+        Ok(())
+    }
+
+    /// Σ_i K_i g_i ∫_0^t |h_i|: a true bound on |ω_S^b − ω_S^0| [rad/s] at the elapsed time t.
+    pub fn bound(&self) -> f64 {
+        self.stages.iter().map(|s| s.bound()).sum()
+    }
+
+    /// Stage i's term K_i g_i ∫_0^t |h_i| of [`Self::bound`].
+    pub fn stage_bound(&self, stage: usize) -> f64 {
+        self.stages[stage].bound()
+    }
+
+    /// Σ_i K_i g_i ∫_0^∞ |h_i| (`bound_sup`), or why it is infinite.
+    pub fn sup(&self) -> Result<f64, Unbounded> {
+        self.stages.iter().map(|s| s.sup()).sum()
+    }
+
+    /// Stage i's term K_i g_i ∫_0^∞ |h_i| of [`Self::sup`]: linear in g_i, the rest of the chain
+    /// held.
+    pub fn stage_sup(&self, stage: usize) -> Result<f64, Unbounded> {
+        self.stages[stage].sup()
+    }
+
+    /// Time since the start [s].
+    pub fn elapsed(&self) -> f64 {
+        self.stages[0].elapsed()
+    }
+
+    /// The longest advance accepted in one call.
+    pub fn max_advance(&self) -> f64 {
+        self.stages
+            .iter()
+            .map(|s| s.max_advance())
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The reduced coordinates of the chain's loop: every stage's gap a θ_i − c θ_{i+1}, every
+/// body's speed, and x_c when Ki ≠ 0 (without gain it feeds nothing back).
+fn reduced_coords<const S: usize>(chain: &Chain<S>, gains: PiGains) -> Vec<Coord> {
+    let gaps = (0..S).map(|i| {
+        let s = chain.stage(i);
+        Coord::Gap {
+            a: s.a,
+            i: LoopLayout::<S>::theta(i),
+            c: s.c,
+            j: LoopLayout::<S>::theta(i + 1),
+        }
+    });
+    let speeds = (0..=S).map(|j| Coord::Entry(LoopLayout::<S>::omega(j)));
+    let integrator = (gains.ki != 0.0).then_some(Coord::Entry(LoopLayout::<S>::X_C));
+    gaps.chain(speeds).chain(integrator).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::ChainParams;
+    use crate::closed_loop::closed_loop;
+    use crate::{Plant, PlantParams};
+
+    #[test]
+    fn one_stage_is_the_plant_loop_entry_for_entry() {
+        let plant = Plant::new(PlantParams::paper_rig(0.775e-3)).unwrap();
+        let chain = Chain::new(ChainParams::from_plant(&plant).unwrap()).unwrap();
+        for gains in [PiGains::default(), PiGains { kp: 42.0, ki: 180.0 }] {
+            // The same products in the same order: equal to the bit.
+            assert_eq!(chain_loop::<1, 5>(&chain, gains), closed_loop(&plant, gains));
+        }
+    }
+
+    #[test]
+    fn the_reduced_loop_commutes_with_its_projection() {
+        let chain = Chain::new(crate::chain::ChainParams::<2>::two_stage_rig()).unwrap();
+        let gains = PiGains { kp: 42.0, ki: 180.0 };
+        let a = chain_loop::<2, 7>(&chain, gains);
+        let full = DMatrix::from_iterator(7, 7, a.iter().copied());
+        let reduced = Reduced::from_loop(&full, reduced_coords(&chain, gains), 5);
+        let (lhs, rhs) = reduced.commutation(&full);
+        let scale = lhs.abs().max();
+        assert!((&lhs - &rhs).abs().max() <= 1e-13 * scale, "{lhs} vs {rhs}");
+    }
+}
