@@ -36,10 +36,15 @@ defaults; the stiffness is the belt's K_b [N/m], Delta in m on the gears' pitch 
 --model web: that belt drive pulling one web span (docs/model.md §8); requires
 --tension-accuracy EPS_T [N], the bound on |T with backlash - T without|, and takes --accuracy
 as an optional second requirement. delta_max and the K_b window then meet every accuracy given.
+--model two-stage: two gear stages in series (docs/model.md §10, BacklashTwoStage), defaults
+the paper's rig with its compliance and gap split over two meshes; bound_sup = s_1 Delta_1 +
+s_2 Delta_2 is linear in each half gap, so it prints each stage's s_j (bound_sup per unit of
+its gap), the largest Delta_j with the other gap at its value and with it closed, and which
+stage spends more of the bound.
 
 options:
   --accuracy EPS  required speed accuracy [rad/s], finite and > 0 (required, except for web)
-  --model M       shaft, belt or web (default shaft)
+  --model M       shaft, belt, web or two-stage (default shaft)
   --delta D       half gap Delta for the stiffness search (default: shaft 0.775e-3 rad, the
                   paper's 1.55 mm gap read as 2 Delta; belt 5e-5 m)
   --k K           nominal stiffness: shaft k [N.m/rad] (default 200), belt K_b [N/m]
@@ -62,13 +67,19 @@ options:
                   (default 0); the backlash-free loop is then the spring-damper's, and
                   bound_sup answers for the gap only (docs/model.md §3)
   --contact-law L 1: Modelica's ElastoBacklash (default), 2: ElastoBacklash2
+  --ji --bi       two-stage: the intermediate shaft's inertia J_i [kg.m2] and friction b_i
+                  [N.m.s/rad] (defaults 0.1, 0.01; --jm --jl --bm --bl as the shaft's)
+  --n1 --n2       two-stage: each stage's reduction ratio (defaults 1, 1)
+  --k1 --k2       two-stage: each stage's stiffness [N.m/rad] (defaults 400, 400)
+  --delta1 --delta2
+                  two-stage: each stage's half gap [rad] (defaults 0.3875e-3, 0.3875e-3)
   --json          print one JSON object instead of text
   --help          this text";
 
 /// The design command's usage, naming it `command` (`backlash design`, `cargo xtask design`).
 pub fn design_usage(command: &str) -> String {
     format!(
-        "usage: {command} --accuracy EPS [--model shaft|belt] [options] [--json]\n       \
+        "usage: {command} --accuracy EPS [--model shaft|belt|two-stage] [options] [--json]\n       \
          {command} --model web --tension-accuracy EPS_T [--accuracy EPS] [options] [--json]\n{DESIGN_DETAILS}"
     )
 }
@@ -162,7 +173,7 @@ pub fn design(command: &str, args: &[String]) -> Result<String, CliError> {
 
 /// The flags that take a number, and the setting each one gives ([`request::SETTINGS`]; `--k` is
 /// the stiffness of the form: `k` or `K_b`).
-const NUMBER_FLAGS: [(&str, &str); 22] = [
+const NUMBER_FLAGS: [(&str, &str); 30] = [
     ("--accuracy", "accuracy"),
     ("--delta", "Delta"),
     ("--k", STIFFNESS),
@@ -185,6 +196,14 @@ const NUMBER_FLAGS: [(&str, &str); 22] = [
     ("--vref", "v_ref"),
     ("--damping", DAMPING),
     ("--contact-law", "contact_law"),
+    ("--ji", "J_i"),
+    ("--bi", "b_i"),
+    ("--n1", "n_1"),
+    ("--n2", "n_2"),
+    ("--k1", "k_1"),
+    ("--k2", "k_2"),
+    ("--delta1", "Delta_1"),
+    ("--delta2", "Delta_2"),
 ];
 
 /// Stands for the form's stiffness in [`NUMBER_FLAGS`].
@@ -271,7 +290,8 @@ fn model_choice(args: &[String]) -> Result<Form, String> {
         if found.is_some() {
             return Err("--model given twice".into());
         }
-        found = Some(form_named(&value).ok_or_else(|| format!("--model = {value}: choose shaft, belt or web"))?);
+        found =
+            Some(form_named(&value).ok_or_else(|| format!("--model = {value}: choose shaft, belt, web or two-stage"))?);
     }
     Ok(found.unwrap_or(Form::Shaft))
 }
@@ -313,9 +333,59 @@ mod tests {
             let params = match request {
                 Request::Speed(r) => r.params,
                 Request::Web(r) => r.drive,
+                Request::TwoStage(_) => panic!("{model} is a single-gap form"),
             };
             assert_eq!(params.damping.d, 12.5, "{model}");
             assert_eq!(params.damping.law.code() as f64, law, "{model}");
+        }
+    }
+
+    /// The two-stage flags reach their stage and body; a flag of another form is refused.
+    #[test]
+    fn two_stage_flags_reach_the_chain() {
+        let list = [
+            "--model",
+            "two-stage",
+            "--accuracy",
+            "0.1",
+            "--ji",
+            "0.2",
+            "--bi",
+            "0.3",
+            "--n1",
+            "2",
+            "--n2",
+            "3",
+            "--k1",
+            "500",
+            "--k2",
+            "600",
+            "--delta1",
+            "1e-3",
+            "--delta2",
+            "2e-3",
+            "--jl",
+            "4",
+        ];
+        let Ok(Some((Request::TwoStage(r), false))) = parse(COMMAND, &args(&list)) else {
+            panic!("{list:?} refused")
+        };
+        let [first, second] = r.drive.stages;
+        assert_eq!(
+            (r.drive.driven[0].j, r.drive.driven[0].b, r.drive.driven[1].j),
+            (0.2, 0.3, 4.0)
+        );
+        assert_eq!((first.c, first.k, first.g), (2.0, 500.0, 1e-3));
+        assert_eq!((second.c, second.k, second.g), (3.0, 600.0, 2e-3));
+        assert_eq!((first.a, second.a), (1.0, 1.0));
+        for bad in [
+            &["--model", "two-stage", "--accuracy", "0.1", "--delta", "1e-3"][..],
+            &["--model", "two-stage", "--accuracy", "0.1", "--k", "1e3"],
+            &["--model", "two-stage", "--accuracy", "0.1", "--damping", "1"],
+            &["--model", "shaft", "--accuracy", "0.1", "--n1", "2"],
+            &["--model", "two-stage"],
+        ] {
+            assert!(parse(COMMAND, &args(bad)).is_err(), "{bad:?}");
         }
     }
 
@@ -386,7 +456,7 @@ mod tests {
         let mut lines = usage.lines();
         assert_eq!(
             lines.next(),
-            Some("usage: cargo xtask design --accuracy EPS [--model shaft|belt] [options] [--json]")
+            Some("usage: cargo xtask design --accuracy EPS [--model shaft|belt|two-stage] [options] [--json]")
         );
         assert_eq!(
             lines.next(),

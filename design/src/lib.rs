@@ -6,7 +6,9 @@
 //!   within a load-speed accuracy;
 //! - [`web`]: the belt drive pulling one web span (docs/model.md §8): the same for `bound_T_sup`
 //!   and a tension accuracy (and the load speed's, if given);
-//! - [`study`]: the computations both rest on (the best-damped gain rule, Δ_max, the stiffness
+//! - [`two_stage`]: a two-stage gearbox (docs/model.md §10): each mesh's `bound_sup` per unit
+//!   of its gap, the largest gaps and the stage that dominates;
+//! - [`study`]: the computations they rest on (the best-damped gain rule, Δ_max, the stiffness
 //!   scan with its refined edges);
 //! - [`request`]: a request from named settings (the accuracies, parameters by their FMU
 //!   names), each checked: what the command line and the Python binding both build on;
@@ -22,6 +24,7 @@ mod layout;
 pub mod request;
 pub mod speed;
 pub mod study;
+pub mod two_stage;
 pub mod web;
 
 pub use backlash_physics::{Geometry, PiGains, PlantParams};
@@ -34,6 +37,8 @@ pub enum Form {
     Belt,
     /// The belt drive pulling a web span (docs/model.md §8).
     Web,
+    /// Two gear stages in series (docs/model.md §10, `BacklashTwoStage`).
+    TwoStage,
 }
 
 impl Form {
@@ -43,6 +48,7 @@ impl Form {
             Form::Shaft => "shaft",
             Form::Belt => "belt",
             Form::Web => "web",
+            Form::TwoStage => "two-stage",
         }
     }
 }
@@ -52,11 +58,13 @@ pub fn described_params(identifier: &'static str) -> Result<PlantParams, DesignE
     model_description::default_plant_params(identifier).ok_or(DesignError::NoModel { identifier })
 }
 
-/// The default drive of each form: the paper's rig (shaft, Δ = 0.775 mm read as rad),
-/// BacklashBelt.fmu's parameter start values (belt), and BacklashWeb.fmu's drive (the same belt
-/// drive; its span is [`web::film_line`]).
+/// The default drive of each single-gap form: the paper's rig (shaft, Δ = 0.775 mm read as
+/// rad), BacklashBelt.fmu's parameter start values (belt), and BacklashWeb.fmu's drive (the same
+/// belt drive; its span is [`web::film_line`]). The two-stage form's is
+/// [`backlash_physics::ChainParams::two_stage_rig`].
 pub fn default_params(form: Form) -> Result<PlantParams, DesignError> {
     Ok(match form {
+        Form::TwoStage => return Err(DesignError::NotSingleGap { form: form.name() }),
         Form::Shaft => PlantParams::paper_rig(0.775e-3),
         Form::Belt => described_params("BacklashBelt")?,
         Form::Web => PlantParams {

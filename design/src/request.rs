@@ -4,17 +4,17 @@
 //! passes keyword arguments as settings. Both speak of a setting by their own label (`--jm`,
 //! `J_m`), which the reasons quote.
 
-use backlash_physics::{ContactLaw, Geometry, PiGains};
+use backlash_physics::{ChainParams, ContactLaw, Geometry, PiGains, PlantParams};
 
-use crate::{default_params, speed, study, web, Form};
+use crate::{default_params, speed, study, two_stage, web, Form};
 
 /// What can be set, by name: the accuracies and the parameters by their FMU names
 /// (docs/model.md §4, §8), each with the forms it belongs to (every form when empty) and the
 /// range it must lie in.
-pub const SETTINGS: [(&str, &[Form], Range); 24] = [
+pub const SETTINGS: [(&str, &[Form], Range); 32] = [
     ("accuracy", &[], Range::Positive),
     ("tension_accuracy", &[Form::Web], Range::Positive),
-    ("Delta", &[], Range::Positive),
+    ("Delta", SINGLE_GAP, Range::Positive),
     ("k", &[Form::Shaft], Range::Positive),
     ("K_b", &[Form::Belt, Form::Web], Range::Positive),
     ("Kp", &[], Range::Any),
@@ -35,8 +35,83 @@ pub const SETTINGS: [(&str, &[Form], Range); 24] = [
     ("v_ref", &[Form::Web], Range::Positive),
     ("d", &[Form::Shaft], Range::NonNegative),
     ("D_b", &[Form::Belt, Form::Web], Range::NonNegative),
-    ("contact_law", &[], Range::Law),
+    ("contact_law", SINGLE_GAP, Range::Law),
+    ("J_i", &[Form::TwoStage], Range::Positive),
+    ("b_i", &[Form::TwoStage], Range::NonNegative),
+    ("n_1", &[Form::TwoStage], Range::Positive),
+    ("n_2", &[Form::TwoStage], Range::Positive),
+    ("k_1", &[Form::TwoStage], Range::Positive),
+    ("k_2", &[Form::TwoStage], Range::Positive),
+    ("Delta_1", &[Form::TwoStage], Range::Positive),
+    ("Delta_2", &[Form::TwoStage], Range::Positive),
 ];
+
+/// The forms with one gap (docs/model.md §1, §8).
+const SINGLE_GAP: &[Form] = &[Form::Shaft, Form::Belt, Form::Web];
+
+/// The drive a request is for: one gap, or the two stages of docs/model.md §10.
+enum Drive {
+    Plant(PlantParams),
+    TwoStage(ChainParams<2>),
+}
+
+impl Drive {
+    /// Sets the drive-train parameter `name` (a name of [`SETTINGS`] of this drive's form).
+    fn set(&mut self, name: &str, value: f64) {
+        match self {
+            Drive::Plant(params) => set_plant(params, name, value),
+            Drive::TwoStage(chain) => {
+                let (motor, [shaft, load], [first, second]) = (&mut chain.motor, &mut chain.driven, &mut chain.stages);
+                let slot = match name {
+                    "J_m" => &mut motor.j,
+                    "b_m" => &mut motor.b,
+                    "J_i" => &mut shaft.j,
+                    "b_i" => &mut shaft.b,
+                    "J_L" => &mut load.j,
+                    "b_L" => &mut load.b,
+                    "n_1" => &mut first.c,
+                    "k_1" => &mut first.k,
+                    "Delta_1" => &mut first.g,
+                    "n_2" => &mut second.c,
+                    "k_2" => &mut second.k,
+                    "Delta_2" => &mut second.g,
+                    other => unreachable!("setting `{other}` is refused for the two-stage form"),
+                };
+                *slot = value;
+            }
+        }
+    }
+}
+
+/// Sets the drive-train parameter `name` of a single-gap drive.
+fn set_plant(params: &mut PlantParams, name: &str, value: f64) {
+    match name {
+        "Delta" => *params = params.with_half_gap(value),
+        "k" | "K_b" => *params = study::with_stiffness(params, value),
+        "J_m" => params.j_m = value,
+        "J_L" => params.j_l = value,
+        "b_m" => params.b_m = value,
+        "b_L" => params.b_l = value,
+        "d" | "D_b" => params.damping.d = value,
+        "contact_law" => params.damping.law = ContactLaw::from_code(value as i32).expect("checked by its range"),
+        "R_1" | "R_2" | "R_g1" | "R_g2" => {
+            let Geometry::Belt {
+                r_1, r_2, r_g1, r_g2, ..
+            } = &mut params.geometry
+            else {
+                unreachable!("belt settings are refused for the shaft form");
+            };
+            let slot = match name {
+                "R_1" => r_1,
+                "R_2" => r_2,
+                "R_g1" => r_g1,
+                _ => r_g2,
+            };
+            *slot = value;
+        }
+        other => unreachable!("setting `{other}` listed without its effect"),
+    }
+}
 
 /// The values a setting may take (all of them finite).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -109,9 +184,9 @@ impl Vocabulary {
     }
 }
 
-/// The form a model name stands for (`shaft`, `belt`, `web`).
+/// The form a model name stands for (`shaft`, `belt`, `web`, `two-stage`).
 pub fn form_named(name: &str) -> Option<Form> {
-    [Form::Shaft, Form::Belt, Form::Web]
+    [Form::Shaft, Form::Belt, Form::Web, Form::TwoStage]
         .into_iter()
         .find(|f| f.name() == name)
 }
@@ -120,7 +195,10 @@ pub fn form_named(name: &str) -> Option<Form> {
 /// [`SETTINGS`] that belongs to the form, given once, finite and in its range.
 pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result<Request, Refusal> {
     let refuse = |message: String| Refusal::new(message);
-    let mut params = default_params(form).map_err(|e| refuse(e.to_string()))?;
+    let mut drive = match form {
+        Form::TwoStage => Drive::TwoStage(ChainParams::two_stage_rig()),
+        _ => Drive::Plant(default_params(form).map_err(|e| refuse(e.to_string()))?),
+    };
     let mut line = web::film_line().map_err(|e| refuse(e.to_string()))?;
     let (mut accuracy, mut tension_accuracy) = (None, None);
     let (mut kp, mut ki) = (None, None);
@@ -156,38 +234,15 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
         match s.name {
             "accuracy" => accuracy = Some(value),
             "tension_accuracy" => tension_accuracy = Some(value),
-            "Delta" => params = params.with_half_gap(value),
-            "k" | "K_b" => params = study::with_stiffness(&params, value),
             "Kp" => kp = Some(value),
             "Ki" => ki = Some(value),
             "Kp_T" => tension_gains.kp = value,
             "Ki_T" => tension_gains.ki = value,
-            "J_m" => params.j_m = value,
-            "J_L" => params.j_l = value,
-            "b_m" => params.b_m = value,
-            "b_L" => params.b_l = value,
             "R_w" => line.r_w = value,
             "L_w" => line.l_w = value,
             "EA" => line.ea = value,
             "v_ref" => line.v_ref = value,
-            "d" | "D_b" => params.damping.d = value,
-            "contact_law" => params.damping.law = ContactLaw::from_code(value as i32).expect("checked above"),
-            "R_1" | "R_2" | "R_g1" | "R_g2" => {
-                let Geometry::Belt {
-                    r_1, r_2, r_g1, r_g2, ..
-                } = &mut params.geometry
-                else {
-                    unreachable!("belt settings are refused for the shaft form above");
-                };
-                let slot = match s.name {
-                    "R_1" => r_1,
-                    "R_2" => r_2,
-                    "R_g1" => r_g1,
-                    _ => r_g2,
-                };
-                *slot = value;
-            }
-            other => unreachable!("setting `{other}` listed without its effect"),
+            drive_train => drive.set(drive_train, value),
         }
     }
     let gains = match (kp, ki) {
@@ -199,8 +254,8 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
         message: vocabulary.required(name, form),
         missing: true,
     };
-    Ok(match form {
-        Form::Web => Request::Web(web::Request {
+    Ok(match (form, drive) {
+        (Form::Web, Drive::Plant(params)) => Request::Web(web::Request {
             tension_accuracy: tension_accuracy.ok_or_else(|| missing("tension_accuracy"))?,
             accuracy,
             drive: params,
@@ -208,9 +263,14 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
             gains,
             tension_gains,
         }),
-        Form::Shaft | Form::Belt => Request::Speed(speed::Request {
+        (_, Drive::Plant(params)) => Request::Speed(speed::Request {
             accuracy: accuracy.ok_or_else(|| missing("accuracy"))?,
             params,
+            gains,
+        }),
+        (_, Drive::TwoStage(drive)) => Request::TwoStage(two_stage::Request {
+            accuracy: accuracy.ok_or_else(|| missing("accuracy"))?,
+            drive,
             gains,
         }),
     })
@@ -223,6 +283,8 @@ pub enum Request {
     Speed(speed::Request),
     /// The tension design of the web line.
     Web(web::Request),
+    /// The design of a two-stage gearbox.
+    TwoStage(two_stage::Request),
 }
 
 impl Request {
@@ -231,6 +293,7 @@ impl Request {
         Ok(match self {
             Request::Speed(r) => speed::to_json(&speed::solve(r)?),
             Request::Web(r) => web::to_json(&web::solve(r)?),
+            Request::TwoStage(r) => two_stage::to_json(&two_stage::solve(r)?),
         })
     }
 
@@ -239,13 +302,15 @@ impl Request {
         Ok(match self {
             Request::Speed(r) => speed::to_text(&speed::solve(r)?),
             Request::Web(r) => web::to_text(&web::solve(r)?),
+            Request::TwoStage(r) => two_stage::to_text(&two_stage::solve(r)?),
         })
     }
 }
 
 /// The design answer as JSON for `model` with settings by name: what the Python binding calls.
 pub fn design_json(model: &str, settings: &[Setting]) -> Result<String, String> {
-    let form = form_named(model).ok_or_else(|| format!("model = {model:?}: choose \"shaft\", \"belt\" or \"web\""))?;
+    let form = form_named(model)
+        .ok_or_else(|| format!("model = {model:?}: choose \"shaft\", \"belt\", \"web\" or \"two-stage\""))?;
     build(form, settings, Vocabulary::Arguments)
         .map_err(|r| r.message)?
         .answer_json()

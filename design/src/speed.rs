@@ -44,11 +44,11 @@ fn form_of(params: &PlantParams) -> Form {
     }
 }
 
-/// Units of the stiffness and the half gap in `form`.
-fn units(form: Form) -> (&'static str, &'static str) {
-    match form {
-        Form::Shaft => ("N.m/rad", "rad"),
-        Form::Belt | Form::Web => ("N/m", "m"),
+/// Units of the stiffness and the half gap of a drive.
+fn units(params: &PlantParams) -> (&'static str, &'static str) {
+    match params.geometry {
+        Geometry::Shaft { .. } => ("N.m/rad", "rad"),
+        Geometry::Belt { .. } => ("N/m", "m"),
     }
 }
 
@@ -103,7 +103,7 @@ fn describe_crossing(c: &Option<Crossing>, edge: &str) -> String {
 pub fn to_text(a: &Answer) -> String {
     let p = &a.request.params;
     let form = form_of(p);
-    let (k_unit, delta_unit) = units(form);
+    let (k_unit, delta_unit) = units(p);
     let listed: Vec<String> = p
         .named_drive_train()
         .iter()

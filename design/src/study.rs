@@ -33,6 +33,8 @@ pub enum DesignError {
     BadScan,
     #[error("the interface description has no model {identifier}")]
     NoModel { identifier: &'static str },
+    #[error("the {form} form has more than one gap")]
+    NotSingleGap { form: &'static str },
     #[error("the model {identifier} pulls no web span")]
     NoWebSpan { identifier: &'static str },
 }
@@ -109,7 +111,28 @@ pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
     let (r_m, r_l) = (plant.r_m(), plant.r_l());
     // Load inertia reflected to the motor, and the locked-free resonance of the two inertias.
     let j_eq = p.j_m + p.j_l * (r_m / r_l).powi(2);
-    let omega_p = plant.contact_frequency();
+    let (gains, min_damping) = best_damped_search(
+        &|gains| min_damping_ratio(plant, gains),
+        j_eq,
+        plant.contact_frequency(),
+    )?;
+    Ok(GainDesign {
+        gains,
+        min_damping,
+        poles: reduced_loop_poles(plant, gains),
+    })
+}
+
+/// The best-damped rule's search for any drive: the gains (Kp, Ki > 0) that maximise
+/// `min_damping(gains)`, the smallest damping ratio of the loop's poles. A log grid of ±3
+/// decades around Kp = j_eq ω_p, Ki = j_eq ω_p² (`j_eq` the inertia reflected to the motor,
+/// `omega_p` a resonance of the drive), then Nelder–Mead restarts from the best point. Returns
+/// the gains and their smallest damping ratio.
+pub fn best_damped_search(
+    min_damping: &dyn Fn(PiGains) -> f64,
+    j_eq: f64,
+    omega_p: f64,
+) -> Result<(PiGains, f64), DesignError> {
     let (ln_kp0, ln_ki0) = ((j_eq * omega_p).ln(), (j_eq * omega_p * omega_p).ln());
 
     let objective = |x: [f64; 2]| -> f64 {
@@ -117,7 +140,7 @@ pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
             kp: x[0].exp(),
             ki: x[1].exp(),
         };
-        let zeta = min_damping_ratio(plant, gains);
+        let zeta = min_damping(gains);
         if zeta.is_finite() {
             -zeta
         } else {
@@ -157,15 +180,9 @@ pub fn best_damped_gains(plant: &Plant) -> Result<GainDesign, DesignError> {
         kp: best.0[0].exp(),
         ki: best.0[1].exp(),
     };
-    Ok(GainDesign {
-        gains,
-        min_damping: -best.1,
-        poles: reduced_loop_poles(plant, gains),
-    })
+    Ok((gains, -best.1))
 }
 
-/// Nelder–Mead minimisation in two variables (standard coefficients 1, 2, ½, ½). Stops when the
-/// simplex's extent falls below `x_tol` or after `max_iter` iterations; returns the best vertex.
 fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, x0: [f64; 2], size: f64, x_tol: f64, max_iter: usize) -> ([f64; 2], f64) {
     let mut simplex = [x0, [x0[0] + size, x0[1]], [x0[0], x0[1] + size]];
     let mut values = simplex.map(f);

@@ -53,7 +53,7 @@ fn help_goes_to_stdout() {
         (&["help"], "usage: backlash <command> [args]"),
         (
             &["design", "--help"],
-            "usage: backlash design --accuracy EPS [--model shaft|belt] [options] [--json]",
+            "usage: backlash design --accuracy EPS [--model shaft|belt|two-stage] [options] [--json]",
         ),
     ] {
         let out = backlash(args);

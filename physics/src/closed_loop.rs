@@ -321,6 +321,12 @@ impl Reduced {
         reduced
     }
 
+    /// The eigenvalues of the reduced loop (the poles its responses are made of), None if
+    /// they cannot be computed.
+    pub(crate) fn poles(&self) -> Option<Vec<Complex<f64>>> {
+        eigenvalues(&self.a)
+    }
+
     /// (P A, A_r P) for the loop `full` this was reduced from: equal when the coordinates
     /// span everything the loop feeds back through.
     #[cfg(test)]

@@ -30,10 +30,11 @@ CONTROLLERS: tuple[str, ...] = fmu.models(fmu.PACKAGED, fmu.CONTROLLER_MANIFEST)
 
 def design(model: str, accuracy: float | None = None, tension_accuracy: float | None = None,
            **parameters: float) -> dict:
-    """The design answer for `model` ("shaft", "belt" or "web"): `accuracy` is the load-speed
-    accuracy ε [rad/s] (required for shaft and belt), `tension_accuracy` the web line's ε_T [N]
-    (required for web); `parameters` by the FMUs' variable names (J_m, J_L, b_m, b_L, k or K_b,
-    Delta, R_1, R_2, R_g1, R_g2, R_w, L_w, EA, v_ref, Kp, Ki, Kp_T, Ki_T) replace the defaults.
+    """The design answer for `model` ("shaft", "belt", "web" or "two-stage"): `accuracy` is the
+    load-speed accuracy ε [rad/s] (required for shaft, belt and two-stage), `tension_accuracy`
+    the web line's ε_T [N] (required for web); `parameters` by the FMUs' variable names (J_m,
+    J_L, b_m, b_L, k or K_b, Delta, R_1, R_2, R_g1, R_g2, R_w, L_w, EA, v_ref, Kp, Ki, Kp_T, Ki_T;
+    two-stage: J_i, b_i, n_1, n_2, k_1, k_2, Delta_1, Delta_2) replace the defaults.
     Returns the answer as `backlash design ... --json` prints it. Raises ValueError with the
     reason on bad input (an unknown model or parameter, a non-finite or out-of-range value)."""
     return json.loads(design_json(model, accuracy, tension_accuracy, **parameters))
@@ -46,7 +47,7 @@ def design_json(model: str, accuracy: float | None = None, tension_accuracy: flo
     from . import _native  # the design library, compiled
 
     if not isinstance(model, str):
-        raise ValueError(f"model = {model!r}: choose 'shaft', 'belt' or 'web'")
+        raise ValueError(f"model = {model!r}: choose 'shaft', 'belt', 'web' or 'two-stage'")
     values = {name: _number(name, value) for name, value in parameters.items()}
     return _native.design_json(
         model,

@@ -51,8 +51,20 @@ class BoundReference:
 
     def __init__(self, plant: Plant, Kp: float = 0.0, Ki: float = 0.0):
         self.plant = plant
-        self.A, self.D_1, self.L_c = loop_matrices(plant, Kp, Ki)
-        self.scale = plant.K * plant.g
+        self._set_loop(*loop_matrices(plant, Kp, Ki), plant.K * plant.g)
+
+    @classmethod
+    def of_loop(cls, A: np.ndarray, D_1: np.ndarray, L_c: np.ndarray, scale: float) -> "BoundReference":
+        """The bounds of any loop x' = A x + D_1 phi, |phi| <= scale, on the output L_c x (a
+        stage of a chain, docs/model.md §10)."""
+        ref = cls.__new__(cls)
+        ref.plant = None
+        ref._set_loop(A, D_1, L_c, scale)
+        return ref
+
+    def _set_loop(self, A, D_1, L_c, scale):
+        self.A, self.D_1, self.L_c = A, D_1, L_c
+        self.scale = scale
         # A cell of 0.5 / |lambda|_max is a sixth of the shortest half-period among the modes
         # of h, short enough to hold at most one sign change (a missed pair would show in the
         # trapezoid cross-check of test_reference.py), and |lambda| * width <= 0.5 keeps the

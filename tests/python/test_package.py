@@ -23,11 +23,12 @@ import backlash_fmu
 from test_design import run_design
 
 REPO = Path(__file__).resolve().parents[2]
-# The three design questions of docs/design-a-drive.md, as (model, keywords, flags).
+# The design questions of docs/design-a-drive.md, as (model, keywords, flags).
 QUESTIONS = [
     ("shaft", {"accuracy": 0.02}, ["--accuracy", "0.02"]),
     ("belt", {"accuracy": 2.2}, ["--model", "belt", "--accuracy", "2.2"]),
     ("web", {"tension_accuracy": 20.0}, ["--model", "web", "--tension-accuracy", "20"]),
+    ("two-stage", {"accuracy": 0.3}, ["--model", "two-stage", "--accuracy", "0.3"]),
 ]
 
 

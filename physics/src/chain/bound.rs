@@ -11,7 +11,7 @@
 use super::params::Chain;
 use crate::bound::{check_gains, BoundError, Disturbance, LoopBound, PiGains, Unbounded};
 use crate::closed_loop::{Coord, Reduced};
-use nalgebra::{DMatrix, SMatrix};
+use nalgebra::{Complex, DMatrix, SMatrix};
 
 /// The loop state of an S-stage chain under the PI: [θ_0, ω_0, θ_1, ω_1, …, θ_S, ω_S, x_c].
 pub struct LoopLayout<const S: usize>;
@@ -71,6 +71,16 @@ pub fn disturbance_column<const S: usize, const N: usize>(chain: &Chain<S>, stag
     column[LoopLayout::<S>::omega(stage)] = s.a / chain.body(stage).j;
     column[LoopLayout::<S>::omega(stage + 1)] = -s.c / chain.body(stage + 1).j;
     column
+}
+
+/// The poles of the backlash-free chain under the PI `gains` (docs/model.md §10): the
+/// eigenvalues of its loop on the reduced coordinates (every gap, every speed, x_c when Ki ≠ 0),
+/// without the rigid rotation of the whole chain, which no disturbance excites; None if they
+/// cannot be computed. N = 2S + 3.
+pub fn loop_poles<const S: usize, const N: usize>(chain: &Chain<S>, gains: PiGains) -> Option<Vec<Complex<f64>>> {
+    let a = chain_loop::<S, N>(chain, gains);
+    let full = DMatrix::from_iterator(N, N, a.iter().copied());
+    Reduced::from_loop(&full, reduced_coords(chain, gains), LoopLayout::<S>::OMEGA_LAST).poles()
 }
 
 /// `bound(t)` and `bound_sup` of a chain of S stages (docs/model.md §10) under a PI loop on the

@@ -26,7 +26,7 @@ mod params;
 mod state;
 mod stepper;
 
-pub use bound::{chain_loop, disturbance_column, ChainBound, LoopLayout, OneStageBound, TwoStageBound};
+pub use bound::{chain_loop, disturbance_column, loop_poles, ChainBound, LoopLayout, OneStageBound, TwoStageBound};
 pub use linear::{mode_matrix, Layout};
 pub use params::{Body, Chain, ChainError, ChainParams, Part, Stage};
 pub use state::{mode_of, ChainMode, ChainState, Motion};
