@@ -4,6 +4,9 @@
 //! paired measure printed after criterion's). Run: `cargo bench --bench physics`.
 
 use backlash_fmu::fmu::adapter;
+use backlash_fmu::physics::chain::{
+    Chain, ChainParams, ChainState, ChainStepper, Motion, OneStageStepper, TwoStageStepper,
+};
 use backlash_fmu::physics::{
     ContactLaw, ContactMode, Damping, Inputs, PiGains, Plant, PlantParams, PlantState, SpeedErrorBound, Stepper,
     WebSpan, WebSpeedBound, WebTensionBound,
@@ -231,7 +234,68 @@ fn paired_damped_step() {
     println!("paired-damped-step {{{}}}", entries.join(", "));
 }
 
-criterion_group!(physics, benches, web_benches);
+/// The chain of stages (docs/model.md §10): the shaft as a one-stage chain and the two-stage
+/// drive, each pressed 10 mrad past every gap under [`PRESSING`], one event-free step (issue
+/// target: the two-stage step within 2.5x the shaft's `step_1ms_no_switch`).
+fn chain_benches(c: &mut Criterion) {
+    let plant = rig();
+    let one = Chain::new(ChainParams::from_plant(&plant).expect("no damper")).expect("valid chain");
+    let mut one_stage = OneStageStepper::new(one);
+    let pressed = ChainState::new(
+        &one,
+        Motion {
+            theta: plant.half_gap() + 0.01,
+            omega: 0.0,
+        },
+        [Motion::default()],
+    );
+    bench_chain(c, "chain_one_stage_step_1ms_no_switch", &mut one_stage, pressed);
+    let two = Chain::new(ChainParams::two_stage_rig()).expect("valid chain");
+    let g = two.stage(0).g;
+    // θ_i = −(g + 10 mrad) from the load at 0, θ_m = 2 (g + 10 mrad) ahead of it: both u past +g.
+    let step = g + 0.01;
+    let pressed = ChainState::new(
+        &two,
+        Motion {
+            theta: 2.0 * step,
+            omega: 0.0,
+        },
+        [
+            Motion {
+                theta: step,
+                omega: 0.0,
+            },
+            Motion::default(),
+        ],
+    );
+    let mut two_stage = TwoStageStepper::new(two);
+    bench_chain(c, "chain_two_stage_step_1ms_no_switch", &mut two_stage, pressed);
+}
+
+/// One event-free step of `stepper` from `pressed` (checked: both in contact, no switch).
+fn bench_chain<const S: usize, const N: usize, const KO: usize>(
+    c: &mut Criterion,
+    name: &str,
+    stepper: &mut ChainStepper<S, N, KO>,
+    pressed: ChainState<S>,
+) {
+    assert!(
+        pressed.mode.stages().iter().all(|m| *m == ContactMode::Positive),
+        "{name}"
+    );
+    let mut check = pressed;
+    let n = stepper.step(&mut check, &PRESSING, H, &mut |_| {}).expect("valid step");
+    assert_eq!(n, 0, "{name}: no switch in the benchmark step");
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            let mut s = black_box(pressed);
+            stepper.step(&mut s, &PRESSING, H, &mut |_| {}).expect("valid step");
+            s
+        })
+    });
+}
+
+criterion_group!(physics, benches, web_benches, chain_benches);
 
 fn main() {
     physics();

@@ -329,17 +329,17 @@ impl Drive {
 /// times its own round-off (estimated by taking the same input in half steps: the rattling
 /// light shafts amplify round-off to some hundreds of ulps over the run, in any integrator)
 /// plus 64 ulps, and locate the same switches of each stage at the same instants.
-fn agrees_with_the_reference<const S: usize, const N: usize>(drive: &Drive, min_switches: usize) {
+fn agrees_with_the_reference<const S: usize, const N: usize, const KO: usize>(drive: &Drive, min_switches: usize) {
     let h = 1e-3;
     let steps = 1000;
     let inputs: Vec<Inputs> = (0..steps).map(|k| reversing(5.0, 2.0, -2.0, k as f64 * h, h)).collect();
     let (coarse, coarse_switches) = drive.reference_run(&inputs, h, 50);
     let (fine, fine_switches) = drive.reference_run(&inputs, h, 100);
 
-    let (states, switches) = chain_run::<S, N>(drive, &inputs, h, 1);
+    let (states, switches) = chain_run::<S, N, KO>(drive, &inputs, h, 1);
     // The chain's own round-off, as it propagates through the rattling: the same input in
     // half steps, a different sequence of roundings.
-    let (halved, halved_switches) = chain_run::<S, N>(drive, &inputs, h, 2);
+    let (halved, halved_switches) = chain_run::<S, N, KO>(drive, &inputs, h, 2);
     let dim = 2 * (S + 1);
     let (mut scale, mut estimate, mut deviation, mut roundoff) = (
         vec![0.0f64; dim],
@@ -388,14 +388,14 @@ fn agrees_with_the_reference<const S: usize, const N: usize>(drive: &Drive, min_
 
 /// The chain's run from rest over `inputs` (one per interval of length h), each interval taken
 /// in `split` steps: the state at each interval's end and each stage's switch instants.
-fn chain_run<const S: usize, const N: usize>(
+fn chain_run<const S: usize, const N: usize, const KO: usize>(
     drive: &Drive,
     inputs: &[Inputs],
     h: f64,
     split: usize,
 ) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let chain = drive.chain::<S>();
-    let mut stepper = ChainStepper::<S, N>::new(chain);
+    let mut stepper = ChainStepper::<S, N, KO>::new(chain);
     let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); S]);
     let mut switches = vec![Vec::new(); S];
     let mut states = Vec::new();
@@ -433,8 +433,8 @@ fn stepping_from_switch_to_switch_takes_the_same_trajectory() {
     let h = 1e-3;
     let steps = 300;
     let inputs: Vec<Inputs> = (0..steps).map(|k| reversing(5.0, 2.0, -2.0, k as f64 * h, h)).collect();
-    let (states, switches) = chain_run::<2, 13>(&drive, &inputs, h, 1);
-    let (halved, _) = chain_run::<2, 13>(&drive, &inputs, h, 2);
+    let (states, switches) = chain_run::<2, 13, 14>(&drive, &inputs, h, 1);
+    let (halved, _) = chain_run::<2, 13, 14>(&drive, &inputs, h, 2);
 
     let chain = drive.chain::<2>();
     let mut stepper = TwoStageStepper::new(chain);
@@ -486,13 +486,13 @@ fn stepping_from_switch_to_switch_takes_the_same_trajectory() {
 /// S = 2: docs/model.md §10's `BacklashTwoStage`.
 #[test]
 fn two_stages_agree_with_an_independent_integrator() {
-    agrees_with_the_reference::<2, 13>(&two_stage(), 10);
+    agrees_with_the_reference::<2, 13, 14>(&two_stage(), 10);
 }
 
-/// S = 3: the same code over one more stage (ChainStepper<3, 16>).
+/// S = 3: the same code over one more stage (ChainStepper<3, 16, 20>).
 #[test]
 fn three_stages_agree_with_an_independent_integrator() {
-    agrees_with_the_reference::<3, 16>(&three_stage(), 5);
+    agrees_with_the_reference::<3, 16, 20>(&three_stage(), 5);
 }
 
 /// S = 3 with no gap in the middle stage: its spring acts on both sides of u = 0 (docs/model.md
@@ -501,7 +501,7 @@ fn three_stages_agree_with_an_independent_integrator() {
 fn a_stage_without_gap_never_switches() {
     let mut drive = three_stage();
     drive.delta[1] = 0.0;
-    agrees_with_the_reference::<3, 16>(&drive, 5);
+    agrees_with_the_reference::<3, 16, 20>(&drive, 5);
 }
 
 /// x + e^{−x} − 1 = Σ_{k≥2} (−x)^k/k! by its series: without the cancellation of the formula
@@ -855,5 +855,5 @@ fn bad_steps_are_refused() {
 #[test]
 #[should_panic(expected = "augmented dimension 10 is not 3S + 7 = 13")]
 fn an_augmented_dimension_that_does_not_fit_is_refused() {
-    let _ = ChainStepper::<2, 10>::new(two_stage().chain::<2>());
+    let _ = ChainStepper::<2, 10, 14>::new(two_stage().chain::<2>());
 }

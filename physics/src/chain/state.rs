@@ -120,9 +120,16 @@ impl<const S: usize> ChainState<S> {
     }
 
     /// All fields finite.
+    #[inline]
     pub fn is_finite(&self) -> bool {
-        (0..=S).all(|j| self.body(j).theta.is_finite() && self.body(j).omega.is_finite())
-            && self.u.iter().chain(&self.du).all(|x| x.is_finite())
+        let finite = crate::finite;
+        let bodies = self
+            .driven
+            .iter()
+            .fold(finite(self.motor.theta) & finite(self.motor.omega), |all, b| {
+                all & finite(b.theta) & finite(b.omega)
+            });
+        self.u.iter().chain(&self.du).fold(bodies, |all, &x| all & finite(x))
     }
 }
 

@@ -6,6 +6,7 @@
 use super::linear::{mode_matrix, Layout, PIECE_RATE};
 use super::params::Chain;
 use super::state::{ChainMode, ChainState};
+use crate::kernel::KernelColumn;
 use crate::mode::ContactMode;
 use crate::roots::{self, Side, SignalRows};
 use crate::stepper::{Inputs, StepError, MAX_PIECES};
@@ -32,16 +33,124 @@ struct ModeDynamics<const S: usize, const N: usize> {
     u_rows: [SignalRows<N>; S],
 }
 
-/// One mode's maps over a whole piece of the current step size: e^{M len}, and per stage (one
-/// row each) u″ and u‴ at the piece start and the bound on how far u‴ moves over the piece
-/// (roots.rs, `SignalRows::remainder_row`, which multiplies |y|): a whole piece is certified
-/// by three small products.
+/// One mode's maps over a whole piece of the current step size, fused into one kernel
+/// (kernel.rs) of `KO` = 6S + 2 outputs: rows 0 .. 3S + 2 are e^{M len}'s rows of the state
+/// entries (u_i, v_i, ω_S, δθ_j: the first 3S + 2 of chain/linear.rs), then per stage u″ and u‴
+/// at the piece start and the bound on how far u‴ moves over the piece (roots.rs,
+/// `SignalRows::remainder_row`, which multiplies |y|). One pass over the piece start's
+/// non-zero entries (the angle increments are 0 there) gives the end state and the certificate
+/// of every stage.
 #[derive(Clone, Copy, Debug)]
-struct PieceMaps<const S: usize, const N: usize> {
-    phi: SMatrix<f64, N, N>,
-    second: SMatrix<f64, S, N>,
-    third: SMatrix<f64, S, N>,
-    remainder: SMatrix<f64, S, N>,
+struct PieceKernel<const S: usize, const N: usize, const KO: usize> {
+    cols: [KernelColumn<KO>; N],
+}
+
+/// The entries of the augmented vector at a piece start that are not 0 (the angle increments
+/// are): each stage's u and v, the last body's speed, the inputs at the piece start and their
+/// slopes (the constant 1 is implied).
+#[derive(Clone, Copy, Debug)]
+struct PieceStart<const S: usize> {
+    u: [f64; S],
+    v: [f64; S],
+    omega_last: f64,
+    tau_m: f64,
+    tau_l: f64,
+    dtau_m: f64,
+    dtau_l: f64,
+}
+
+impl<const S: usize> PieceStart<S> {
+    /// At offset `t` into the step from `state` under `inputs` (as [`augmented`] writes them).
+    fn of(state: &ChainState<S>, inputs: &Inputs, t: f64) -> Self {
+        PieceStart {
+            u: state.u,
+            v: state.du,
+            omega_last: state.body(S).omega,
+            tau_m: inputs.tau_m + inputs.dtau_m * t,
+            tau_l: inputs.tau_l + inputs.dtau_l * t,
+            dtau_m: inputs.dtau_m,
+            dtau_l: inputs.dtau_l,
+        }
+    }
+
+    /// Read from an augmented vector at a piece start.
+    fn from_augmented<const N: usize>(y: &SVector<f64, N>) -> Self {
+        PieceStart {
+            u: std::array::from_fn(|i| y[Layout::<S>::u(i)]),
+            v: std::array::from_fn(|i| y[Layout::<S>::v(i)]),
+            omega_last: y[Layout::<S>::OMEGA_LAST],
+            tau_m: y[Layout::<S>::TAU_M],
+            tau_l: y[Layout::<S>::TAU_L],
+            dtau_m: y[Layout::<S>::DTAU_M],
+            dtau_l: y[Layout::<S>::DTAU_L],
+        }
+    }
+}
+
+impl<const S: usize, const N: usize, const KO: usize> PieceKernel<S, N, KO> {
+    /// The state rows: u_i, v_i, ω_S, δθ_j.
+    const STATE_ROWS: usize = 3 * S + 2;
+    /// u″ of each stage.
+    const SECOND: usize = Self::STATE_ROWS;
+    /// u‴ of each stage.
+    const THIRD: usize = Self::SECOND + S;
+    /// The growth bound of u‴ of each stage: these rows multiply |y|.
+    const GROWTH: usize = Self::THIRD + S;
+
+    fn new(phi: &SMatrix<f64, N, N>, u_rows: &[SignalRows<N>; S], remainder: &[SVector<f64, N>; S]) -> Self {
+        assert!(KO == Self::GROWTH + S, "a kernel of {KO} outputs for {S} stages");
+        PieceKernel {
+            cols: KernelColumn::table(|r, j| match r {
+                _ if r < Self::SECOND => phi[(r, j)],
+                _ if r < Self::THIRD => u_rows[r - Self::SECOND].row(2)[j],
+                _ if r < Self::GROWTH => u_rows[r - Self::THIRD].row(3)[j],
+                _ => remainder[r - Self::GROWTH][j],
+            }),
+        }
+    }
+
+    /// `acc += column j times x`, the growth rows times |x|. Inlined, it vectorizes across the
+    /// outputs and the row test folds away.
+    #[inline(always)]
+    fn add(&self, acc: &mut [f64; KO], j: usize, x: f64) {
+        let (col, ax) = (&self.cols[j].0, x.abs());
+        for r in 0..KO {
+            acc[r] += col[r] * if r >= Self::GROWTH { ax } else { x };
+        }
+    }
+
+    /// The kernel's sums over a piece start, in the column order of chain/linear.rs (the sums
+    /// of the matrix products they replace, skipping the terms of entries that are exactly 0,
+    /// which changes nothing but the sign of a zero).
+    #[inline(always)]
+    fn apply(&self, start: &PieceStart<S>) -> [f64; KO] {
+        let mut acc = [0.0; KO];
+        for i in 0..S {
+            self.add(&mut acc, Layout::<S>::u(i), start.u[i]);
+        }
+        for i in 0..S {
+            self.add(&mut acc, Layout::<S>::v(i), start.v[i]);
+        }
+        self.add(&mut acc, Layout::<S>::OMEGA_LAST, start.omega_last);
+        self.add(&mut acc, Layout::<S>::TAU_M, start.tau_m);
+        self.add(&mut acc, Layout::<S>::TAU_L, start.tau_l);
+        self.add(&mut acc, Layout::<S>::ONE, 1.0);
+        // Zero under a zero-order hold: skipped.
+        if !((start.dtau_m == 0.0) & (start.dtau_l == 0.0)) {
+            self.add(&mut acc, Layout::<S>::DTAU_M, start.dtau_m);
+            self.add(&mut acc, Layout::<S>::DTAU_L, start.dtau_l);
+        }
+        acc
+    }
+
+    /// Stage i's u″ at the piece start and its bound on |u‴| over the piece, from `apply`'s sums.
+    #[inline(always)]
+    fn certificate(acc: &[f64; KO], i: usize) -> (f64, f64) {
+        (
+            acc[Self::SECOND + i],
+            acc[Self::THIRD + i].abs() + acc[Self::GROWTH + i],
+        )
+    }
 }
 
 /// A located crossing of one stage's threshold.
@@ -54,12 +163,13 @@ struct Crossing {
     u: f64,
 }
 
-/// The exact stepper of a chain of S stages with an augmented state of N = 3S + 7 entries
-/// (stable Rust cannot write 3S + 7 as a type, so N is a parameter checked at construction).
+/// The exact stepper of a chain of S stages with an augmented state of N = 3S + 7 entries and
+/// KO = 6S + 2 kernel outputs (stable Rust cannot write 3S + 7 as a type, so N and KO are
+/// parameters checked at construction).
 /// Holds the per-mode exponentials of the current step size, filled for a mode when it is
 /// first entered and dropped when the step size changes; nothing is allocated per step.
 #[derive(Clone, Debug)]
-pub struct ChainStepper<const S: usize, const N: usize> {
+pub struct ChainStepper<const S: usize, const N: usize, const KO: usize> {
     chain: Chain<S>,
     /// By [`ChainMode::index`].
     modes: Vec<ModeDynamics<S, N>>,
@@ -72,19 +182,19 @@ pub struct ChainStepper<const S: usize, const N: usize> {
     pieces: usize,
     len: f64,
     /// By [`ChainMode::index`]; None until the mode is entered at this step size.
-    maps: Vec<Option<PieceMaps<S, N>>>,
+    maps: Vec<Option<PieceKernel<S, N, KO>>>,
 }
 
-/// One stage (docs/model.md §1's shaft or belt): 10 augmented entries.
-pub type OneStageStepper = ChainStepper<1, 10>;
-/// Two stages (docs/model.md §10): 13 augmented entries.
-pub type TwoStageStepper = ChainStepper<2, 13>;
+/// One stage (docs/model.md §1's shaft or belt): 10 augmented entries, 8 kernel outputs.
+pub type OneStageStepper = ChainStepper<1, 10, 8>;
+/// Two stages (docs/model.md §10): 13 augmented entries, 14 kernel outputs.
+pub type TwoStageStepper = ChainStepper<2, 13, 14>;
 
-impl<const S: usize, const N: usize> ChainStepper<S, N> {
+impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
     pub fn new(chain: Chain<S>) -> Self {
         assert!(
-            N == Layout::<S>::DIM,
-            "augmented dimension {N} is not 3S + 7 = {}",
+            N == Layout::<S>::DIM && KO == 6 * S + 2,
+            "augmented dimension {N} is not 3S + 7 = {}, or {KO} kernel outputs not 6S + 2",
             Layout::<S>::DIM
         );
         let len_ref = PIECE_RATE / chain.fastest_rate();
@@ -173,6 +283,19 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
         for piece in 0..pieces {
             // Pieces all have length `len`; the last ends on h to round-off of the time grid.
             let start = piece as f64 * len;
+            let index = next.mode.index();
+            self.fill_maps(index);
+            let kernel = self.maps[index].as_ref().expect("filled above");
+            // The whole piece in one pass, when every stage is certified clear of its
+            // thresholds over it: the common case.
+            let at_start = PieceStart::of(&next, inputs, start);
+            let whole_piece = kernel.apply(&at_start);
+            if self.clear_by(&next.mode, &at_start, len, |i| {
+                PieceKernel::<S, N, KO>::certificate(&whole_piece, i)
+            }) {
+                self.finish_piece(&mut next, &whole_piece);
+                continue;
+            }
             let mut y = augmented::<S, N>(&next, inputs, start);
             // Offset of y from the step start, and whether y is still at the piece start.
             let mut t = start;
@@ -182,20 +305,22 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
                 let index = next.mode.index();
                 self.fill_maps(index);
                 let dynamics = &self.modes[index];
-                let maps = self.maps[index].as_ref().expect("filled above");
-                if self.clear(&next.mode, dynamics, whole.then_some(maps), &y, span) {
-                    // No stage can switch in this span: one product (or one expansion) does it.
-                    y = if whole {
-                        maps.phi * y
-                    } else {
-                        TaylorModel::new(&dynamics.sparse, &y, span).at(span)
-                    };
+                let kernel = self.maps[index].as_ref().expect("filled above");
+                if !whole && self.clear(&next.mode, dynamics, &y, span) {
+                    // No stage can switch in the rest of the piece: one expansion does it.
+                    y = TaylorModel::new(&dynamics.sparse, &y, span).at(span);
                     break;
                 }
                 let model = TaylorModel::new(&dynamics.sparse, &y, span);
                 let Some((offset, crossings)) = self.earliest(&next.mode, dynamics, &model, &y, t, span, &mut budget)
                 else {
-                    y = if whole { maps.phi * y } else { model.at(span) };
+                    if whole {
+                        let end = kernel.apply(&PieceStart::from_augmented(&y));
+                        y.as_mut_slice()[..PieceKernel::<S, N, KO>::STATE_ROWS]
+                            .copy_from_slice(&end[..PieceKernel::<S, N, KO>::STATE_ROWS]);
+                    } else {
+                        y = model.at(span);
+                    }
                     break;
                 };
                 y = model.at(offset);
@@ -217,7 +342,7 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
                 y[Layout::<S>::TAU_M] = inputs.tau_m + inputs.dtau_m * t;
                 y[Layout::<S>::TAU_L] = inputs.tau_l + inputs.dtau_l * t;
                 if stop_at_switch {
-                    self.finish_piece(&mut next, &y);
+                    self.finish_piece(&mut next, y.as_slice());
                     if !next.is_finite() {
                         return Err(StepError::Overflow);
                     }
@@ -231,7 +356,7 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
                     break;
                 }
             }
-            self.finish_piece(&mut next, &y);
+            self.finish_piece(&mut next, y.as_slice());
         }
         if !next.is_finite() {
             return Err(StepError::Overflow);
@@ -242,7 +367,21 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
 
     /// Refuses what the step cannot take: h not finite, ≤ 0 or longer than `max_step`,
     /// inputs or state not finite.
+    #[inline(always)]
     fn check(&self, state: &ChainState<S>, inputs: &Inputs, h: f64) -> Result<(), StepError> {
+        let i = inputs;
+        let finite = crate::finite;
+        let inputs_finite = finite(i.tau_m) & finite(i.tau_l) & finite(i.dtau_m) & finite(i.dtau_l);
+        if (h > 0.0) & (h <= self.max_h) & inputs_finite & state.is_finite() {
+            return Ok(());
+        }
+        Self::refusal(state, inputs, h, self.max_h)
+    }
+
+    /// Why `check` refuses.
+    #[cold]
+    #[inline(never)]
+    fn refusal(state: &ChainState<S>, inputs: &Inputs, h: f64, max_h: f64) -> Result<(), StepError> {
         if !(h.is_finite() && h > 0.0) {
             return Err(StepError::BadStepSize { h });
         }
@@ -258,10 +397,7 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
         if !state.is_finite() {
             return Err(StepError::NonFiniteState);
         }
-        if h > self.max_h {
-            return Err(StepError::StepTooLong { h, max_h: self.max_h });
-        }
-        Ok(())
+        Err(StepError::StepTooLong { h, max_h })
     }
 
     /// Cuts steps of size h into equal pieces no longer than `len_ref` and drops the maps of
@@ -274,51 +410,48 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
         self.maps.iter_mut().for_each(|m| *m = None);
     }
 
+    #[inline(always)]
     fn fill_maps(&mut self, index: usize) {
         if self.maps[index].is_none() {
-            let ModeDynamics { m, sparse, u_rows } = &self.modes[index];
-            let rows = |row: &dyn Fn(&SignalRows<N>) -> SVector<f64, N>| {
-                SMatrix::<f64, S, N>::from_fn(|i, j| row(&u_rows[i])[j])
-            };
-            self.maps[index] = Some(PieceMaps {
-                phi: exp_series(sparse, self.len),
-                second: rows(&|r| *r.row(2)),
-                third: rows(&|r| *r.row(3)),
-                remainder: rows(&|r| r.remainder_row(m, self.len)),
-            });
+            self.fill_maps_of(index);
         }
     }
 
-    /// True when no stage's u can leave its mode's region within `span` after y: the cubic
-    /// test of docs/model.md §2 per stage, with the whole piece's remainder bound from `maps`
-    /// when y is at a piece start.
-    fn clear(
+    #[cold]
+    #[inline(never)]
+    fn fill_maps_of(&mut self, index: usize) {
+        let ModeDynamics { m, sparse, u_rows } = &self.modes[index];
+        let remainder = std::array::from_fn(|i| u_rows[i].remainder_row(m, self.len));
+        self.maps[index] = Some(PieceKernel::new(&exp_series(sparse, self.len), u_rows, &remainder));
+    }
+
+    /// True when no stage's u can leave its mode's region within `span` after y (not a whole
+    /// piece: the bound on |u‴| over the span from the mode's rows).
+    fn clear(&self, mode: &ChainMode<S>, dynamics: &ModeDynamics<S, N>, y: &SVector<f64, N>, span: f64) -> bool {
+        self.clear_by(mode, &PieceStart::from_augmented(y), span, |i| {
+            let rows = &dynamics.u_rows[i];
+            (rows.derivative(2, y), rows.third_bound(y, span))
+        })
+    }
+
+    /// The cubic test of docs/model.md §2 per stage over `span` from `start`, with each
+    /// stage's u″ and bound on |u‴| over the span from `certificate`.
+    #[inline(always)]
+    fn clear_by(
         &self,
         mode: &ChainMode<S>,
-        dynamics: &ModeDynamics<S, N>,
-        maps: Option<&PieceMaps<S, N>>,
-        y: &SVector<f64, N>,
+        start: &PieceStart<S>,
         span: f64,
+        certificate: impl Fn(usize) -> (f64, f64),
     ) -> bool {
-        // u″ and the bound on |u‴| over the span, per stage.
-        let (second, third) = match maps {
-            Some(maps) => {
-                let third = (maps.third * y).abs() + maps.remainder * y.abs();
-                (maps.second * y, third)
-            }
-            None => (
-                SVector::<f64, S>::from_fn(|i, _| dynamics.u_rows[i].derivative(2, y)),
-                SVector::<f64, S>::from_fn(|i, _| dynamics.u_rows[i].third_bound(y, span)),
-            ),
-        };
         (0..S).all(|i| {
             let g = self.chain.stage(i).g;
             if g == 0.0 {
                 // No free region: both flanks carry K u.
                 return true;
             }
-            let (u, du) = (y[Layout::<S>::u(i)], y[Layout::<S>::v(i)]);
-            let (d2, c3) = (second[i], third[i]);
+            let (u, du) = (start.u[i], start.v[i]);
+            let (d2, c3) = certificate(i);
             let tol = floor(u, g);
             sides(mode.stages[i], g, tol)
                 .into_iter()
@@ -383,8 +516,9 @@ impl<const S: usize, const N: usize> ChainStepper<S, N> {
         Some((best, found))
     }
 
-    /// Takes the augmented state at the end of a piece (or at a switch) into the state.
-    fn finish_piece(&self, next: &mut ChainState<S>, y: &SVector<f64, N>) {
+    /// Takes the state entries of the augmented vector at the end of a piece (or at a switch;
+    /// its first 3S + 2 entries) into the state.
+    fn finish_piece(&self, next: &mut ChainState<S>, y: &[f64]) {
         for j in 0..=S {
             next.body_mut(j).theta += y[Layout::<S>::dtheta(j)];
         }
@@ -410,6 +544,7 @@ fn floor(u: f64, g: f64) -> f64 {
 /// The thresholds a stage in `mode` may cross (half gap g > 0), each as the admissible side,
 /// the mode entered and u there: free, +g into Positive and −g into Negative; on a flank, its
 /// threshold back into Free.
+#[inline(always)]
 fn sides(mode: ContactMode, g: f64, tol: f64) -> [Option<(Side, ContactMode, f64)>; 2] {
     let side = |offset: f64, sign: f64| Side { offset, sign, tol };
     match mode {

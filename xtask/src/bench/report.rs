@@ -925,8 +925,39 @@ fn physics_core(md: &mut Md, measured: &Measurements) {
             ));
         }
         damper_target(md, measured);
+        chain_ratio(md, measured);
     }
     md.line("");
+}
+
+/// The chain of stages (docs/model.md §10) against the single-gap stepper: the physics step
+/// of the two-stage drive and of the shaft as a one-stage chain, each over the shaft's
+/// `step_1ms_no_switch`, from criterion's estimates of this run. No model steps a chain yet, so
+/// this is the physics part of the two-stage FMU's step.
+fn chain_ratio(md: &mut Md, measured: &Measurements) {
+    let ns = |name: &str| {
+        measured
+            .criterion
+            .iter()
+            .find(|c| c.name == name)
+            .map(|c| c.estimate_ns)
+    };
+    let (Some(shaft), Some(one), Some(two)) = (
+        ns("step_1ms_no_switch"),
+        ns("chain_one_stage_step_1ms_no_switch"),
+        ns("chain_two_stage_step_1ms_no_switch"),
+    ) else {
+        return;
+    };
+    md.line("");
+    md.line(format!(
+        "The chain of stages (docs/model.md §10), physics alone: the two-stage drive's event-free step \
+         {two:.1} ns = **{:.2}x** the shaft's {shaft:.1} ns (the two-stage FMU's target is 2.5x the shaft's \
+         step; no model steps a chain yet, so this is the physics part of it); the shaft stepped as a one-stage \
+         chain {one:.1} ns = {:.2}x the shaft's own stepper.",
+        two / shaft,
+        one / shaft
+    ));
 }
 
 /// The target of the event-free step with a damper in the compliant member: within 1.1x the step
