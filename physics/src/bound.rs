@@ -32,6 +32,10 @@ pub enum Unbounded {
     Undamped,
     #[error("the eigenvalues of the loop could not be computed (parameters too far apart in scale)")]
     Indeterminate,
+    #[error(
+        "stage {stage} has a damper: the bound over several stages does not cover a damped stage's clipped force yet"
+    )]
+    DampedStage { stage: usize },
 }
 
 /// Everything that evolves in a [`LoopBound`] of an `N`-entry loop state, as plain numbers (for

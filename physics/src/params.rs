@@ -437,7 +437,7 @@ impl Plant {
 /// gives τ_c + τ_d and law 1 τ_c + min(τ_c, τ_d) while τ_c + τ_d > 0, else 0; mirrored past −g;
 /// 0 inside the gap.
 #[inline(never)]
-fn damped_force(k: f64, d: f64, g: f64, law: ContactLaw, u: f64, du: f64) -> f64 {
+pub(crate) fn damped_force(k: f64, d: f64, g: f64, law: ContactLaw, u: f64, du: f64) -> f64 {
     let td = d * du;
     if u >= g {
         let tc = k * (u - g);

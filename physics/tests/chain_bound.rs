@@ -5,7 +5,7 @@
 //! bound of docs/model.md §3.
 
 use backlash_physics::chain::{chain_loop, Body, Chain, ChainParams, OneStageBound, Stage, TwoStageBound};
-use backlash_physics::{PiGains, Plant, PlantParams, SpeedErrorBound};
+use backlash_physics::{Damping, PiGains, Plant, PlantParams, SpeedErrorBound};
 use nalgebra::{SMatrix, SVector};
 
 type Mat7 = SMatrix<f64, 7, 7>;
@@ -23,12 +23,14 @@ fn gearbox() -> ChainParams<2> {
                 c: 2.0,
                 k: 900.0,
                 g: 0.6e-3,
+                damper: Damping::NONE,
             },
             Stage {
                 a: 1.0,
                 c: 1.5,
                 k: 2500.0,
                 g: 1.1e-3,
+                damper: Damping::NONE,
             },
         ],
     }
@@ -337,4 +339,18 @@ fn an_unstable_loop_has_no_bound_sup() {
     let bound = TwoStageBound::new(&chain, PiGains { kp: -50.0, ki: 40.0 }).unwrap();
     assert!(bound.sup().is_err());
     assert!(TwoStageBound::new(&chain, PiGains { kp: f64::NAN, ki: 1.0 }).is_err());
+}
+
+#[test]
+fn a_damped_stage_has_no_bound_yet() {
+    let mut params = gearbox();
+    params.stages[1].damper = Damping {
+        d: 2.0,
+        law: backlash_physics::ContactLaw::ElastoBacklash,
+    };
+    let mut bound = TwoStageBound::new(&Chain::new(params).unwrap(), GAINS).unwrap();
+    bound.advance(1e-3).unwrap();
+    assert_eq!(bound.bound(), f64::INFINITY);
+    let reason = bound.sup().unwrap_err().to_string();
+    assert!(reason.contains("stage 1 has a damper"), "{reason}");
 }

@@ -96,6 +96,9 @@ pub struct ChainBound<
     const OUT: usize,
 > {
     stages: [LoopBound<N, BA, KO, R, OUT>; S],
+    /// The first stage with a damper, if any: the rule above bounds nothing there (the
+    /// clipping of docs/model.md §1 acts at Δ = 0 too), so `bound` is +∞ and `sup` says why.
+    damped: Option<usize>,
 }
 
 /// The bound of [`crate::chain::TwoStageStepper`]'s chain.
@@ -107,7 +110,8 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     ChainBound<S, N, BA, KO, R, OUT>
 {
     /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
-    /// not finite or not in scale.
+    /// not finite or not in scale. A chain with a damper in a stage has no bound yet: +∞, with
+    /// the reason in [`Self::sup`].
     pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
         assert!(
             N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
@@ -130,6 +134,7 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                 let reduced = Reduced::from_loop(&full, reduced_coords(chain, gains), OUT);
                 LoopBound::build(&disturbance, a, reduced)
             }),
+            damped: (0..S).find(|&i| chain.stage(i).d() > 0.0),
         })
     }
 
@@ -148,23 +153,29 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
 
     /// Σ_i K_i g_i ∫_0^t |h_i|: a true bound on |ω_S^b − ω_S^0| [rad/s] at the elapsed time t.
     pub fn bound(&self) -> f64 {
-        self.stages.iter().map(|s| s.bound()).sum()
+        (0..S).map(|i| self.stage_bound(i)).sum()
     }
 
     /// Stage i's term K_i g_i ∫_0^t |h_i| of [`Self::bound`].
     pub fn stage_bound(&self, stage: usize) -> f64 {
-        self.stages[stage].bound()
+        match self.damped {
+            Some(_) => f64::INFINITY,
+            None => self.stages[stage].bound(),
+        }
     }
 
     /// Σ_i K_i g_i ∫_0^∞ |h_i| (`bound_sup`), or why it is infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
-        self.stages.iter().map(|s| s.sup()).sum()
+        (0..S).map(|i| self.stage_sup(i)).sum()
     }
 
     /// Stage i's term K_i g_i ∫_0^∞ |h_i| of [`Self::sup`]: linear in g_i, the rest of the chain
     /// held.
     pub fn stage_sup(&self, stage: usize) -> Result<f64, Unbounded> {
-        self.stages[stage].sup()
+        match self.damped {
+            Some(stage) => Err(Unbounded::DampedStage { stage }),
+            None => self.stages[stage].sup(),
+        }
     }
 
     /// Time since the start [s].

@@ -41,8 +41,8 @@ impl<const S: usize> Layout<S> {
 }
 
 /// M of `mode` (y′ = M y): bodies J_j ω_j′ = −b_j ω_j + c_{j−1} ψ_{j−1} − a_j ψ_j (+ τ_m on
-/// body 0, + τ_L on body S) with ψ_i = K_i (u_i ∓ g_i) on a flank and 0 free (docs/model.md
-/// §1, docs/model.md §10). N must be 3S + 7.
+/// body 0, + τ_L on body S) with ψ_i = K_i (u_i ∓ g_i) + D_i v_i on a flank, 2 K_i (u_i ∓ g_i)
+/// capped and 0 free or slack (docs/model.md §1, docs/model.md §10). N must be 3S + 7.
 pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &ChainMode<S>) -> SMatrix<f64, N, N> {
     assert!(
         N == Layout::<S>::DIM,
@@ -62,11 +62,11 @@ pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &Chai
         let s = chain.stage(i);
         speed[i] = (unit(Layout::<S>::v(i)) + speed[i + 1] * s.c) / s.a;
     }
-    // ψ_i = ks u_i + kc·1 in this mode.
+    // ψ_i = ks u_i + kd v_i + kc·1 in this mode.
     let force = |i: usize| {
         let s = chain.stage(i);
         let m = mode.stages[i];
-        let (ks, _) = m.force_slopes(s.k, 0.0);
+        let (ks, kd) = m.force_slopes(s.k, s.d());
         let kc = if m.side() > 0.0 {
             -ks * s.g
         } else if m.side() < 0.0 {
@@ -74,7 +74,7 @@ pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &Chai
         } else {
             0.0
         };
-        unit(Layout::<S>::u(i)) * ks + unit(Layout::<S>::ONE) * kc
+        unit(Layout::<S>::u(i)) * ks + unit(Layout::<S>::v(i)) * kd + unit(Layout::<S>::ONE) * kc
     };
     // ω_j′ as a row over y.
     let accel = |j: usize| {

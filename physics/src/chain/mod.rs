@@ -9,8 +9,9 @@
 //!
 //! Data flow: [`ChainParams`] → [`Chain`] (validated) → [`ChainStepper`] over [`ChainState`]
 //! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2), and [`ChainBound`]: the speed-error
-//! bound under a PI loop on the motor speed, one disturbance per stage. Not yet: dampers, the
-//! web span.
+//! bound under a PI loop on the motor speed, one disturbance per stage. A stage may carry a
+//! damper (docs/model.md §1's two laws: its slack and capped modes, its force's surfaces). Not
+//! yet: the web span, the bound with dampers.
 //!
 //! Stepping is docs/model.md §2 with one switching coordinate per stage: a piece is accepted
 //! whole only when the cubic test certifies every stage's u free of its thresholds over it;

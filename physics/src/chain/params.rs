@@ -1,7 +1,7 @@
 //! The chain's parameters and their validation: bodies (J, b) joined by stages (a, c, K, g)
 //! (docs/model.md §1 for one stage, docs/model.md §10 for several).
 
-use crate::params::{Plant, SCALE_LIMIT};
+use crate::params::{ContactLaw, Damping, Plant, SCALE_LIMIT};
 use std::fmt;
 use thiserror::Error;
 
@@ -15,8 +15,9 @@ pub struct Body {
 }
 
 /// One stage: a compliant member in series with a backlash between body i and body i + 1.
-/// Its coordinate is u = a θ_i − c θ_{i+1}, its force ψ = K dz(u, g); body i receives −a ψ and
-/// body i + 1 receives +c ψ (docs/model.md §1 with r_m = a, r_L = c).
+/// Its coordinate is u = a θ_i − c θ_{i+1}, its force ψ = K dz(u, g) without a damper, or with
+/// a damper D in parallel with the spring the clipped force of docs/model.md §1 under its law;
+/// body i receives −a ψ and body i + 1 receives +c ψ (docs/model.md §1 with r_m = a, r_L = c).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stage {
     /// Lever arm of the driving body, a (the shaft's 1, the belt's R_1 [m]).
@@ -27,6 +28,21 @@ pub struct Stage {
     pub k: f64,
     /// Half gap g in u [rad, or m] (the shaft's Δ, the belt's α_2 Δ).
     pub g: f64,
+    /// The damper in parallel with the spring: D in u's units [N·m·s/rad, or N·s/m] (0: none)
+    /// and its contact law (docs/model.md §1).
+    pub damper: Damping,
+}
+
+impl Stage {
+    /// D of the damper (0 without one).
+    pub fn d(&self) -> f64 {
+        self.damper.d
+    }
+
+    /// Law 1 (`ElastoBacklash`) with a damper: the capped modes exist.
+    pub fn capped(&self) -> bool {
+        self.damper.d > 0.0 && self.damper.law == ContactLaw::ElastoBacklash
+    }
 }
 
 /// Parameters of a chain of S stages as a user gives them: body 0 (the motor, which τ_m
@@ -54,9 +70,9 @@ impl<const S: usize> ChainParams<S> {
 
 impl ChainParams<1> {
     /// The one-stage chain of a plant of docs/model.md §1 (shaft or belt): a = r_m, c = r_L,
-    /// K, g. None for a plant the chain does not model yet: with a damper or a web span.
+    /// K, g and its damper. None for a plant the chain does not model yet: with a web span.
     pub fn from_plant(plant: &Plant) -> Option<ChainParams<1>> {
-        if plant.damping() != 0.0 || plant.web().is_some() {
+        if plant.web().is_some() {
             return None;
         }
         let p = plant.params();
@@ -68,6 +84,10 @@ impl ChainParams<1> {
                 c: plant.r_l(),
                 k: plant.stiffness(),
                 g: plant.half_gap(),
+                damper: Damping {
+                    d: plant.damping(),
+                    law: plant.contact_law(),
+                },
             }],
         })
     }
@@ -85,6 +105,7 @@ impl ChainParams<2> {
             c: 1.0,
             k: 400.0,
             g: 0.3875e-3,
+            damper: Damping::NONE,
         };
         ChainParams {
             motor: Body { j: 2.28, b: 0.05 },
@@ -164,6 +185,7 @@ impl<const S: usize> Chain<S> {
             check(Part::Stage(i), "c", stage.c, true)?;
             check(Part::Stage(i), "K", stage.k, true)?;
             check(Part::Stage(i), "g", stage.g, false)?;
+            check(Part::Stage(i), "D", stage.d(), false)?;
         }
         // The rates and forces the integration works with, as params.rs's Plant::new checks
         // them: square rates K a²/J and K c²/J, damping rates b/J, input accelerations 1/J, the
@@ -182,6 +204,9 @@ impl<const S: usize> Chain<S> {
                 ("K*c^2/J", Part::Stage(i), s.k * s.c * s.c / driven),
                 ("K*g", Part::Stage(i), s.k * s.g),
                 ("c/a", Part::Stage(i), s.c / s.a),
+                ("D*a^2/J", Part::Stage(i), s.d() * s.a * s.a / driving),
+                ("D*c^2/J", Part::Stage(i), s.d() * s.c * s.c / driven),
+                ("D/K", Part::Stage(i), s.d() / s.k),
             ]
         });
         for (name, at, value) in inputs.into_iter().chain(bodies).chain(stages) {
@@ -206,18 +231,27 @@ impl<const S: usize> Chain<S> {
         &self.params.stages[i]
     }
 
-    /// The chain's fastest rate [1/s]: the larger of the damping rates b/J and the bound
-    /// √(Σ_i K_i (a_i²/J_i + c_i²/J_{i+1})) on the contact frequencies, the trace of the
-    /// mass-normalized stiffness (for one stage exactly docs/model.md §2's ω_0).
+    /// The chain's fastest rate [1/s]: the larger of the damping rates b/J, the bound
+    /// √(Σ_i K_i (a_i²/J_i + c_i²/J_{i+1})) on the contact frequencies (the trace of the
+    /// mass-normalized stiffness; for one stage exactly docs/model.md §2's ω_0), with a damper
+    /// under law 1 the capped contact's √2 times it, and each damper's rate
+    /// D_i (a_i²/J_i + c_i²/J_{i+1}) (for one stage docs/model.md §2's rate, term for term).
     pub fn fastest_rate(&self) -> f64 {
-        let stiff: f64 = (0..S)
-            .map(|i| {
-                let s = self.stage(i);
-                s.k * (s.a * s.a / self.body(i).j + s.c * s.c / self.body(i + 1).j)
-            })
-            .sum();
-        (0..=S)
-            .map(|j| self.body(j).b / self.body(j).j)
-            .fold(stiff.sqrt(), f64::max)
+        let kappa = |i: usize| {
+            let s = self.stage(i);
+            s.a * s.a / self.body(i).j + s.c * s.c / self.body(i + 1).j
+        };
+        let stiff: f64 = (0..S).map(|i| self.stage(i).k * kappa(i)).sum();
+        let mut omega0 = stiff.sqrt();
+        let bodies = (0..=S).map(|j| self.body(j).b / self.body(j).j).fold(omega0, f64::max);
+        if (0..S).all(|i| self.stage(i).d() == 0.0) {
+            return bodies;
+        }
+        if (0..S).any(|i| self.stage(i).capped()) {
+            omega0 *= std::f64::consts::SQRT_2;
+        }
+        (0..S)
+            .map(|i| self.stage(i).d() * kappa(i))
+            .fold(bodies.max(omega0), f64::max)
     }
 }

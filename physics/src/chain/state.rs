@@ -1,23 +1,20 @@
 //! The chain's mode (one contact mode per stage) and its state.
 
 use super::params::Chain;
-use crate::mode::{mode_at, ContactMode};
+use crate::mode::{damped_mode_at, mode_at, ContactMode};
 
-/// The mode of a chain: the tuple of its stages' modes. Each stage is `Negative`, `Free` or
-/// `Positive` (no dampers yet), so there are 3^S modes, each linear (docs/model.md §2). The
-/// damper's modes cannot be put in ([`ChainMode::new`]), so the stepper never meets one.
+/// The mode of a chain: the tuple of its stages' modes. A stage without a damper is
+/// `Negative`, `Free` or `Positive`; one with a damper may also be slack or (law 1) capped
+/// (docs/model.md §1). Each mode is linear (docs/model.md §2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ChainMode<const S: usize> {
     pub(crate) stages: [ContactMode; S],
 }
 
 impl<const S: usize> ChainMode<S> {
-    /// The mode with these stage modes; None if one is a damper's mode (slack, capped).
-    pub fn new(stages: [ContactMode; S]) -> Option<ChainMode<S>> {
-        stages
-            .iter()
-            .all(|m| matches!(m, ContactMode::Negative | ContactMode::Free | ContactMode::Positive))
-            .then_some(ChainMode { stages })
+    /// The mode with these stage modes.
+    pub fn new(stages: [ContactMode; S]) -> ChainMode<S> {
+        ChainMode { stages }
     }
 
     /// Each stage's mode.
@@ -25,22 +22,22 @@ impl<const S: usize> ChainMode<S> {
         &self.stages
     }
 
-    /// How many modes there are: 3^S.
-    pub const COUNT: usize = 3usize.pow(S as u32);
+    /// How many modes there are: 7^S (every stage's seven modes of [`ContactMode::ALL`]).
+    pub const COUNT: usize = 7usize.pow(S as u32);
 
-    /// A number in 0..COUNT: the stages' modes as base-3 digits (Negative 0, Free 1,
-    /// Positive 2), stage 0 the lowest.
+    /// A number in 0..COUNT: the stages' modes as base-7 digits in the order of
+    /// [`ContactMode::ALL`] (Negative 0, Free 1, Positive 2, then the damper's), stage 0 the
+    /// lowest.
     pub fn index(&self) -> usize {
-        self.stages.iter().rev().fold(0, |acc, m| 3 * acc + m.index())
+        self.stages.iter().rev().fold(0, |acc, m| 7 * acc + m.index())
     }
 
     /// The mode of an [`ChainMode::index`] (< COUNT).
     pub fn from_index(mut index: usize) -> ChainMode<S> {
         ChainMode {
             stages: std::array::from_fn(|_| {
-                let digit = index % 3;
-                index /= 3;
-                // ContactMode::ALL begins Negative, Free, Positive: digits 0, 1, 2.
+                let digit = index % 7;
+                index /= 7;
                 ContactMode::ALL[digit]
             }),
         }
@@ -111,11 +108,16 @@ impl<const S: usize> ChainState<S> {
         }
     }
 
-    /// ψ_i = K_i dz(u_i, g_i) of each stage (docs/model.md §1).
+    /// ψ_i of each stage (docs/model.md §1): K_i dz(u_i, g_i), or with a damper the clipped
+    /// force of its law.
     pub fn forces(&self, chain: &Chain<S>) -> [f64; S] {
         std::array::from_fn(|i| {
             let s = chain.stage(i);
-            s.k * crate::params::dead_zone(self.u[i], s.g)
+            if s.d() == 0.0 {
+                s.k * crate::params::dead_zone(self.u[i], s.g)
+            } else {
+                crate::params::damped_force(s.k, s.d(), s.g, s.damper.law, self.u[i], self.du[i])
+            }
         })
     }
 
@@ -133,9 +135,17 @@ impl<const S: usize> ChainState<S> {
     }
 }
 
-/// The mode of each stage from its u and u′ ([`mode_at`]): on ±g the mode being entered.
+/// The mode of each stage from its u and u′ ([`mode_at`], with a damper [`damped_mode_at`]): on
+/// a switching surface the mode being entered.
 pub fn mode_of<const S: usize>(chain: &Chain<S>, u: &[f64; S], du: &[f64; S]) -> ChainMode<S> {
     ChainMode {
-        stages: std::array::from_fn(|i| mode_at(u[i], du[i], chain.stage(i).g)),
+        stages: std::array::from_fn(|i| {
+            let s = chain.stage(i);
+            if s.d() == 0.0 {
+                mode_at(u[i], du[i], s.g)
+            } else {
+                damped_mode_at(u[i], du[i], s.g, s.k, s.d(), s.damper.law)
+            }
+        }),
     }
 }
