@@ -10,6 +10,8 @@ use thiserror::Error;
 
 mod damped;
 
+pub(crate) use damped::variation;
+
 /// Inputs over one step: values at the step start and their slopes over the step.
 /// Slopes are 0 for a zero-order hold (FMI 2 CS default); non-zero for first-order hold.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -105,6 +105,8 @@ fn agrees_with_the_single_gap_stepper(params: PlantParams) {
         let mut scale = [0.0f64; 6];
         let mut worst = [0.0f64; 6];
         let mut worst_t = 0.0f64;
+        // V (docs/model.md §2, "With a damper"): its largest value and deviation.
+        let (mut v_scale, mut v_worst) = (0.0f64, 0.0f64);
         for k in 0..4000 {
             let t = k as f64 * h;
             // The load torque ramps by a tenth over the run, to first order too.
@@ -143,7 +145,10 @@ fn agrees_with_the_single_gap_stepper(params: PlantParams) {
                 worst[i] = worst[i].max((pa[i] - pb[i]).abs());
             }
             assert_eq!(a.mode, b.mode.stages()[0], "step {k}");
+            v_scale = v_scale.max(a.variation);
+            v_worst = v_worst.max((a.variation - b.variation[0]).abs());
         }
+        assert_eq!(v_scale > 0.0, plant.damping() > 0.0, "V grows with a damper only");
         assert_eq!(switches_a.len(), switches_b.len());
         assert!(
             switches_a.len() > 40,
@@ -163,6 +168,12 @@ fn agrees_with_the_single_gap_stepper(params: PlantParams) {
         for (i, u) in ulps.iter().enumerate() {
             assert!(*u <= 512.0, "component {i}: {u} ulps");
         }
+        // V sums |Δu| and bounds piece by piece: a few ulps of its size per piece.
+        eprintln!(
+            "V: {v_scale:e}, deviation {:.1} ulps of it",
+            v_worst / (EPS * v_scale.max(f64::MIN_POSITIVE))
+        );
+        assert!(v_worst <= 512.0 * EPS * v_scale);
         assert!(worst_t <= 512.0 * EPS * t_end);
     }
 }

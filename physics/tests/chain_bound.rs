@@ -5,7 +5,7 @@
 //! bound of docs/model.md §3.
 
 use backlash_physics::chain::{chain_loop, Body, Chain, ChainParams, OneStageBound, Stage, TwoStageBound};
-use backlash_physics::{Damping, PiGains, Plant, PlantParams, SpeedErrorBound};
+use backlash_physics::{ContactLaw, Damping, PiGains, Plant, PlantParams, SpeedErrorBound, Trajectory};
 use nalgebra::{SMatrix, SVector};
 
 type Mat7 = SMatrix<f64, 7, 7>;
@@ -53,6 +53,9 @@ struct Named {
     k2: f64,
     d1: f64,
     d2: f64,
+    /// Each stage's damper D (docs/model.md §1) and whether its law is 1 (ElastoBacklash).
+    damp: [f64; 2],
+    law1: bool,
 }
 
 fn named(p: &ChainParams<2>) -> Named {
@@ -70,7 +73,44 @@ fn named(p: &ChainParams<2>) -> Named {
         k2: p.stages[1].k,
         d1: p.stages[0].g,
         d2: p.stages[1].g,
+        damp: [p.stages[0].damper.d, p.stages[1].damper.d],
+        law1: p.stages[0].damper.law == ContactLaw::ElastoBacklash,
     }
+}
+
+/// ψ of a member of stiffness k, damper d and half gap g at u moving at v (docs/model.md §1):
+/// k dz(u, g) without a damper; with one, past the flank τ_c = k (u ∓ g), τ_d = d v, law 2
+/// τ_c + τ_d and law 1 τ_c + min(τ_c, τ_d) (max on the negative flank) while they push, else 0.
+fn member_force(k: f64, d: f64, g: f64, law1: bool, u: f64, v: f64) -> f64 {
+    if d == 0.0 {
+        return k * dead_zone(u, g);
+    }
+    let side = if u > g {
+        1.0
+    } else if u < -g {
+        -1.0
+    } else {
+        return 0.0;
+    };
+    let (tc, td) = (k * (u - side * g), d * v);
+    if side * (tc + td) <= 0.0 {
+        0.0
+    } else if law1 {
+        tc + if side > 0.0 { tc.min(td) } else { tc.max(td) }
+    } else {
+        tc + td
+    }
+}
+
+/// Whether a damped member's V grows at u moving at v: free, slack or capped (docs/model.md
+/// §2, "With a damper"), not in ordinary contact.
+fn varies(k: f64, d: f64, g: f64, law1: bool, u: f64, v: f64) -> bool {
+    if d == 0.0 || u.abs() < g {
+        return d != 0.0;
+    }
+    let side = u.signum();
+    let (tc, td) = (k * (u - side * g), d * v);
+    side * (tc + td) <= 0.0 || (law1 && side * td > side * tc)
 }
 
 fn dead_zone(u: f64, g: f64) -> f64 {
@@ -91,10 +131,15 @@ fn loop_rate(p: &Named, gains: PiGains, z: &Vec7, gaps: bool, w_ref: f64) -> Vec
     let [th_m, w_m, th_i, w_i, th_l, w_l, x_c] = [z[0], z[1], z[2], z[3], z[4], z[5], z[6]];
     let u1 = th_m - p.n1 * th_i;
     let u2 = th_i - p.n2 * th_l;
+    let (v1, v2) = (w_m - p.n1 * w_i, w_i - p.n2 * w_l);
     let (psi1, psi2) = if gaps {
-        (p.k1 * dead_zone(u1, p.d1), p.k2 * dead_zone(u2, p.d2))
+        (
+            member_force(p.k1, p.damp[0], p.d1, p.law1, u1, v1),
+            member_force(p.k2, p.damp[1], p.d2, p.law1, u2, v2),
+        )
     } else {
-        (p.k1 * u1, p.k2 * u2)
+        // The twin: the spring-damper K u + D u′ (docs/model.md §3).
+        (p.k1 * u1 + p.damp[0] * v1, p.k2 * u2 + p.damp[1] * v2)
     };
     let e = w_ref - w_m;
     let tau_m = gains.kp * e + gains.ki * x_c;
@@ -138,14 +183,16 @@ fn rk4(f: &dyn Fn(&Vec7) -> Vec7, z: &Vec7, h: f64) -> Vec7 {
 
 #[test]
 fn the_loop_is_the_equations_of_two_stages() {
-    let params = gearbox();
-    let chain = Chain::new(params).unwrap();
-    let p = named(&params);
-    for gains in [GAINS, PiGains::default()] {
+    let mut damped = gearbox();
+    damped.stages[0].damper.d = 3.0;
+    damped.stages[1].damper.d = 6.0;
+    for (params, gains) in [(gearbox(), GAINS), (gearbox(), PiGains::default()), (damped, GAINS)] {
+        let chain = Chain::new(params).unwrap();
+        let p = named(&params);
         let ours = chain_loop::<2, 7>(&chain, gains);
         let theirs = loop_matrix(&p, gains);
         // Each entry is one quotient of a product of at most three parameters in both, summed
-        // with at most one other: a few ulps of the largest entry.
+        // with at most three others: a few ulps of the largest entry.
         let scale = theirs.abs().max();
         assert!(
             (ours - theirs).abs().max() <= 8.0 * f64::EPSILON * scale,
@@ -227,17 +274,46 @@ fn bound_is_the_integral_of_each_stages_response() {
 /// max_t |ω_L^b − ω_L^0| over twin runs to `end`, and bound(t) at the time of that maximum
 /// and at the end, with RK4 of step `dt` on docs/model.md §10's equations.
 fn twin_run(p: &Named, gains: PiGains, dt: f64, end: f64, start: Vec7, reference: &dyn Fn(f64) -> f64) -> Vec<f64> {
+    twin_run_with_variation(p, gains, dt, end, start, reference).0
+}
+
+/// `twin_run`, with each stage's V after every step: ∫|u′| over its free, slack and capped
+/// time on the run with backlash, by the trapezoid rule over the steps it spends so.
+fn twin_run_with_variation(
+    p: &Named,
+    gains: PiGains,
+    dt: f64,
+    end: f64,
+    start: Vec7,
+    reference: &dyn Fn(f64) -> f64,
+) -> (Vec<f64>, Vec<[f64; 2]>) {
     let (mut b, mut z) = (start, start);
-    let mut deviations = Vec::new();
+    let (mut deviations, mut variations) = (Vec::new(), Vec::new());
+    let mut v_total = [0.0; 2];
+    let stages = |z: &Vec7| {
+        let u = [z[0] - p.n1 * z[2], z[2] - p.n2 * z[4]];
+        let v = [z[1] - p.n1 * z[3], z[3] - p.n2 * z[5]];
+        (u, v)
+    };
+    let params = [(p.k1, p.d1), (p.k2, p.d2)];
     let mut t = 0.0;
     while t < end - dt / 2.0 {
         let w_ref = reference(t);
+        let before = stages(&b);
         b = rk4(&|z| loop_rate(p, gains, z, true, w_ref), &b, dt);
         z = rk4(&|z| loop_rate(p, gains, z, false, w_ref), &z, dt);
+        let after = stages(&b);
+        for j in 0..2 {
+            let (k, g) = params[j];
+            if varies(k, p.damp[j], g, p.law1, before.0[j], before.1[j]) {
+                v_total[j] += 0.5 * dt * (before.1[j].abs() + after.1[j].abs());
+            }
+        }
         t += dt;
         deviations.push((b[5] - z[5]).abs());
+        variations.push(v_total);
     }
-    deviations
+    (deviations, variations)
 }
 
 #[test]
@@ -271,6 +347,45 @@ fn twins_with_and_without_backlash_stay_within_the_bound() {
     // A run of the physical drive stays well inside: the bound is for the worst signs.
     assert!(closest > 0.0 && closest < 1.0, "{closest}");
     eprintln!("largest deviation / bound_sup = {closest:.3}");
+}
+
+/// With a damper in each stage, under either law: the deviation stays within the bound with
+/// its damper terms, D_i max|h_i| V_i, V_i taken from the run itself.
+#[test]
+fn damped_twins_stay_within_the_bound_with_its_damper_terms() {
+    for law in [ContactLaw::ElastoBacklash, ContactLaw::ElastoBacklash2] {
+        let mut params = gearbox();
+        params.stages[0].damper = Damping { d: 3.0, law };
+        params.stages[1].damper = Damping { d: 6.0, law };
+        let p = named(&params);
+        let chain = Chain::new(params).unwrap();
+        let reference = |t: f64| 2.0 * (3.0 * t).sin() + if t > 1.0 { -1.5 } else { 0.0 };
+        let mut start = Vec7::zeros();
+        start[0] = 0.6e-3;
+        let dt = 5e-5;
+        let (fine, fine_v) = twin_run_with_variation(&p, GAINS, dt / 2.0, 3.0, start, &reference);
+        let (coarse, coarse_v) = twin_run_with_variation(&p, GAINS, dt, 3.0, start, &reference);
+        let mut bound = TwoStageBound::new(&chain, GAINS).unwrap();
+        let mut closest: f64 = 0.0;
+        for k in 0..coarse.len() {
+            bound.advance(dt).unwrap();
+            let (deviation, v) = (fine[2 * k + 1], fine_v[2 * k + 1]);
+            let limit = bound.damped_bound(&v);
+            // RK4 through the kinks of the force (and law 2's jump at the flanks) and the
+            // trapezoid V: the two step sizes' differences bound their errors.
+            let error = (deviation - coarse[k]).abs() + (limit - bound.damped_bound(&coarse_v[k])).abs();
+            assert!(
+                deviation <= limit + 4.0 * error + 1e-12,
+                "{law:?}, t = {}: deviation {deviation} above {limit}",
+                (k + 1) as f64 * dt
+            );
+            closest = closest.max(deviation / limit.max(f64::MIN_POSITIVE));
+        }
+        let v_end = fine_v.last().unwrap();
+        assert!(v_end[0] > 0.0 && v_end[1] > 0.0, "{v_end:?}");
+        assert!(bound.damped_bound(v_end) > bound.bound(), "the damper terms count");
+        eprintln!("{law:?}: largest deviation / bound = {closest:.3}, V = {v_end:?}");
+    }
 }
 
 #[test]
@@ -334,23 +449,38 @@ fn one_stage_is_the_plants_bound() {
 }
 
 #[test]
+fn one_damped_stage_is_the_plants_damped_bound() {
+    let p = PlantParams::paper_rig(0.775e-3);
+    let plant = Plant::new(PlantParams {
+        damping: Damping {
+            d: 10.0,
+            law: ContactLaw::ElastoBacklash,
+        },
+        ..p
+    })
+    .unwrap();
+    let chain = Chain::new(ChainParams::from_plant(&plant).unwrap()).unwrap();
+    let gains = PiGains { kp: 42.0, ki: 180.0 };
+    let mut ours = OneStageBound::new(&chain, gains).unwrap();
+    let mut plants = SpeedErrorBound::new(&plant, gains).unwrap();
+    for k in 0..2000 {
+        ours.advance(1e-3).unwrap();
+        plants.advance(1e-3).unwrap();
+        let v = 1e-3 * k as f64;
+        let theirs = plants.damped_bound(Trajectory::Stepped {
+            variation: v,
+            rate: 0.0,
+        });
+        assert!((ours.damped_bound(&[v]) - theirs).abs() <= 1e-13 * theirs.max(f64::MIN_POSITIVE));
+    }
+    let (a, b) = (ours.sup().unwrap(), plants.sup().unwrap());
+    assert!((a - b).abs() <= 1e-12 * b, "{a} vs {b}");
+}
+
+#[test]
 fn an_unstable_loop_has_no_bound_sup() {
     let chain = Chain::new(gearbox()).unwrap();
     let bound = TwoStageBound::new(&chain, PiGains { kp: -50.0, ki: 40.0 }).unwrap();
     assert!(bound.sup().is_err());
     assert!(TwoStageBound::new(&chain, PiGains { kp: f64::NAN, ki: 1.0 }).is_err());
-}
-
-#[test]
-fn a_damped_stage_has_no_bound_yet() {
-    let mut params = gearbox();
-    params.stages[1].damper = Damping {
-        d: 2.0,
-        law: backlash_physics::ContactLaw::ElastoBacklash,
-    };
-    let mut bound = TwoStageBound::new(&Chain::new(params).unwrap(), GAINS).unwrap();
-    bound.advance(1e-3).unwrap();
-    assert_eq!(bound.bound(), f64::INFINITY);
-    let reason = bound.sup().unwrap_err().to_string();
-    assert!(reason.contains("stage 1 has a damper"), "{reason}");
 }

@@ -6,10 +6,13 @@
 //! loop states obeys e′ = A e + Σ_i D_i φ_i from e(0) = 0, so
 //! |ω_S^b − ω_S^0|(t) ≤ Σ_i K_i g_i ∫_0^t |h_i(s)| ds with h_i = L e^{A s} D_i, and the φ_i taking
 //! their worst signs independently attains it. Each term is a [`LoopBound`] of its own: the
-//! same loop, its own column D_i and scale K_i g_i.
+//! same loop, its own column D_i and scale K_i g_i. With a damper D_i the twin's member is the
+//! spring-damper K u_i + D u_i′, and stage i's φ_i splits as in docs/model.md §3 ("With a
+//! damper") into a part within K_i g_i and one within D_i |u_i′| over its free, slack and capped
+//! time: its term gains D_i max|h_i| V_i.
 
 use super::params::Chain;
-use crate::bound::{check_gains, BoundError, Disturbance, LoopBound, PiGains, Unbounded};
+use crate::bound::{check_gains, BoundError, Disturbance, LoopBound, PiGains, Trajectory, Unbounded};
 use crate::closed_loop::{Coord, Reduced};
 use nalgebra::{Complex, DMatrix, SMatrix};
 
@@ -55,6 +58,14 @@ pub fn chain_loop<const S: usize, const N: usize>(chain: &Chain<S>, gains: PiGai
         a[(omega(i), theta(i + 1))] += s.k * s.a * s.c / driving;
         a[(omega(i + 1), theta(i))] += s.k * s.a * s.c / driven;
         a[(omega(i + 1), theta(i + 1))] -= s.k * s.c * s.c / driven;
+        let d = s.d();
+        if d != 0.0 {
+            // The twin's spring-damper: ψ_i⁰ = K u_i + D u_i′, u_i′ = a ω_i − c ω_{i+1}.
+            a[(omega(i), omega(i))] -= d * s.a * s.a / driving;
+            a[(omega(i), omega(i + 1))] += d * s.a * s.c / driving;
+            a[(omega(i + 1), omega(i))] += d * s.a * s.c / driven;
+            a[(omega(i + 1), omega(i + 1))] -= d * s.c * s.c / driven;
+        }
     }
     a[(omega(0), LoopLayout::<S>::X_C)] = gains.ki / chain.body(0).j;
     if gains.kp != 0.0 || gains.ki != 0.0 {
@@ -96,9 +107,6 @@ pub struct ChainBound<
     const OUT: usize,
 > {
     stages: [LoopBound<N, BA, KO, R, OUT>; S],
-    /// The first stage with a damper, if any: the rule above bounds nothing there (the
-    /// clipping of docs/model.md §1 acts at Δ = 0 too), so `bound` is +∞ and `sup` says why.
-    damped: Option<usize>,
 }
 
 /// The bound of [`crate::chain::TwoStageStepper`]'s chain.
@@ -110,8 +118,7 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     ChainBound<S, N, BA, KO, R, OUT>
 {
     /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
-    /// not finite or not in scale. A chain with a damper in a stage has no bound yet: +∞, with
-    /// the reason in [`Self::sup`].
+    /// not finite or not in scale.
     pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
         assert!(
             N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
@@ -128,13 +135,12 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                     column: disturbance_column::<S, N>(chain, i),
                     scale: s.k * s.g,
                     rate,
-                    damping: 0.0,
+                    damping: s.d(),
                     half_gap: s.g,
                 };
                 let reduced = Reduced::from_loop(&full, reduced_coords(chain, gains), OUT);
                 LoopBound::build(&disturbance, a, reduced)
             }),
-            damped: (0..S).find(|&i| chain.stage(i).d() > 0.0),
         })
     }
 
@@ -151,31 +157,43 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
         Ok(())
     }
 
-    /// Σ_i K_i g_i ∫_0^t |h_i|: a true bound on |ω_S^b − ω_S^0| [rad/s] at the elapsed time t.
+    /// Σ_i K_i g_i ∫_0^t |h_i|: a true bound on |ω_S^b − ω_S^0| [rad/s] at the elapsed time t
+    /// without dampers; with one, the part of [`Self::damped_bound`] that the gaps cause.
     pub fn bound(&self) -> f64 {
-        (0..S).map(|i| self.stage_bound(i)).sum()
+        self.stages.iter().map(|s| s.bound()).sum()
     }
 
     /// Stage i's term K_i g_i ∫_0^t |h_i| of [`Self::bound`].
     pub fn stage_bound(&self, stage: usize) -> f64 {
-        match self.damped {
-            Some(_) => f64::INFINITY,
-            None => self.stages[stage].bound(),
-        }
+        self.stages[stage].bound()
     }
 
-    /// Σ_i K_i g_i ∫_0^∞ |h_i| (`bound_sup`), or why it is infinite.
+    /// The bound with dampers: Σ_i (K_i g_i ∫_0^t |h_i| + D_i max_{[0,t]} |h_i| V_i), with V_i
+    /// the stage's ∫|u_i′| over its free, slack and capped time on the trajectory
+    /// ([`super::ChainState::variation`]); [`Self::bound`] without a damper, whatever V.
+    pub fn damped_bound(&self, variation: &[f64; S]) -> f64 {
+        self.stages
+            .iter()
+            .zip(variation)
+            .map(|(s, &v)| {
+                s.damped_bound(Trajectory::Stepped {
+                    variation: v,
+                    rate: 0.0,
+                })
+            })
+            .sum()
+    }
+
+    /// Σ_i K_i g_i ∫_0^∞ |h_i| (`bound_sup`; with dampers the gaps' part), or why it is
+    /// infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
-        (0..S).map(|i| self.stage_sup(i)).sum()
+        self.stages.iter().map(|s| s.sup()).sum()
     }
 
     /// Stage i's term K_i g_i ∫_0^∞ |h_i| of [`Self::sup`]: linear in g_i, the rest of the chain
     /// held.
     pub fn stage_sup(&self, stage: usize) -> Result<f64, Unbounded> {
-        match self.damped {
-            Some(stage) => Err(Unbounded::DampedStage { stage }),
-            None => self.stages[stage].sup(),
-        }
+        self.stages[stage].sup()
     }
 
     /// Time since the start [s].

@@ -10,8 +10,8 @@
 //! Data flow: [`ChainParams`] → [`Chain`] (validated) → [`ChainStepper`] over [`ChainState`]
 //! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2), and [`ChainBound`]: the speed-error
 //! bound under a PI loop on the motor speed, one disturbance per stage. A stage may carry a
-//! damper (docs/model.md §1's two laws: its slack and capped modes, its force's surfaces). Not
-//! yet: the web span, the bound with dampers.
+//! damper (docs/model.md §1's two laws: its slack and capped modes, its force's surfaces, its V
+//! for the bound's damper term). Not yet: the web span.
 //!
 //! Stepping is docs/model.md §2 with one switching coordinate per stage: a piece is accepted
 //! whole only when the cubic test certifies every stage's u free of its thresholds over it;

@@ -68,6 +68,10 @@ pub struct ChainState<const S: usize> {
     pub du: [f64; S],
     /// The mode in force at this instant (on ±g: the mode being entered).
     pub mode: ChainMode<S>,
+    /// Per stage with a damper: an upper bound on ∫|u_i′| over the time it spent free, slack or
+    /// capped since the start (exact where u_i is monotone), which the bound's damper term
+    /// multiplies (docs/model.md §2, §3 "With a damper"); 0 without a damper.
+    pub variation: [f64; S],
 }
 
 impl<const S: usize> ChainState<S> {
@@ -88,6 +92,7 @@ impl<const S: usize> ChainState<S> {
             u,
             du,
             mode: mode_of(chain, &u, &du),
+            variation: [0.0; S],
         }
     }
 

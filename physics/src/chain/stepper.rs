@@ -9,7 +9,7 @@ use super::state::{ChainMode, ChainState};
 use crate::kernel::KernelColumn;
 use crate::mode::ContactMode;
 use crate::roots::{self, Side, SignalRows};
-use crate::stepper::{Inputs, StepError, MAX_PIECES};
+use crate::stepper::{variation, Inputs, StepError, MAX_PIECES};
 use crate::taylor::{exp_series, Sparse, TaylorModel};
 use nalgebra::{SMatrix, SVector};
 
@@ -295,6 +295,12 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             if self.clear_by(&next.mode, &at_start, len, |i| {
                 PieceKernel::<S, N, KO>::certificate(&whole_piece, i)
             }) {
+                for i in self.damped_stages() {
+                    let (d2, c3) = PieceKernel::<S, N, KO>::certificate(&whole_piece, i);
+                    let u_end = whole_piece[Layout::<S>::u(i)];
+                    next.variation[i] +=
+                        variation(next.mode.stages[i], at_start.u[i], at_start.v[i], d2, c3, len, u_end);
+                }
                 self.finish_piece(&mut next, &whole_piece);
                 continue;
             }
@@ -308,24 +314,33 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                 self.fill_maps(index);
                 let dynamics = &self.modes[index];
                 let kernel = self.maps[index].as_ref().expect("filled above");
+                let start_y = y;
                 if !whole && self.clear(&next.mode, dynamics, &y, span) {
                     // No stage can switch in the rest of the piece: one expansion does it.
                     y = TaylorModel::new(&dynamics.sparse, &y, span).at(span);
+                    self.add_variation(&mut next, dynamics, &start_y, span, &y, &[None; S]);
                     break;
                 }
                 let model = TaylorModel::new(&dynamics.sparse, &y, span);
                 let Some((offset, crossings)) = self.earliest(&next.mode, dynamics, &model, &y, t, span, &mut budget)
                 else {
+                    let mut probe = None;
                     if whole {
                         let end = kernel.apply(&PieceStart::from_augmented(&y));
                         y.as_mut_slice()[..PieceKernel::<S, N, KO>::STATE_ROWS]
                             .copy_from_slice(&end[..PieceKernel::<S, N, KO>::STATE_ROWS]);
+                        probe = Some(end);
                     } else {
                         y = model.at(span);
                     }
+                    let probe = probe
+                        .as_ref()
+                        .map(|end| move |i: usize| PieceKernel::<S, N, KO>::certificate(end, i));
+                    self.add_variation_probed(&mut next, dynamics, &start_y, probe, span, &y, &[None; S]);
                     break;
                 };
                 y = model.at(offset);
+                self.add_variation(&mut next, dynamics, &start_y, offset, &y, &crossings);
                 t += offset;
                 whole = false;
                 for (i, crossing) in crossings.iter().enumerate() {
@@ -561,6 +576,61 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             }
         }
         Some((best, found))
+    }
+
+    /// The stages with a damper.
+    #[inline(always)]
+    fn damped_stages(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..S).filter(|&i| self.chain.stage(i).d() > 0.0)
+    }
+
+    /// Adds to each damped stage's V its growth over `span` from `start` to `end` in the mode in
+    /// force, u″ and the bound on |u‴| from the mode's rows; a stage that crossed u = ±g at the
+    /// span's end ends exactly there.
+    #[allow(clippy::too_many_arguments)]
+    fn add_variation(
+        &self,
+        next: &mut ChainState<S>,
+        dynamics: &ModeDynamics<S, N>,
+        start: &SVector<f64, N>,
+        span: f64,
+        end: &SVector<f64, N>,
+        crossings: &[Option<Crossing>; S],
+    ) {
+        self.add_variation_probed(
+            next,
+            dynamics,
+            start,
+            None::<fn(usize) -> (f64, f64)>,
+            span,
+            end,
+            crossings,
+        );
+    }
+
+    /// `add_variation`, with u″ and the bound on |u‴| over `span` from `probe` when the kernel
+    /// computed them for this span.
+    #[allow(clippy::too_many_arguments)]
+    fn add_variation_probed(
+        &self,
+        next: &mut ChainState<S>,
+        dynamics: &ModeDynamics<S, N>,
+        start: &SVector<f64, N>,
+        probe: Option<impl Fn(usize) -> (f64, f64)>,
+        span: f64,
+        end: &SVector<f64, N>,
+        crossings: &[Option<Crossing>; S],
+    ) {
+        for i in self.damped_stages() {
+            let rows = &dynamics.u_rows[i];
+            let (d2, c3) = match &probe {
+                Some(probe) => probe(i),
+                None => (rows.derivative(2, start), rows.third_bound(start, span)),
+            };
+            let u_end = crossings[i].and_then(|c| c.u).unwrap_or(end[Layout::<S>::u(i)]);
+            let (u, v) = (start[Layout::<S>::u(i)], start[Layout::<S>::v(i)]);
+            next.variation[i] += variation(next.mode.stages[i], u, v, d2, c3, span, u_end);
+        }
     }
 
     /// Takes the state entries of the augmented vector at the end of a piece (or at a switch;

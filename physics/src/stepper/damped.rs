@@ -18,19 +18,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
     /// for its sign), else the bound ∫ (|u′(0)| + |u″(0)| σ + c3 σ²/2) dσ.
     #[inline(never)]
     pub(super) fn variation(&self, mode: ContactMode, y: &AugVector<N>, d2: f64, c3: f64, w: f64, u_end: f64) -> f64 {
-        let (u, v) = (y[linear::U], y[linear::V]);
-        match mode {
-            ContactMode::Positive | ContactMode::Negative => 0.0,
-            ContactMode::Free => {
-                let sign = if v != 0.0 { v.signum() } else { d2.signum() };
-                if v != 0.0 && roots::cubic_clear(sign * v, sign * d2, -c3, 0.0, w, 0.0) {
-                    (u_end - u).abs()
-                } else {
-                    w * (v.abs() + w * (0.5 * d2.abs() + w * c3 / 6.0))
-                }
-            }
-            _ => (u_end - u).abs(),
-        }
+        variation(mode, y[linear::U], y[linear::V], d2, c3, w, u_end)
     }
 
     /// `variation` over the first `w` of a piece from `y` (`probe`: u″ and the bound on |u‴|
@@ -224,6 +212,28 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                 roots::cubic_clear(sign * s0, sign * s1, -curvature, 0.0, span, tol)
             }
         })
+    }
+}
+
+/// ∫|u′| over a piece of length `w` in `mode` that starts at u moving at u′ = `v` (u″ = `d2`
+/// there, |u‴| ≤ `c3` over the piece) and ends with u = `u_end`: 0 in ordinary contact. Slack and
+/// capped, u is monotone (u′ has the sign that opens the flank: slack, D u′ ≤ −K (u ∓ g); capped,
+/// D u′ ≥ K (u ∓ g) on the positive flank), so it is |Δu|; free, |Δu| where u′ provably keeps its
+/// sign (u′(σ) ≥ u′(0) + u″(0) σ − c3 σ²/2 for its sign), else the bound
+/// ∫ (|u′(0)| + |u″(0)| σ + c3 σ²/2) dσ. The growth of V (docs/model.md §2, "With a damper"), for
+/// one member or one stage of a chain.
+pub(crate) fn variation(mode: ContactMode, u: f64, v: f64, d2: f64, c3: f64, w: f64, u_end: f64) -> f64 {
+    match mode {
+        ContactMode::Positive | ContactMode::Negative => 0.0,
+        ContactMode::Free => {
+            let sign = if v != 0.0 { v.signum() } else { d2.signum() };
+            if v != 0.0 && roots::cubic_clear(sign * v, sign * d2, -c3, 0.0, w, 0.0) {
+                (u_end - u).abs()
+            } else {
+                w * (v.abs() + w * (0.5 * d2.abs() + w * c3 / 6.0))
+            }
+        }
+        _ => (u_end - u).abs(),
     }
 }
 
