@@ -73,6 +73,8 @@ options:
   --k1 --k2       two-stage: each stage's stiffness [N.m/rad] (defaults 400, 400)
   --delta1 --delta2
                   two-stage: each stage's half gap [rad] (defaults 0.3875e-3, 0.3875e-3)
+  --d1 --d2       two-stage: each stage's damper [N.m.s/rad] (default 0), under --contact-law;
+                  bound_sup then answers for the gaps only, as with --damping
   --json          print one JSON object instead of text
   --help          this text";
 
@@ -173,7 +175,7 @@ pub fn design(command: &str, args: &[String]) -> Result<String, CliError> {
 
 /// The flags that take a number, and the setting each one gives ([`request::SETTINGS`]; `--k` is
 /// the stiffness of the form: `k` or `K_b`).
-const NUMBER_FLAGS: [(&str, &str); 30] = [
+const NUMBER_FLAGS: [(&str, &str); 32] = [
     ("--accuracy", "accuracy"),
     ("--delta", "Delta"),
     ("--k", STIFFNESS),
@@ -204,6 +206,8 @@ const NUMBER_FLAGS: [(&str, &str); 30] = [
     ("--k2", "k_2"),
     ("--delta1", "Delta_1"),
     ("--delta2", "Delta_2"),
+    ("--d1", "d_1"),
+    ("--d2", "d_2"),
 ];
 
 /// Stands for the form's stiffness in [`NUMBER_FLAGS`].

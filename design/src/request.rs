@@ -11,7 +11,7 @@ use crate::{default_params, speed, study, two_stage, web, Form};
 /// What can be set, by name: the accuracies and the parameters by their FMU names
 /// (docs/model.md §4, §8), each with the forms it belongs to (every form when empty) and the
 /// range it must lie in.
-pub const SETTINGS: [(&str, &[Form], Range); 32] = [
+pub const SETTINGS: [(&str, &[Form], Range); 34] = [
     ("accuracy", &[], Range::Positive),
     ("tension_accuracy", &[Form::Web], Range::Positive),
     ("Delta", SINGLE_GAP, Range::Positive),
@@ -35,7 +35,7 @@ pub const SETTINGS: [(&str, &[Form], Range); 32] = [
     ("v_ref", &[Form::Web], Range::Positive),
     ("d", &[Form::Shaft], Range::NonNegative),
     ("D_b", &[Form::Belt, Form::Web], Range::NonNegative),
-    ("contact_law", SINGLE_GAP, Range::Law),
+    ("contact_law", &[], Range::Law),
     ("J_i", &[Form::TwoStage], Range::Positive),
     ("b_i", &[Form::TwoStage], Range::NonNegative),
     ("n_1", &[Form::TwoStage], Range::Positive),
@@ -44,6 +44,8 @@ pub const SETTINGS: [(&str, &[Form], Range); 32] = [
     ("k_2", &[Form::TwoStage], Range::Positive),
     ("Delta_1", &[Form::TwoStage], Range::Positive),
     ("Delta_2", &[Form::TwoStage], Range::Positive),
+    ("d_1", &[Form::TwoStage], Range::NonNegative),
+    ("d_2", &[Form::TwoStage], Range::NonNegative),
 ];
 
 /// The forms with one gap (docs/model.md §1, §8).
@@ -60,6 +62,10 @@ impl Drive {
     fn set(&mut self, name: &str, value: f64) {
         match self {
             Drive::Plant(params) => set_plant(params, name, value),
+            Drive::TwoStage(chain) if name == "contact_law" => {
+                let law = ContactLaw::from_code(value as i32).expect("checked by its range");
+                chain.stages.iter_mut().for_each(|s| s.damper.law = law);
+            }
             Drive::TwoStage(chain) => {
                 let (motor, [shaft, load], [first, second]) = (&mut chain.motor, &mut chain.driven, &mut chain.stages);
                 let slot = match name {
@@ -75,6 +81,8 @@ impl Drive {
                     "n_2" => &mut second.c,
                     "k_2" => &mut second.k,
                     "Delta_2" => &mut second.g,
+                    "d_1" => &mut first.damper.d,
+                    "d_2" => &mut second.damper.d,
                     other => unreachable!("setting `{other}` is refused for the two-stage form"),
                 };
                 *slot = value;

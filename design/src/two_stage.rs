@@ -66,7 +66,7 @@ impl Answer {
 }
 
 /// The drive's parameters by their names in docs/model.md §10.
-pub fn named(drive: &ChainParams<2>) -> [(&'static str, f64); 12] {
+pub fn named(drive: &ChainParams<2>) -> [(&'static str, f64); 15] {
     let [first, second] = drive.stages;
     let [shaft, load] = drive.driven;
     [
@@ -82,6 +82,9 @@ pub fn named(drive: &ChainParams<2>) -> [(&'static str, f64); 12] {
         ("k_2", second.k),
         ("Delta_1", first.g),
         ("Delta_2", second.g),
+        ("d_1", first.damper.d),
+        ("d_2", second.damper.d),
+        ("contact_law", f64::from(first.damper.law.code())),
     ]
 }
 

@@ -25,7 +25,8 @@ GAINS = {"Kp": 9.0, "Ki": 40.0}
 
 def two_stage_loop(p: dict, Kp: float, Ki: float):
     """A, D_1, D_2, L of docs/model.md §10 on z = [theta_m, omega_m, theta_i, omega_i, theta_L,
-    omega_L, x_c] with the PI on omega_m (tau_m = Kp e + Ki x_c, x_c' = e = -omega_m)."""
+    omega_L, x_c] with the PI on omega_m (tau_m = Kp e + Ki x_c, x_c' = e = -omega_m); with dampers
+    d_j the twin's members are spring-dampers k_j u_j + d_j u_j' (docs/model.md §3)."""
     A = np.zeros((7, 7))
     A[0, 1] = A[2, 3] = A[4, 5] = 1.0
     # J_m w_m' = tau_m - b_m w_m - k_1 (th_m - n_1 th_i)
@@ -36,6 +37,15 @@ def two_stage_loop(p: dict, Kp: float, Ki: float):
     # J_L w_L' = -b_L w_L + n_2 k_2 (th_i - n_2 th_L)
     A[5, :] = np.array([0, 0, p["n_2"] * p["k_2"], 0, -p["n_2"] ** 2 * p["k_2"], -p["b_L"], 0]) / p["J_L"]
     A[6, 1] = -1.0
+    for j, (i, o, n) in enumerate([(1, 3, p["n_1"]), (3, 5, p["n_2"])]):
+        # u_j' = omega_in - n_j omega_out; the damper acts like the spring: -d on the input body,
+        # +n_j d on the output body.
+        d = p.get(f"d_{j + 1}", 0.0)
+        J_in, J_out = (p["J_m"], p["J_i"]) if j == 0 else (p["J_i"], p["J_L"])
+        A[i, i] -= d / J_in
+        A[i, o] += d * n / J_in
+        A[o, i] += n * d / J_out
+        A[o, o] -= n * n * d / J_out
     D = [np.array([0, 1 / p["J_m"], 0, -p["n_1"] / p["J_i"], 0, 0, 0]),
          np.array([0, 0, 0, 1 / p["J_i"], 0, -p["n_2"] / p["J_L"], 0])]
     L = np.zeros(7)
@@ -60,7 +70,17 @@ def test_each_stage_costs_what_its_response_integrates_to(answer):
         # Both are integrals to round-off (the reference's Gauss rule, the library's exact
         # flow with a 1e-13 tail): 1e-9 leaves room for the reference's brentq roots.
         assert stage["bound_sup_per_unit_delta"] == pytest.approx(expected, rel=1e-9)
-    assert answer["plant"] == {"form": "two-stage", **GEARBOX}
+    assert answer["plant"] == {"form": "two-stage", **GEARBOX, "d_1": 0.0, "d_2": 0.0, "contact_law": 1.0}
+
+
+def test_with_dampers_each_stage_costs_its_spring_dampers_response():
+    """With dampers the twin is the spring-damper chain, and bound_sup answers for the gaps
+    (the damper's term follows the trajectory; docs/model.md §10)."""
+    damped = {**GEARBOX, "d_1": 3.0, "d_2": 6.0}
+    answer = backlash_fmu.design("two-stage", accuracy=EPS, contact_law=2, **damped, **GAINS)
+    assert answer["plant"]["contact_law"] == 2.0
+    for stage, expected in zip(answer["stages"], reference_per_delta(damped, **GAINS)):
+        assert stage["bound_sup_per_unit_delta"] == pytest.approx(expected, rel=1e-9)
 
 
 def test_the_gaps_form_a_triangle(answer):
@@ -121,7 +141,8 @@ def test_the_command_answers_as_the_function(answer):
     ({"accuracy": EPS, "Delta": 1e-3}, "Delta applies to model shaft or belt or web only"),
     ({"accuracy": EPS, "k_1": 0.0}, "k_1 = 0 must be > 0"),
     ({"accuracy": EPS, "n_2": -1.0}, "n_2 = -1 must be > 0"),
-    ({"accuracy": EPS, "d_1": 1.0}, "unknown parameter `d_1`"),
+    ({"accuracy": EPS, "d_1": -1.0}, "d_1 = -1 must be >= 0"),
+    ({"accuracy": EPS, "d": 1.0}, "d applies to model shaft only"),
     ({}, "accuracy is required for model two-stage"),
 ])
 def test_bad_input_is_refused_with_the_reason(keywords, reason):
