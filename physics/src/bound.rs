@@ -87,6 +87,8 @@ pub enum BoundError {
     TooFar { elapsed: f64, reached: f64 },
     #[error("the bounds overflow: bound = {bound:e}, bound_paper = {bound_paper:e}")]
     Overflow { bound: f64, bound_paper: f64 },
+    #[error("the chain pulls a web span: its bounds are the web line's (docs/model.md §8), not built over several stages yet")]
+    WebChain,
 }
 
 // The augmented state [v, I] with v = e^{A s} D_1 and I = ∫_0^s v: y' = [A v; v], `BA` = 2 N

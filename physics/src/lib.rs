@@ -8,8 +8,10 @@
 //! [`SampledPi`] is the sampled controller that closes the loops around it (§3, §8).
 //!
 //! [`chain`] is the plant as a chain of S stages (bodies joined by compliant members with
-//! backlash, docs/model.md §10), stepped exactly by [`ChainStepper`]; the code above
-//! does not use it yet.
+//! backlash and optional dampers, a web span on the last body; docs/model.md §10), stepped
+//! exactly by [`ChainStepper`], with the speed-error bound over one disturbance per stage
+//! ([`chain::ChainBound`]); the FMU layer does not use it yet (the design study's two-stage
+//! answer does).
 
 pub mod bound;
 pub mod chain;

@@ -2,11 +2,11 @@
 //! integrator of docs/model.md §10, a closed form, a graze and its refusals.
 
 use backlash_physics::chain::{
-    Body, Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, Motion, OneStageStepper, Part, Stage,
-    StageSwitch, TwoStageStepper,
+    Body, Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, Motion, Part, Stage, StageSwitch,
+    TwoStageStepper,
 };
 use backlash_physics::{
-    ContactLaw, ContactMode, Damping, Geometry, Inputs, Plant, PlantParams, PlantState, StepError, Stepper,
+    ContactLaw, ContactMode, Damping, Geometry, Inputs, Plant, PlantParams, PlantState, StepError, Stepper, WebSpan,
 };
 
 const EPS: f64 = f64::EPSILON;
@@ -57,7 +57,36 @@ fn plants() -> [PlantParams; 2] {
 #[test]
 fn one_stage_agrees_with_the_single_gap_stepper() {
     for params in plants() {
-        agrees_with_the_single_gap_stepper(params);
+        agrees_with_the_single_gap_stepper::<10, 8>(params);
+    }
+}
+
+/// The same for the belt drive pulling a web span (docs/model.md §8, BacklashWeb's film line),
+/// with and without a damper, its span forced by the upstream web (a ramp of w): the tension
+/// too agrees.
+#[test]
+fn one_stage_with_a_web_span_agrees_with_the_single_gap_stepper() {
+    let span = WebSpan {
+        r_w: 0.05,
+        l_w: 1.0,
+        ea: 1e5,
+        v_ref: 2.0,
+    };
+    let belt = PlantParams {
+        web: Some(span),
+        ..plants()[1]
+    };
+    let omega0 = Plant::new(belt).unwrap().contact_frequency();
+    let k = Plant::new(belt).unwrap().stiffness();
+    let damped = PlantParams {
+        damping: Damping {
+            d: 2.0 * 0.3 * k / omega0,
+            law: ContactLaw::ElastoBacklash,
+        },
+        ..belt
+    };
+    for params in [belt, damped] {
+        agrees_with_the_single_gap_stepper::<13, 10>(params);
     }
 }
 
@@ -75,7 +104,7 @@ fn one_damped_stage_agrees_with_the_single_gap_stepper() {
             (ContactLaw::ElastoBacklash, 0.05),
         ] {
             let d = 2.0 * zeta * k / omega0;
-            agrees_with_the_single_gap_stepper(PlantParams {
+            agrees_with_the_single_gap_stepper::<10, 8>(PlantParams {
                 damping: Damping { d, law },
                 ..params
             });
@@ -83,12 +112,12 @@ fn one_damped_stage_agrees_with_the_single_gap_stepper() {
     }
 }
 
-fn agrees_with_the_single_gap_stepper(params: PlantParams) {
+fn agrees_with_the_single_gap_stepper<const N: usize, const KO: usize>(params: PlantParams) {
     {
         let plant = Plant::new(params).unwrap();
         let chain = Chain::new(ChainParams::from_plant(&plant).unwrap()).unwrap();
         let mut reference = Stepper::new(plant);
-        let mut stepper = OneStageStepper::new(chain);
+        let mut stepper = ChainStepper::<1, N, KO>::new(chain);
         let mut a = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
         let mut b = ChainState::new(&chain, Motion::default(), [Motion::default()]);
         // Torque: 20 times the member's force at one gap's stretch, on the motor's arm, enough to
@@ -107,12 +136,17 @@ fn agrees_with_the_single_gap_stepper(params: PlantParams) {
         let mut worst_t = 0.0f64;
         // V (docs/model.md §2, "With a damper"): its largest value and deviation.
         let (mut v_scale, mut v_worst) = (0.0f64, 0.0f64);
+        // The web span's tension, likewise.
+        let (mut t_scale, mut t_worst) = (0.0f64, 0.0f64);
         for k in 0..4000 {
             let t = k as f64 * h;
             // The load torque ramps by a tenth over the run, to first order too.
+            // A web span's forcing (ignored without one): w ramping from 0 to 50 N/s.
             let inputs = Inputs {
                 tau_l: load * (0.9 + 0.1 * t / t_end),
                 dtau_l: 0.1 * load / t_end,
+                span: 50.0 * t / t_end,
+                dspan: 50.0 / t_end,
                 ..reversing(amplitude, frequency, 0.0, t, h)
             };
             reference
@@ -147,6 +181,8 @@ fn agrees_with_the_single_gap_stepper(params: PlantParams) {
             assert_eq!(a.mode, b.mode.stages()[0], "step {k}");
             v_scale = v_scale.max(a.variation);
             v_worst = v_worst.max((a.variation - b.variation[0]).abs());
+            t_scale = t_scale.max(a.tension.abs());
+            t_worst = t_worst.max((a.tension - b.tension).abs());
         }
         assert_eq!(v_scale > 0.0, plant.damping() > 0.0, "V grows with a damper only");
         assert_eq!(switches_a.len(), switches_b.len());
@@ -174,6 +210,12 @@ fn agrees_with_the_single_gap_stepper(params: PlantParams) {
             v_worst / (EPS * v_scale.max(f64::MIN_POSITIVE))
         );
         assert!(v_worst <= 512.0 * EPS * v_scale);
+        assert_eq!(t_scale > 0.0, plant.web().is_some(), "T moves with a web span only");
+        eprintln!(
+            "T: {t_scale:e}, deviation {:.1} ulps of it",
+            t_worst / (EPS * t_scale.max(f64::MIN_POSITIVE))
+        );
+        assert!(t_worst <= 512.0 * EPS * t_scale);
         assert!(worst_t <= 512.0 * EPS * t_end);
     }
 }
@@ -246,6 +288,7 @@ impl Drive {
             motor: body(0),
             driven: std::array::from_fn(|i| body(i + 1)),
             stages: std::array::from_fn(stage),
+            web: None,
         })
         .unwrap()
     }
@@ -777,6 +820,7 @@ fn simultaneous_switches_are_entered_together() {
         motor: body,
         driven: [body; 2],
         stages: [stage; 2],
+        web: None,
     })
     .unwrap();
     let w = 0.3;
@@ -968,7 +1012,7 @@ fn bad_steps_are_refused() {
 /// The augmented dimension is a parameter only because stable Rust cannot compute 3S + 7 in a
 /// type: one that does not fit S is refused at construction.
 #[test]
-#[should_panic(expected = "augmented dimension 10 is not 3S + 7 = 13")]
+#[should_panic(expected = "augmented dimension 10 and 14 kernel outputs for this chain: 13 and 14")]
 fn an_augmented_dimension_that_does_not_fit_is_refused() {
     let _ = ChainStepper::<2, 10, 14>::new(two_stage().chain::<2>());
 }

@@ -33,6 +33,7 @@ fn gearbox() -> ChainParams<2> {
                 damper: Damping::NONE,
             },
         ],
+        web: None,
     }
 }
 

@@ -7,6 +7,10 @@
 //! the flanks' ∓K g. For S = 1 this is docs/model.md §2's vector, entry for entry. The other
 //! speeds follow from v and ω_S as ω_i = (v_i + c_i ω_{i+1})/a_i: with the v_i as states the
 //! gaps never see the cancellation of a_i ω_i − c_i ω_{i+1} when the drive turns fast.
+//!
+//! A web span on the last body (docs/model.md §8) adds `[T, w, ẇ]`, `3S + 10` entries in all:
+//! the span's tension, its forcing by the upstream web and that forcing's slope (for S = 1, §2's
+//! vector with a web span, entry for entry).
 
 use super::params::Chain;
 use super::state::ChainMode;
@@ -18,6 +22,12 @@ pub struct Layout<const S: usize>;
 impl<const S: usize> Layout<S> {
     /// The augmented dimension, 3S + 7.
     pub const DIM: usize = 3 * S + 7;
+    /// The augmented dimension with a web span, 3S + 10.
+    pub const WEB_DIM: usize = 3 * S + 10;
+    /// The span's tension T, its forcing w and w's slope (with a web span only).
+    pub const TENSION: usize = 3 * S + 7;
+    pub const SPAN: usize = 3 * S + 8;
+    pub const DSPAN: usize = 3 * S + 9;
     /// The last body's speed ω_S.
     pub const OMEGA_LAST: usize = 2 * S;
     pub const TAU_M: usize = 3 * S + 2;
@@ -42,13 +52,16 @@ impl<const S: usize> Layout<S> {
 
 /// M of `mode` (y′ = M y): bodies J_j ω_j′ = −b_j ω_j + c_{j−1} ψ_{j−1} − a_j ψ_j (+ τ_m on
 /// body 0, + τ_L on body S) with ψ_i = K_i (u_i ∓ g_i) + D_i v_i on a flank, 2 K_i (u_i ∓ g_i)
-/// capped and 0 free or slack (docs/model.md §1, docs/model.md §10). N must be 3S + 7.
+/// capped and 0 free or slack (docs/model.md §1, docs/model.md §10); with a web span the last
+/// body also carries −R_w T and L_w T′ = EA R_w ω_S − v_ref T + L_w w (§8). N must be 3S + 7,
+/// or 3S + 10 with a web span.
 pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &ChainMode<S>) -> SMatrix<f64, N, N> {
-    assert!(
-        N == Layout::<S>::DIM,
-        "augmented dimension {N} is not 3S + 7 = {}",
+    let dim = if chain.web().is_some() {
+        Layout::<S>::WEB_DIM
+    } else {
         Layout::<S>::DIM
-    );
+    };
+    assert!(N == dim, "augmented dimension {N} is not {dim} for this chain");
     let unit = |k: usize| {
         let mut e = SVector::<f64, N>::zeros();
         e[k] = 1.0;
@@ -85,6 +98,9 @@ pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &Chai
         }
         if j == S {
             row += unit(Layout::<S>::TAU_L);
+            if let Some(w) = chain.web() {
+                row -= unit(Layout::<S>::TENSION) * w.r_w;
+            }
         }
         if j > 0 {
             row += force(j - 1) * chain.stage(j - 1).c;
@@ -107,6 +123,12 @@ pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &Chai
     }
     m[(Layout::<S>::TAU_M, Layout::<S>::DTAU_M)] = 1.0;
     m[(Layout::<S>::TAU_L, Layout::<S>::DTAU_L)] = 1.0;
+    if let Some(w) = chain.web() {
+        m[(Layout::<S>::TENSION, Layout::<S>::OMEGA_LAST)] = w.ea * w.r_w / w.l_w;
+        m[(Layout::<S>::TENSION, Layout::<S>::TENSION)] = -w.v_ref / w.l_w;
+        m[(Layout::<S>::TENSION, Layout::<S>::SPAN)] = 1.0;
+        m[(Layout::<S>::SPAN, Layout::<S>::DSPAN)] = 1.0;
+    }
     m
 }
 

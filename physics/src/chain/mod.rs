@@ -11,7 +11,7 @@
 //! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2), and [`ChainBound`]: the speed-error
 //! bound under a PI loop on the motor speed, one disturbance per stage. A stage may carry a
 //! damper (docs/model.md §1's two laws: its slack and capped modes, its force's surfaces, its V
-//! for the bound's damper term). Not yet: the web span.
+//! for the bound's damper term), and the last body a web span (docs/model.md §8).
 //!
 //! Stepping is docs/model.md §2 with one switching coordinate per stage: a piece is accepted
 //! whole only when the cubic test certifies every stage's u free of its thresholds over it;
@@ -31,4 +31,4 @@ pub use bound::{chain_loop, disturbance_column, loop_poles, ChainBound, LoopLayo
 pub use linear::{mode_matrix, Layout};
 pub use params::{Body, Chain, ChainError, ChainParams, Part, Stage};
 pub use state::{mode_of, ChainMode, ChainState, Motion};
-pub use stepper::{ChainStepper, OneStageStepper, StageSwitch, TwoStageStepper};
+pub use stepper::{ChainStepper, OneStageStepper, OneStageWebStepper, StageSwitch, TwoStageStepper};

@@ -1,7 +1,7 @@
 //! The chain's parameters and their validation: bodies (J, b) joined by stages (a, c, K, g)
 //! (docs/model.md §1 for one stage, docs/model.md §10 for several).
 
-use crate::params::{ContactLaw, Damping, Plant, SCALE_LIMIT};
+use crate::params::{ContactLaw, Damping, Plant, WebSpan, SCALE_LIMIT};
 use std::fmt;
 use thiserror::Error;
 
@@ -55,6 +55,8 @@ pub struct ChainParams<const S: usize> {
     pub driven: [Body; S],
     /// Stages 0..S; stage i joins body i to body i + 1 (docs/model.md §10's stage j = i + 1).
     pub stages: [Stage; S],
+    /// A web span pulled by a roller on the last body (docs/model.md §8), or none.
+    pub web: Option<WebSpan>,
 }
 
 impl<const S: usize> ChainParams<S> {
@@ -70,11 +72,8 @@ impl<const S: usize> ChainParams<S> {
 
 impl ChainParams<1> {
     /// The one-stage chain of a plant of docs/model.md §1 (shaft or belt): a = r_m, c = r_L,
-    /// K, g and its damper. None for a plant the chain does not model yet: with a web span.
+    /// K, g, its damper and its web span (§8).
     pub fn from_plant(plant: &Plant) -> Option<ChainParams<1>> {
-        if plant.web().is_some() {
-            return None;
-        }
         let p = plant.params();
         Some(ChainParams {
             motor: Body { j: p.j_m, b: p.b_m },
@@ -89,6 +88,7 @@ impl ChainParams<1> {
                     law: plant.contact_law(),
                 },
             }],
+            web: plant.web().copied(),
         })
     }
 }
@@ -111,6 +111,7 @@ impl ChainParams<2> {
             motor: Body { j: 2.28, b: 0.05 },
             driven: [Body { j: 0.1, b: 0.01 }, Body { j: 2.55, b: 0.05 }],
             stages: [stage; 2],
+            web: None,
         }
     }
 }
@@ -120,6 +121,8 @@ impl ChainParams<2> {
 pub enum Part {
     Body(usize),
     Stage(usize),
+    /// The web span on the last body.
+    Web,
 }
 
 impl fmt::Display for Part {
@@ -127,6 +130,7 @@ impl fmt::Display for Part {
         match self {
             Part::Body(j) => write!(f, "body {j}"),
             Part::Stage(i) => write!(f, "stage {i}"),
+            Part::Web => write!(f, "the web span"),
         }
     }
 }
@@ -209,7 +213,19 @@ impl<const S: usize> Chain<S> {
                 ("D/K", Part::Stage(i), s.d() / s.k),
             ]
         });
-        for (name, at, value) in inputs.into_iter().chain(bodies).chain(stages) {
+        if let Some(w) = &params.web {
+            for (name, value) in [("R_w", w.r_w), ("L_w", w.l_w), ("EA", w.ea), ("v_ref", w.v_ref)] {
+                check(Part::Web, name, value, true)?;
+            }
+        }
+        let web = params.web.iter().flat_map(|w| {
+            [
+                ("EA*R_w^2/(L_w*J)", Part::Web, w.ea * w.r_w * w.r_w / (w.l_w * last.j)),
+                ("v_ref/L_w", Part::Web, w.v_ref / w.l_w),
+                ("EA/L_w", Part::Web, w.ea / w.l_w),
+            ]
+        });
+        for (name, at, value) in inputs.into_iter().chain(bodies).chain(stages).chain(web) {
             if value != 0.0 && !(1e-200..=1e200).contains(&value) {
                 return Err(ChainError::DerivedOutOfScale { at, name, value });
             }
@@ -235,8 +251,24 @@ impl<const S: usize> Chain<S> {
     /// √(Σ_i K_i (a_i²/J_i + c_i²/J_{i+1})) on the contact frequencies (the trace of the
     /// mass-normalized stiffness; for one stage exactly docs/model.md §2's ω_0), with a damper
     /// under law 1 the capped contact's √2 times it, and each damper's rate
-    /// D_i (a_i²/J_i + c_i²/J_{i+1}) (for one stage docs/model.md §2's rate, term for term).
+    /// D_i (a_i²/J_i + c_i²/J_{i+1}) (for one stage docs/model.md §2's rate, term for term); with
+    /// a web span the frequency of the springs and the span together,
+    /// √(ω_0² + EA R_w²/(L_w J_S)), and the span's relaxation rate v_ref/L_w.
     pub fn fastest_rate(&self) -> f64 {
+        let rate = self.drive_rate();
+        match &self.params.web {
+            None => rate.0,
+            Some(w) => {
+                let web_sq = w.ea * w.r_w * w.r_w / (w.l_w * self.body(S).j);
+                let omega0 = rate.1;
+                rate.0.max((omega0 * omega0 + web_sq).sqrt()).max(w.v_ref / w.l_w)
+            }
+        }
+    }
+
+    /// The drive's fastest rate without the span, and the contact frequency it took (√2 times
+    /// it with a capped stage).
+    fn drive_rate(&self) -> (f64, f64) {
         let kappa = |i: usize| {
             let s = self.stage(i);
             s.a * s.a / self.body(i).j + s.c * s.c / self.body(i + 1).j
@@ -245,13 +277,19 @@ impl<const S: usize> Chain<S> {
         let mut omega0 = stiff.sqrt();
         let bodies = (0..=S).map(|j| self.body(j).b / self.body(j).j).fold(omega0, f64::max);
         if (0..S).all(|i| self.stage(i).d() == 0.0) {
-            return bodies;
+            return (bodies, omega0);
         }
         if (0..S).any(|i| self.stage(i).capped()) {
             omega0 *= std::f64::consts::SQRT_2;
         }
-        (0..S)
+        let rate = (0..S)
             .map(|i| self.stage(i).d() * kappa(i))
-            .fold(bodies.max(omega0), f64::max)
+            .fold(bodies.max(omega0), f64::max);
+        (rate, omega0)
+    }
+
+    /// The web span on the last body, if any.
+    pub fn web(&self) -> Option<&WebSpan> {
+        self.params.web.as_ref()
     }
 }

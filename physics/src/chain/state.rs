@@ -72,6 +72,8 @@ pub struct ChainState<const S: usize> {
     /// capped since the start (exact where u_i is monotone), which the bound's damper term
     /// multiplies (docs/model.md §2, §3 "With a damper"); 0 without a damper.
     pub variation: [f64; S],
+    /// The web span's tension T [N] (docs/model.md §8); 0 without a web span.
+    pub tension: f64,
 }
 
 impl<const S: usize> ChainState<S> {
@@ -93,6 +95,7 @@ impl<const S: usize> ChainState<S> {
             du,
             mode: mode_of(chain, &u, &du),
             variation: [0.0; S],
+            tension: 0.0,
         }
     }
 
@@ -126,6 +129,11 @@ impl<const S: usize> ChainState<S> {
         })
     }
 
+    /// This state with web tension `tension` [N].
+    pub fn with_tension(self, tension: f64) -> ChainState<S> {
+        ChainState { tension, ..self }
+    }
+
     /// All fields finite.
     #[inline]
     pub fn is_finite(&self) -> bool {
@@ -136,7 +144,10 @@ impl<const S: usize> ChainState<S> {
             .fold(finite(self.motor.theta) & finite(self.motor.omega), |all, b| {
                 all & finite(b.theta) & finite(b.omega)
             });
-        self.u.iter().chain(&self.du).fold(bodies, |all, &x| all & finite(x))
+        self.u
+            .iter()
+            .chain(&self.du)
+            .fold(bodies & finite(self.tension), |all, &x| all & finite(x))
     }
 }
 

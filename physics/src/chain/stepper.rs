@@ -57,6 +57,8 @@ struct PieceStart<const S: usize> {
     tau_l: f64,
     dtau_m: f64,
     dtau_l: f64,
+    /// With a web span: [T, w, ẇ] (else unused).
+    span: [f64; 3],
 }
 
 impl<const S: usize> PieceStart<S> {
@@ -70,6 +72,7 @@ impl<const S: usize> PieceStart<S> {
             tau_l: inputs.tau_l + inputs.dtau_l * t,
             dtau_m: inputs.dtau_m,
             dtau_l: inputs.dtau_l,
+            span: [state.tension, inputs.span + inputs.dspan * t, inputs.dspan],
         }
     }
 
@@ -83,6 +86,11 @@ impl<const S: usize> PieceStart<S> {
             tau_l: y[Layout::<S>::TAU_L],
             dtau_m: y[Layout::<S>::DTAU_M],
             dtau_l: y[Layout::<S>::DTAU_L],
+            span: if N == Layout::<S>::WEB_DIM {
+                [Layout::<S>::TENSION, Layout::<S>::SPAN, Layout::<S>::DSPAN].map(|j| y[j])
+            } else {
+                [0.0; 3]
+            },
         }
     }
 }
@@ -90,21 +98,30 @@ impl<const S: usize> PieceStart<S> {
 impl<const S: usize, const N: usize, const KO: usize> PieceKernel<S, N, KO> {
     /// The state rows: u_i, v_i, ω_S, δθ_j.
     const STATE_ROWS: usize = 3 * S + 2;
+    /// With a web span (N = 3S + 10): the row of T, after the state rows.
+    const WEB: bool = N == Layout::<S>::WEB_DIM;
+    const TENSION_ROW: usize = Self::STATE_ROWS;
     /// u″ of each stage.
-    const SECOND: usize = Self::STATE_ROWS;
+    const SECOND: usize = Self::STATE_ROWS + Self::WEB as usize;
     /// u‴ of each stage.
     const THIRD: usize = Self::SECOND + S;
     /// The growth bound of u‴ of each stage: these rows multiply |y|.
     const GROWTH: usize = Self::THIRD + S;
 
     fn new(phi: &SMatrix<f64, N, N>, u_rows: &[SignalRows<N>; S], remainder: &[SVector<f64, N>; S]) -> Self {
-        assert!(KO == Self::GROWTH + S, "a kernel of {KO} outputs for {S} stages");
+        assert!(
+            KO == Self::GROWTH + S + Self::WEB as usize,
+            "a kernel of {KO} outputs for {S} stages"
+        );
         PieceKernel {
             cols: KernelColumn::table(|r, j| match r {
-                _ if r < Self::SECOND => phi[(r, j)],
+                _ if r < Self::STATE_ROWS => phi[(r, j)],
+                _ if r < Self::SECOND => phi[(Layout::<S>::TENSION, j)],
                 _ if r < Self::THIRD => u_rows[r - Self::SECOND].row(2)[j],
                 _ if r < Self::GROWTH => u_rows[r - Self::THIRD].row(3)[j],
-                _ => remainder[r - Self::GROWTH][j],
+                _ if r < Self::GROWTH + S => remainder[r - Self::GROWTH][j],
+                // Padding to an even count (with a web span).
+                _ => 0.0,
             }),
         }
     }
@@ -140,7 +157,23 @@ impl<const S: usize, const N: usize, const KO: usize> PieceKernel<S, N, KO> {
             self.add(&mut acc, Layout::<S>::DTAU_M, start.dtau_m);
             self.add(&mut acc, Layout::<S>::DTAU_L, start.dtau_l);
         }
+        if Self::WEB {
+            let [t, w, dw] = start.span;
+            self.add(&mut acc, Layout::<S>::TENSION, t);
+            self.add(&mut acc, Layout::<S>::SPAN, w);
+            self.add(&mut acc, Layout::<S>::DSPAN, dw);
+        }
         acc
+    }
+
+    /// T at the piece end from `apply`'s sums (0 without a web span).
+    #[inline(always)]
+    fn tension(acc: &[f64; KO]) -> f64 {
+        if Self::WEB {
+            acc[Self::TENSION_ROW]
+        } else {
+            0.0
+        }
     }
 
     /// Stage i's u″ at the piece start and its bound on |u‴| over the piece, from `apply`'s sums.
@@ -189,15 +222,20 @@ pub struct ChainStepper<const S: usize, const N: usize, const KO: usize> {
 
 /// One stage (docs/model.md §1's shaft or belt): 10 augmented entries, 8 kernel outputs.
 pub type OneStageStepper = ChainStepper<1, 10, 8>;
+/// One stage pulling a web span (docs/model.md §8's web line): 13 entries, 10 outputs.
+pub type OneStageWebStepper = ChainStepper<1, 13, 10>;
 /// Two stages (docs/model.md §10): 13 augmented entries, 14 kernel outputs.
 pub type TwoStageStepper = ChainStepper<2, 13, 14>;
 
 impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
     pub fn new(chain: Chain<S>) -> Self {
+        let (dim, outputs) = match chain.web() {
+            None => (Layout::<S>::DIM, 6 * S + 2),
+            Some(_) => (Layout::<S>::WEB_DIM, 6 * S + 4),
+        };
         assert!(
-            N == Layout::<S>::DIM && KO == 6 * S + 2,
-            "augmented dimension {N} is not 3S + 7 = {}, or {KO} kernel outputs not 6S + 2",
-            Layout::<S>::DIM
+            N == dim && KO == outputs,
+            "augmented dimension {N} and {KO} kernel outputs for this chain: {dim} and {outputs}"
         );
         let len_ref = PIECE_RATE / chain.fastest_rate();
         let modes = (0..ChainMode::<S>::COUNT)
@@ -237,7 +275,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
     }
 
     /// Advances `state` over [t, t + h] with `inputs` (values at t, slopes over the step; the
-    /// web span's entries are ignored), calling `on_switch` for every stage's switch in time
+    /// web span's entries are ignored without a web span), calling `on_switch` for every stage's switch in time
     /// order. Returns the number of switches. On error `state` is left unchanged.
     pub fn step(
         &mut self,
@@ -301,7 +339,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                     next.variation[i] +=
                         variation(next.mode.stages[i], at_start.u[i], at_start.v[i], d2, c3, len, u_end);
                 }
-                self.finish_piece(&mut next, &whole_piece);
+                self.finish_piece(&mut next, &whole_piece, PieceKernel::<S, N, KO>::tension(&whole_piece));
                 continue;
             }
             let mut y = augmented::<S, N>(&next, inputs, start);
@@ -329,6 +367,9 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                         let end = kernel.apply(&PieceStart::from_augmented(&y));
                         y.as_mut_slice()[..PieceKernel::<S, N, KO>::STATE_ROWS]
                             .copy_from_slice(&end[..PieceKernel::<S, N, KO>::STATE_ROWS]);
+                        if PieceKernel::<S, N, KO>::WEB {
+                            y[Layout::<S>::TENSION] = PieceKernel::<S, N, KO>::tension(&end);
+                        }
                         probe = Some(end);
                     } else {
                         y = model.at(span);
@@ -363,8 +404,11 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                 // Inputs are functions of time: re-evaluate rather than carry round-off.
                 y[Layout::<S>::TAU_M] = inputs.tau_m + inputs.dtau_m * t;
                 y[Layout::<S>::TAU_L] = inputs.tau_l + inputs.dtau_l * t;
+                if PieceKernel::<S, N, KO>::WEB {
+                    y[Layout::<S>::SPAN] = inputs.span + inputs.dspan * t;
+                }
                 if stop_at_switch {
-                    self.finish_piece(&mut next, y.as_slice());
+                    self.finish_piece(&mut next, y.as_slice(), tension_of::<S, N>(&y));
                     if !next.is_finite() {
                         return Err(StepError::Overflow);
                     }
@@ -378,7 +422,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                     break;
                 }
             }
-            self.finish_piece(&mut next, y.as_slice());
+            self.finish_piece(&mut next, y.as_slice(), tension_of::<S, N>(&y));
         }
         if !next.is_finite() {
             return Err(StepError::Overflow);
@@ -393,7 +437,8 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
     fn check(&self, state: &ChainState<S>, inputs: &Inputs, h: f64) -> Result<(), StepError> {
         let i = inputs;
         let finite = crate::finite;
-        let inputs_finite = finite(i.tau_m) & finite(i.tau_l) & finite(i.dtau_m) & finite(i.dtau_l);
+        let inputs_finite =
+            finite(i.tau_m) & finite(i.tau_l) & finite(i.dtau_m) & finite(i.dtau_l) & finite(i.span) & finite(i.dspan);
         if (h > 0.0) & (h <= self.max_h) & inputs_finite & state.is_finite() {
             return Ok(());
         }
@@ -412,6 +457,8 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             ("tau_L", inputs.tau_l),
             ("der(tau_m)", inputs.dtau_m),
             ("der(tau_L)", inputs.dtau_l),
+            ("the web span's forcing", inputs.span),
+            ("the web span's forcing rate", inputs.dspan),
         ];
         if let Some(&(name, value)) = named.iter().find(|(_, v)| !v.is_finite()) {
             return Err(StepError::NonFiniteInput { name, value });
@@ -634,8 +681,9 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
     }
 
     /// Takes the state entries of the augmented vector at the end of a piece (or at a switch;
-    /// its first 3S + 2 entries) into the state.
-    fn finish_piece(&self, next: &mut ChainState<S>, y: &[f64]) {
+    /// its first 3S + 2 entries) and the span's tension into the state.
+    fn finish_piece(&self, next: &mut ChainState<S>, y: &[f64], tension: f64) {
+        next.tension = tension;
         for j in 0..=S {
             next.body_mut(j).theta += y[Layout::<S>::dtheta(j)];
         }
@@ -833,5 +881,19 @@ fn augmented<const S: usize, const N: usize>(state: &ChainState<S>, inputs: &Inp
     y[Layout::<S>::ONE] = 1.0;
     y[Layout::<S>::DTAU_M] = inputs.dtau_m;
     y[Layout::<S>::DTAU_L] = inputs.dtau_l;
+    if N == Layout::<S>::WEB_DIM {
+        y[Layout::<S>::TENSION] = state.tension;
+        y[Layout::<S>::SPAN] = inputs.span + inputs.dspan * t;
+        y[Layout::<S>::DSPAN] = inputs.dspan;
+    }
     y
+}
+
+/// T of an augmented vector (0 without a web span).
+fn tension_of<const S: usize, const N: usize>(y: &SVector<f64, N>) -> f64 {
+    if N == Layout::<S>::WEB_DIM {
+        y[Layout::<S>::TENSION]
+    } else {
+        0.0
+    }
 }
