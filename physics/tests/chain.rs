@@ -2,14 +2,22 @@
 //! integrator of docs/model.md §10, a closed form, a graze and its refusals.
 
 use backlash_physics::chain::{
-    Body, Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStepper, Motion, Part, Stage, StageSwitch,
-    TwoStageStepper,
+    Body, Chain, ChainError, ChainEvent, ChainMode, ChainParams, ChainState, ChainStepper, Motion, Part, Stage,
+    StageSwitch, TwoStageStepper,
 };
 use backlash_physics::{
     ContactLaw, ContactMode, Damping, Geometry, Inputs, Plant, PlantParams, PlantState, StepError, Stepper, WebSpan,
 };
 
 const EPS: f64 = f64::EPSILON;
+
+/// The stage switch of an event; a chain without friction has no other.
+fn stage_switch(e: ChainEvent) -> StageSwitch {
+    match e {
+        ChainEvent::Stage(e) => e,
+        other => panic!("a body switch in a chain without friction: {other:?}"),
+    }
+}
 
 /// A reversing motor torque A sin(2π f t), sampled at the step starts and held to first order
 /// over the step (the slope to the next sample): a piecewise-linear input both steppers take
@@ -155,7 +163,8 @@ fn agrees_with_the_single_gap_stepper<const N: usize, const KO: usize>(params: P
                 })
                 .unwrap();
             stepper
-                .step(&mut b, &inputs, h, &mut |e: StageSwitch| {
+                .step(&mut b, &inputs, h, &mut |e| {
+                    let e = stage_switch(e);
                     switches_b.push((t + e.offset, e.from, e.to))
                 })
                 .unwrap();
@@ -263,10 +272,7 @@ fn three_stage() -> Drive {
 impl Drive {
     fn chain<const S: usize>(&self) -> Chain<S> {
         assert_eq!(self.n.len(), S);
-        let body = |i: usize| Body {
-            j: self.j[i],
-            b: self.b[i],
-        };
+        let body = |i: usize| Body::new(self.j[i], self.b[i]);
         let stage = |i: usize| Stage {
             a: 1.0,
             c: self.n[i],
@@ -526,7 +532,8 @@ fn chain_run<const S: usize, const N: usize, const KO: usize>(
                 ..*input
             };
             stepper
-                .step(&mut state, &part_input, step, &mut |e: StageSwitch| {
+                .step(&mut state, &part_input, step, &mut |e| {
+                    let e = stage_switch(e);
                     // Crossings of u = ±Δ, which change the side (a damper's force surfaces
                     // keep it; the reference locates only the gap's).
                     if e.from.side() != e.to.side() {
@@ -571,7 +578,7 @@ fn stepping_from_switch_to_switch_takes_the_same_trajectory() {
             let t = k as f64 * h + done;
             let mut events = Vec::new();
             let stop = stepper
-                .step_to_first_switch(&mut state, &rest, h - done, &mut |e| events.push(e))
+                .step_to_first_switch(&mut state, &rest, h - done, &mut |e| events.push(stage_switch(e)))
                 .unwrap();
             let Some(at) = stop else { break };
             assert!(!events.is_empty() && events.iter().all(|e| e.offset == at));
@@ -632,7 +639,7 @@ fn two_damped_stages_agree_with_an_independent_integrator() {
         for k in 0..1000 {
             let inputs = reversing(5.0, 2.0, -2.0, k as f64 * 1e-3, 1e-3);
             stepper
-                .step(&mut state, &inputs, 1e-3, &mut |e| entered.push(e.to))
+                .step(&mut state, &inputs, 1e-3, &mut |e| entered.push(stage_switch(e).to))
                 .unwrap();
         }
         let slack = entered
@@ -710,7 +717,7 @@ fn free_motor_follows_the_closed_form_until_the_first_contact() {
     let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); 2]);
     let mut events = Vec::new();
     let at = stepper
-        .step_to_first_switch(&mut state, &inputs, 0.1, &mut |e| events.push(e))
+        .step_to_first_switch(&mut state, &inputs, 0.1, &mut |e| events.push(stage_switch(e)))
         .unwrap()
         .expect("the motor reaches the gap's flank");
     assert!((at - contact).abs() <= 64.0 * EPS * contact, "{at} vs {contact}");
@@ -741,7 +748,7 @@ fn grazing_chain(overshoot: f64) -> (Chain<2>, f64, f64, f64, f64) {
     let g = peak / (1.0 + overshoot);
     let p = two_stage();
     let mut params = *p.chain::<2>().params();
-    params.motor = Body { j, b: 0.0 };
+    params.motor = Body::new(j, 0.0);
     params.stages[0].g = g;
     (Chain::new(params).unwrap(), j, v0, force, g)
 }
@@ -764,7 +771,9 @@ fn a_graze_inside_one_step_reports_both_switches() {
         let mut state = ChainState::new(&chain, Motion { theta: 0.0, omega: v0 }, [Motion::default(); 2]);
         let mut events = Vec::new();
         let switches = stepper
-            .step(&mut state, &Inputs::held(-force, 0.0), h, &mut |e| events.push(e))
+            .step(&mut state, &Inputs::held(-force, 0.0), h, &mut |e| {
+                events.push(stage_switch(e))
+            })
             .unwrap();
         assert_eq!(switches, 2, "overshoot {overshoot}: {events:?}");
         assert_eq!(
@@ -808,7 +817,7 @@ fn a_graze_inside_one_step_reports_both_switches() {
 /// faster).
 #[test]
 fn simultaneous_switches_are_entered_together() {
-    let body = Body { j: 1.0, b: 0.0 };
+    let body = Body::new(1.0, 0.0);
     let stage = Stage {
         a: 1.0,
         c: 1.0,
@@ -836,7 +845,9 @@ fn simultaneous_switches_are_entered_together() {
         let mut state = ChainState::new(&chain, Motion { theta: 0.0, omega: w }, start);
         let mut events = Vec::new();
         let at = stepper
-            .step_to_first_switch(&mut state, &Inputs::default(), 0.01, &mut |e| events.push(e))
+            .step_to_first_switch(&mut state, &Inputs::default(), 0.01, &mut |e| {
+                events.push(stage_switch(e))
+            })
             .unwrap()
             .expect("both stages close their gaps");
         assert!((at - stage.g / w).abs() <= 8.0 * EPS * at);

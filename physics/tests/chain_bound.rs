@@ -15,8 +15,8 @@ type Vec7 = SVector<f64, 7>;
 /// gaps, a light intermediate shaft.
 fn gearbox() -> ChainParams<2> {
     ChainParams {
-        motor: Body { j: 0.8, b: 0.02 },
-        driven: [Body { j: 0.05, b: 0.004 }, Body { j: 6.0, b: 0.3 }],
+        motor: Body::new(0.8, 0.02),
+        driven: [Body::new(0.05, 0.004), Body::new(6.0, 0.3)],
         stages: [
             Stage {
                 a: 1.0,

@@ -118,8 +118,8 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     ChainBound<S, N, BA, KO, R, OUT>
 {
     /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
-    /// not finite or not in scale, and a chain that pulls a web span (its loop is the web
-    /// line's).
+    /// not finite or not in scale, a chain that pulls a web span (its loop is the web line's)
+    /// and one with Coulomb friction (its twin is no longer linear).
     pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
         assert!(
             N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
@@ -128,6 +128,9 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
         check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
         if chain.web().is_some() {
             return Err(BoundError::WebChain);
+        }
+        if chain.has_friction() {
+            return Err(BoundError::Friction);
         }
         let a = chain_loop::<S, N>(chain, gains);
         let full = DMatrix::from_iterator(N, N, a.iter().copied());

@@ -13,7 +13,7 @@
 //! vector with a web span, entry for entry).
 
 use super::params::Chain;
-use super::state::ChainMode;
+use super::state::{BodyMode, ChainMode};
 use nalgebra::{SMatrix, SVector};
 
 /// Where each quantity sits in the augmented vector of a chain of S stages.
@@ -53,60 +53,23 @@ impl<const S: usize> Layout<S> {
 /// M of `mode` (y′ = M y): bodies J_j ω_j′ = −b_j ω_j + c_{j−1} ψ_{j−1} − a_j ψ_j (+ τ_m on
 /// body 0, + τ_L on body S) with ψ_i = K_i (u_i ∓ g_i) + D_i v_i on a flank, 2 K_i (u_i ∓ g_i)
 /// capped and 0 free or slack (docs/model.md §1, docs/model.md §10); with a web span the last
-/// body also carries −R_w T and L_w T′ = EA R_w ω_S − v_ref T + L_w w (§8). N must be 3S + 7,
+/// body also carries −R_w T and L_w T′ = EA R_w ω_S − v_ref T + L_w w (§8); a body with Coulomb
+/// friction sliding carries ∓τ_c, and stuck does not accelerate (ω_j′ = 0). N must be 3S + 7,
 /// or 3S + 10 with a web span.
 pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &ChainMode<S>) -> SMatrix<f64, N, N> {
-    let dim = if chain.web().is_some() {
-        Layout::<S>::WEB_DIM
-    } else {
-        Layout::<S>::DIM
-    };
-    assert!(N == dim, "augmented dimension {N} is not {dim} for this chain");
-    let unit = |k: usize| {
-        let mut e = SVector::<f64, N>::zeros();
-        e[k] = 1.0;
-        e
-    };
-    // Each body's speed as a row over y: ω_S, then ω_i = (v_i + c_i ω_{i+1})/a_i downwards.
-    // (Built once per mode, at construction: the Vec is not on the stepping path.)
-    let mut speed = vec![SVector::<f64, N>::zeros(); S + 1];
-    speed[S] = unit(Layout::<S>::OMEGA_LAST);
-    for i in (0..S).rev() {
-        let s = chain.stage(i);
-        speed[i] = (unit(Layout::<S>::v(i)) + speed[i + 1] * s.c) / s.a;
-    }
-    // ψ_i = ks u_i + kd v_i + kc·1 in this mode.
-    let force = |i: usize| {
-        let s = chain.stage(i);
-        let m = mode.stages[i];
-        let (ks, kd) = m.force_slopes(s.k, s.d());
-        let kc = if m.side() > 0.0 {
-            -ks * s.g
-        } else if m.side() < 0.0 {
-            ks * s.g
-        } else {
-            0.0
-        };
-        unit(Layout::<S>::u(i)) * ks + unit(Layout::<S>::v(i)) * kd + unit(Layout::<S>::ONE) * kc
-    };
+    let rows = Rows::<S, N>::new(chain, mode);
+    let speed = &rows.speed;
     // ω_j′ as a row over y.
     let accel = |j: usize| {
         let body = chain.body(j);
-        let mut row = speed[j] * (-body.b);
-        if j == 0 {
-            row += unit(Layout::<S>::TAU_M);
+        let friction = body.friction.tau_c;
+        let body_mode = mode.body(j);
+        if friction > 0.0 && body_mode == BodyMode::Stuck {
+            return SVector::<f64, N>::zeros();
         }
-        if j == S {
-            row += unit(Layout::<S>::TAU_L);
-            if let Some(w) = chain.web() {
-                row -= unit(Layout::<S>::TENSION) * w.r_w;
-            }
-        }
-        if j > 0 {
-            row += force(j - 1) * chain.stage(j - 1).c;
-        }
-        if j < S {
-            row -= force(j) * chain.stage(j).a;
+        let mut row = rows.torques(j, speed[j] * (-body.b));
+        if friction > 0.0 {
+            row += unit::<N>(Layout::<S>::ONE) * (body_mode.friction_sign() * friction);
         }
         row / body.j
     };
@@ -130,6 +93,77 @@ pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &Chai
         m[(Layout::<S>::SPAN, Layout::<S>::DSPAN)] = 1.0;
     }
     m
+}
+
+/// The unit row e_k.
+fn unit<const N: usize>(k: usize) -> SVector<f64, N> {
+    let mut e = SVector::<f64, N>::zeros();
+    e[k] = 1.0;
+    e
+}
+
+/// Rows over the augmented state in one mode: each body's speed, and the torques on it.
+pub struct Rows<'a, const S: usize, const N: usize> {
+    chain: &'a Chain<S>,
+    mode: &'a ChainMode<S>,
+    /// ω_j as a row over y: ω_S, then ω_i = (v_i + c_i ω_{i+1})/a_i downwards. (Built per
+    /// mode, at construction: the Vec is not on the stepping path.)
+    pub speed: Vec<SVector<f64, N>>,
+}
+
+impl<'a, const S: usize, const N: usize> Rows<'a, S, N> {
+    pub fn new(chain: &'a Chain<S>, mode: &'a ChainMode<S>) -> Self {
+        let mut speed = vec![SVector::<f64, N>::zeros(); S + 1];
+        speed[S] = unit(Layout::<S>::OMEGA_LAST);
+        for i in (0..S).rev() {
+            let s = chain.stage(i);
+            speed[i] = (unit(Layout::<S>::v(i)) + speed[i + 1] * s.c) / s.a;
+        }
+        Rows { chain, mode, speed }
+    }
+
+    /// ψ_i = ks u_i + kd v_i + kc·1 in this mode.
+    fn force(&self, i: usize) -> SVector<f64, N> {
+        let s = self.chain.stage(i);
+        let m = self.mode.stages[i];
+        let (ks, kd) = m.force_slopes(s.k, s.d());
+        let kc = if m.side() > 0.0 {
+            -ks * s.g
+        } else if m.side() < 0.0 {
+            ks * s.g
+        } else {
+            0.0
+        };
+        unit::<N>(Layout::<S>::u(i)) * ks + unit::<N>(Layout::<S>::v(i)) * kd + unit::<N>(Layout::<S>::ONE) * kc
+    }
+
+    /// `start` plus the torques on body j other than its bearing's: τ_m on the motor, τ_L (and
+    /// −R_w T with a web span) on the last body, and the members' c_{j−1} ψ_{j−1} − a_j ψ_j.
+    fn torques(&self, j: usize, start: SVector<f64, N>) -> SVector<f64, N> {
+        let mut row = start;
+        if j == 0 {
+            row += unit::<N>(Layout::<S>::TAU_M);
+        }
+        if j == S {
+            row += unit::<N>(Layout::<S>::TAU_L);
+            if let Some(w) = self.chain.web() {
+                row -= unit::<N>(Layout::<S>::TENSION) * w.r_w;
+            }
+        }
+        if j > 0 {
+            row += self.force(j - 1) * self.chain.stage(j - 1).c;
+        }
+        if j < S {
+            row -= self.force(j) * self.chain.stage(j).a;
+        }
+        row
+    }
+
+    /// τ_h of body j as a row: what its bearing's friction must cancel to hold it at rest
+    /// (inputs and members; the viscous term vanishes at rest).
+    pub fn holding(&self, j: usize) -> SVector<f64, N> {
+        self.torques(j, SVector::<f64, N>::zeros())
+    }
 }
 
 /// Length of a piece times the fastest rate, as the single-gap stepper's

@@ -11,7 +11,9 @@
 //! ([`OneStageStepper`], [`TwoStageStepper`] for S = 1, 2), and [`ChainBound`]: the speed-error
 //! bound under a PI loop on the motor speed, one disturbance per stage. A stage may carry a
 //! damper (docs/model.md §1's two laws: its slack and capped modes, its force's surfaces, its V
-//! for the bound's damper term), and the last body a web span (docs/model.md §8).
+//! for the bound's damper term), the last body a web span (docs/model.md §8), and every body
+//! Coulomb friction with stiction (its modes forward, backward and stuck, their surfaces the
+//! speed and the held torque).
 //!
 //! Stepping is docs/model.md §2 with one switching coordinate per stage: a piece is accepted
 //! whole only when the cubic test certifies every stage's u free of its thresholds over it;
@@ -28,7 +30,9 @@ mod state;
 mod stepper;
 
 pub use bound::{chain_loop, disturbance_column, loop_poles, ChainBound, LoopLayout, OneStageBound, TwoStageBound};
-pub use linear::{mode_matrix, Layout};
-pub use params::{Body, Chain, ChainError, ChainParams, Part, Stage};
-pub use state::{mode_of, ChainMode, ChainState, Motion};
-pub use stepper::{ChainStepper, OneStageStepper, OneStageWebStepper, StageSwitch, TwoStageStepper};
+pub use linear::{mode_matrix, Layout, Rows};
+pub use params::{Body, Chain, ChainError, ChainParams, Coulomb, Part, Stage};
+pub use state::{mode_of, BodyMode, ChainMode, ChainState, Motion};
+pub use stepper::{
+    BodySwitch, ChainEvent, ChainStepper, OneStageStepper, OneStageWebStepper, StageSwitch, TwoStageStepper,
+};

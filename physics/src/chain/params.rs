@@ -12,6 +12,39 @@ pub struct Body {
     pub j: f64,
     /// Viscous friction b [N·m·s/rad].
     pub b: f64,
+    /// Coulomb friction with stiction in its bearing (none: [`Coulomb::NONE`]).
+    pub friction: Coulomb,
+}
+
+impl Body {
+    /// A body without Coulomb friction.
+    pub const fn new(j: f64, b: f64) -> Body {
+        Body {
+            j,
+            b,
+            friction: Coulomb::NONE,
+        }
+    }
+}
+
+/// Coulomb friction with stiction in a body's bearing (Modelica's `BearingFriction` with a
+/// constant `tau_pos` and its `peak`): sliding, the torque ∓`tau_c` against the motion; at rest,
+/// whatever holds the body still up to the breakaway torque `peak`·`tau_c`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coulomb {
+    /// The sliding friction torque τ_c ≥ 0 [N·m] (0: no friction modes).
+    pub tau_c: f64,
+    /// Breakaway over sliding, peak ≥ 1.
+    pub peak: f64,
+}
+
+impl Coulomb {
+    pub const NONE: Coulomb = Coulomb { tau_c: 0.0, peak: 1.0 };
+
+    /// The breakaway torque peak·τ_c [N·m].
+    pub fn breakaway(&self) -> f64 {
+        self.peak * self.tau_c
+    }
 }
 
 /// One stage: a compliant member in series with a backlash between body i and body i + 1.
@@ -76,8 +109,8 @@ impl ChainParams<1> {
     pub fn from_plant(plant: &Plant) -> Option<ChainParams<1>> {
         let p = plant.params();
         Some(ChainParams {
-            motor: Body { j: p.j_m, b: p.b_m },
-            driven: [Body { j: p.j_l, b: p.b_l }],
+            motor: Body::new(p.j_m, p.b_m),
+            driven: [Body::new(p.j_l, p.b_l)],
             stages: [Stage {
                 a: plant.r_m(),
                 c: plant.r_l(),
@@ -108,8 +141,8 @@ impl ChainParams<2> {
             damper: Damping::NONE,
         };
         ChainParams {
-            motor: Body { j: 2.28, b: 0.05 },
-            driven: [Body { j: 0.1, b: 0.01 }, Body { j: 2.55, b: 0.05 }],
+            motor: Body::new(2.28, 0.05),
+            driven: [Body::new(0.1, 0.01), Body::new(2.55, 0.05)],
             stages: [stage; 2],
             web: None,
         }
@@ -146,6 +179,8 @@ pub enum ChainError {
     Negative { at: Part, name: &'static str, value: f64 },
     #[error("parameter {name} of {at} = {value:e} is outside the range the chain integrates: 0 or 1e-100 ..= 1e100 in magnitude")]
     OutOfScale { at: Part, name: &'static str, value: f64 },
+    #[error("parameter peak of {at} = {value} must be >= 1 (the breakaway torque is peak times tau_c)")]
+    PeakBelowOne { at: Part, value: f64 },
     #[error("{name} of {at} = {value:e}, derived from the parameters, is outside 1e-200 ..= 1e200: the time scales of the chain are too far apart to integrate")]
     DerivedOutOfScale { at: Part, name: &'static str, value: f64 },
 }
@@ -183,6 +218,14 @@ impl<const S: usize> Chain<S> {
             let body = params.body(j);
             check(Part::Body(j), "J", body.j, true)?;
             check(Part::Body(j), "b", body.b, false)?;
+            check(Part::Body(j), "tau_c", body.friction.tau_c, false)?;
+            check(Part::Body(j), "peak", body.friction.peak, true)?;
+            if body.friction.peak < 1.0 {
+                return Err(ChainError::PeakBelowOne {
+                    at: Part::Body(j),
+                    value: body.friction.peak,
+                });
+            }
         }
         for (i, stage) in params.stages.iter().enumerate() {
             check(Part::Stage(i), "a", stage.a, true)?;
@@ -200,7 +243,13 @@ impl<const S: usize> Chain<S> {
             ("1/J", Part::Body(0), 1.0 / first.j),
             ("1/J", Part::Body(S), 1.0 / last.j),
         ];
-        let bodies = (0..=S).map(|j| ("b/J", Part::Body(j), params.body(j).b / params.body(j).j));
+        let bodies = (0..=S).flat_map(|j| {
+            let body = params.body(j);
+            [
+                ("b/J", Part::Body(j), body.b / body.j),
+                ("tau_c/J", Part::Body(j), body.friction.tau_c / body.j),
+            ]
+        });
         let stages = params.stages.iter().enumerate().flat_map(|(i, s)| {
             let (driving, driven) = (params.body(i).j, params.body(i + 1).j);
             [
@@ -286,6 +335,11 @@ impl<const S: usize> Chain<S> {
             .map(|i| self.stage(i).d() * kappa(i))
             .fold(bodies.max(omega0), f64::max);
         (rate, omega0)
+    }
+
+    /// Whether some body has Coulomb friction.
+    pub fn has_friction(&self) -> bool {
+        (0..=S).any(|j| self.body(j).friction.tau_c > 0.0)
     }
 
     /// The web span on the last body, if any.

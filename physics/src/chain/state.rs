@@ -1,20 +1,71 @@
-//! The chain's mode (one contact mode per stage) and its state.
+//! The chain's mode (one contact mode per stage, one friction mode per body) and its state.
 
 use super::params::Chain;
 use crate::mode::{damped_mode_at, mode_at, ContactMode};
 
-/// The mode of a chain: the tuple of its stages' modes. A stage without a damper is
-/// `Negative`, `Free` or `Positive`; one with a damper may also be slack or (law 1) capped
-/// (docs/model.md §1). Each mode is linear (docs/model.md §2).
+/// A body's friction mode (Coulomb friction with stiction, docs/model.md §10): sliding forward
+/// (ω > 0, friction −τ_c), sliding backward (ω < 0, +τ_c), or stuck (ω = 0, the friction holds
+/// whatever else acts, up to peak·τ_c). A body without friction stays `Forward`: it has no
+/// friction modes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BodyMode {
+    Forward,
+    Backward,
+    Stuck,
+}
+
+impl BodyMode {
+    /// In the order of [`BodyMode::index`].
+    pub const ALL: [BodyMode; 3] = [BodyMode::Forward, BodyMode::Backward, BodyMode::Stuck];
+
+    pub(crate) fn index(self) -> usize {
+        match self {
+            BodyMode::Forward => 0,
+            BodyMode::Backward => 1,
+            BodyMode::Stuck => 2,
+        }
+    }
+
+    /// +1 sliding forward, −1 backward, 0 stuck (the FMUs' `sliding_*` for a body with
+    /// friction).
+    pub fn sliding(self) -> i32 {
+        match self {
+            BodyMode::Forward => 1,
+            BodyMode::Backward => -1,
+            BodyMode::Stuck => 0,
+        }
+    }
+
+    /// The friction torque's sign while sliding: −1 forward, +1 backward, 0 stuck (where the
+    /// friction is whatever holds the body).
+    pub fn friction_sign(self) -> f64 {
+        match self {
+            BodyMode::Forward => -1.0,
+            BodyMode::Backward => 1.0,
+            BodyMode::Stuck => 0.0,
+        }
+    }
+}
+
+/// The mode of a chain: the tuple of its stages' modes and of its bodies' friction modes. A
+/// stage without a damper is `Negative`, `Free` or `Positive`; one with a damper may also be
+/// slack or (law 1) capped (docs/model.md §1). Each mode is linear (docs/model.md §2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ChainMode<const S: usize> {
     pub(crate) stages: [ContactMode; S],
+    pub(crate) motor: BodyMode,
+    pub(crate) driven: [BodyMode; S],
 }
 
 impl<const S: usize> ChainMode<S> {
-    /// The mode with these stage modes.
+    /// The mode with these stage modes, every body sliding forward (a body without friction
+    /// has no other mode).
     pub fn new(stages: [ContactMode; S]) -> ChainMode<S> {
-        ChainMode { stages }
+        ChainMode {
+            stages,
+            motor: BodyMode::Forward,
+            driven: [BodyMode::Forward; S],
+        }
     }
 
     /// Each stage's mode.
@@ -22,23 +73,55 @@ impl<const S: usize> ChainMode<S> {
         &self.stages
     }
 
-    /// How many modes there are: 7^S (every stage's seven modes of [`ContactMode::ALL`]).
-    pub const COUNT: usize = 7usize.pow(S as u32);
+    /// Body j's friction mode (j ≤ S).
+    pub fn body(&self, j: usize) -> BodyMode {
+        if j == 0 {
+            self.motor
+        } else {
+            self.driven[j - 1]
+        }
+    }
+
+    pub(crate) fn set_body(&mut self, j: usize, mode: BodyMode) {
+        if j == 0 {
+            self.motor = mode;
+        } else {
+            self.driven[j - 1] = mode;
+        }
+    }
+
+    /// How many stage modes there are: 7^S (every stage's seven modes of [`ContactMode::ALL`]).
+    const STAGE_COUNT: usize = 7usize.pow(S as u32);
+
+    /// How many modes there are: 7^S stage modes times 3^(S+1) body modes.
+    pub const COUNT: usize = Self::STAGE_COUNT * 3usize.pow(S as u32 + 1);
 
     /// A number in 0..COUNT: the stages' modes as base-7 digits in the order of
     /// [`ContactMode::ALL`] (Negative 0, Free 1, Positive 2, then the damper's), stage 0 the
-    /// lowest.
+    /// lowest, then the bodies' as base-3 digits in the order of [`BodyMode::ALL`] (so that a
+    /// chain without friction numbers its modes below 7^S).
     pub fn index(&self) -> usize {
-        self.stages.iter().rev().fold(0, |acc, m| 7 * acc + m.index())
+        let stages = self.stages.iter().rev().fold(0, |acc, m| 7 * acc + m.index());
+        let bodies = self.driven.iter().rev().fold(0, |acc, m| 3 * acc + m.index());
+        stages + Self::STAGE_COUNT * (3 * bodies + self.motor.index())
     }
 
     /// The mode of an [`ChainMode::index`] (< COUNT).
-    pub fn from_index(mut index: usize) -> ChainMode<S> {
+    pub fn from_index(index: usize) -> ChainMode<S> {
+        let (mut stages, mut bodies) = (index % Self::STAGE_COUNT, index / Self::STAGE_COUNT);
+        let motor = BodyMode::ALL[bodies % 3];
+        bodies /= 3;
         ChainMode {
             stages: std::array::from_fn(|_| {
-                let digit = index % 7;
-                index /= 7;
+                let digit = stages % 7;
+                stages /= 7;
                 ContactMode::ALL[digit]
+            }),
+            motor,
+            driven: std::array::from_fn(|_| {
+                let digit = bodies % 3;
+                bodies /= 3;
+                BodyMode::ALL[digit]
             }),
         }
     }
@@ -88,12 +171,13 @@ impl<const S: usize> ChainState<S> {
             let s = chain.stage(i);
             s.a * body(i).omega - s.c * body(i + 1).omega
         });
+        let omega: Vec<f64> = (0..=S).map(|j| body(j).omega).collect();
         ChainState {
             motor,
             driven,
             u,
             du,
-            mode: mode_of(chain, &u, &du),
+            mode: mode_of(chain, &u, &du, &omega),
             variation: [0.0; S],
             tension: 0.0,
         }
@@ -152,8 +236,20 @@ impl<const S: usize> ChainState<S> {
 }
 
 /// The mode of each stage from its u and u′ ([`mode_at`], with a damper [`damped_mode_at`]): on
-/// a switching surface the mode being entered.
-pub fn mode_of<const S: usize>(chain: &Chain<S>, u: &[f64; S], du: &[f64; S]) -> ChainMode<S> {
+/// a switching surface the mode being entered; each body with friction sliding by the sign of
+/// its speed, stuck at rest (the stepper applies the law of stiction with the inputs at a step's
+/// start: a body at rest that the torques on it break away slides from there).
+pub fn mode_of<const S: usize>(chain: &Chain<S>, u: &[f64; S], du: &[f64; S], omega: &[f64]) -> ChainMode<S> {
+    let body_mode = |j: usize| {
+        let w = omega[j];
+        if chain.body(j).friction.tau_c == 0.0 || w > 0.0 {
+            BodyMode::Forward
+        } else if w < 0.0 {
+            BodyMode::Backward
+        } else {
+            BodyMode::Stuck
+        }
+    };
     ChainMode {
         stages: std::array::from_fn(|i| {
             let s = chain.stage(i);
@@ -163,5 +259,7 @@ pub fn mode_of<const S: usize>(chain: &Chain<S>, u: &[f64; S], du: &[f64; S]) ->
                 damped_mode_at(u[i], du[i], s.g, s.k, s.d(), s.damper.law)
             }
         }),
+        motor: body_mode(0),
+        driven: std::array::from_fn(|i| body_mode(i + 1)),
     }
 }

@@ -3,9 +3,9 @@
 //! absent piece by piece or located to round-off, and all stages that switch at one instant
 //! enter their new modes together.
 
-use super::linear::{mode_matrix, Layout, PIECE_RATE};
+use super::linear::{mode_matrix, Layout, Rows, PIECE_RATE};
 use super::params::{Chain, Stage};
-use super::state::{ChainMode, ChainState};
+use super::state::{BodyMode, ChainMode, ChainState};
 use crate::kernel::KernelColumn;
 use crate::mode::ContactMode;
 use crate::roots::{self, Side, SignalRows};
@@ -25,12 +25,54 @@ pub struct StageSwitch {
     pub to: ContactMode,
 }
 
-/// One mode: its augmented matrix and the derivative rows of each stage's u along it.
+/// A switch of one body's friction mode inside a step (docs/model.md §10, Coulomb friction
+/// with stiction): it stops and sticks or reverses, or it breaks away.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodySwitch {
+    /// Time since the start of the step [s].
+    pub offset: f64,
+    /// Which body (0 ..= S).
+    pub body: usize,
+    pub from: BodyMode,
+    pub to: BodyMode,
+}
+
+/// A switch inside a step: of a stage's contact mode or of a body's friction mode. Switches at
+/// one instant are reported together, stages first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ChainEvent {
+    Stage(StageSwitch),
+    Body(BodySwitch),
+}
+
+impl ChainEvent {
+    /// Time since the start of the step [s].
+    pub fn offset(&self) -> f64 {
+        match self {
+            ChainEvent::Stage(e) => e.offset,
+            ChainEvent::Body(e) => e.offset,
+        }
+    }
+}
+
+/// One mode: its augmented matrix, the derivative rows of each stage's u along it, and for each
+/// body with friction the signal its friction mode ends on.
 #[derive(Clone, Debug)]
 struct ModeDynamics<const S: usize, const N: usize> {
     m: SMatrix<f64, N, N>,
     sparse: Sparse<N>,
     u_rows: [SignalRows<N>; S],
+    /// By body (0 ..= S); None without friction.
+    bodies: Vec<Option<BodySignal<N>>>,
+}
+
+/// What ends a body's friction mode: sliding, its speed reaching 0; stuck, the torque τ_h that
+/// the bearing holds reaching ±peak·τ_c. The rows of that signal along the mode, and τ_h's row
+/// (what decides the mode where the body stops).
+#[derive(Clone, Debug)]
+struct BodySignal<const N: usize> {
+    rows: SignalRows<N>,
+    holding: SVector<f64, N>,
 }
 
 /// One mode's maps over a whole piece of the current step size, fused into one kernel
@@ -206,8 +248,9 @@ struct Crossing {
 #[derive(Clone, Debug)]
 pub struct ChainStepper<const S: usize, const N: usize, const KO: usize> {
     chain: Chain<S>,
-    /// By [`ChainMode::index`].
-    modes: Vec<ModeDynamics<S, N>>,
+    /// By [`ChainMode::index`]; built when the mode is first entered (with friction there are
+    /// 7^S 3^(S+1) of them, few of which a run meets).
+    modes: Vec<Option<Box<ModeDynamics<S, N>>>>,
     /// Longest piece [s]: PIECE_RATE over the fastest rate.
     len_ref: f64,
     /// Longest step [s]: `MAX_PIECES` pieces.
@@ -218,6 +261,8 @@ pub struct ChainStepper<const S: usize, const N: usize, const KO: usize> {
     len: f64,
     /// By [`ChainMode::index`]; None until the mode is entered at this step size.
     maps: Vec<Option<PieceKernel<S, N, KO>>>,
+    /// Some body has Coulomb friction: its modes are certified and located besides the stages'.
+    friction: bool,
 }
 
 /// One stage (docs/model.md §1's shaft or belt): 10 augmented entries, 8 kernel outputs.
@@ -238,29 +283,59 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             "augmented dimension {N} and {KO} kernel outputs for this chain: {dim} and {outputs}"
         );
         let len_ref = PIECE_RATE / chain.fastest_rate();
-        let modes = (0..ChainMode::<S>::COUNT)
-            .map(|index| {
-                let m = mode_matrix::<S, N>(&chain, &ChainMode::from_index(index));
-                ModeDynamics {
-                    m,
-                    sparse: Sparse::new(&m),
-                    u_rows: std::array::from_fn(|i| {
-                        let mut e_u = SVector::<f64, N>::zeros();
-                        e_u[Layout::<S>::u(i)] = 1.0;
-                        SignalRows::new(e_u, &m, len_ref)
-                    }),
-                }
-            })
-            .collect();
         ChainStepper {
             chain,
-            modes,
+            modes: vec![None; ChainMode::<S>::COUNT],
             len_ref,
             max_h: MAX_PIECES as f64 * len_ref,
             h: f64::NAN,
             pieces: 0,
             len: 0.0,
             maps: vec![None; ChainMode::<S>::COUNT],
+            friction: chain.has_friction(),
+        }
+    }
+
+    /// The dynamics of mode `index`, built on first use.
+    #[cold]
+    #[inline(never)]
+    fn build_mode(&mut self, index: usize) {
+        let mode = ChainMode::from_index(index);
+        let m = mode_matrix::<S, N>(&self.chain, &mode);
+        let rows = Rows::<S, N>::new(&self.chain, &mode);
+        let len_ref = self.len_ref;
+        let bodies = (0..=S)
+            .map(|j| {
+                (self.chain.body(j).friction.tau_c > 0.0).then(|| {
+                    let holding = rows.holding(j);
+                    let signal = match mode.body(j) {
+                        BodyMode::Stuck => holding,
+                        _ => rows.speed[j],
+                    };
+                    BodySignal {
+                        rows: SignalRows::new(signal, &m, len_ref),
+                        holding,
+                    }
+                })
+            })
+            .collect();
+        self.modes[index] = Some(Box::new(ModeDynamics {
+            m,
+            sparse: Sparse::new(&m),
+            u_rows: std::array::from_fn(|i| {
+                let mut e_u = SVector::<f64, N>::zeros();
+                e_u[Layout::<S>::u(i)] = 1.0;
+                SignalRows::new(e_u, &m, len_ref)
+            }),
+            bodies,
+        }));
+    }
+
+    /// Mode `index`'s dynamics and its maps at the current step size, built on first use.
+    #[inline(always)]
+    fn fill(&mut self, index: usize) {
+        if self.maps[index].is_none() {
+            self.fill_maps_of(index);
         }
     }
 
@@ -275,14 +350,17 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
     }
 
     /// Advances `state` over [t, t + h] with `inputs` (values at t, slopes over the step; the
-    /// web span's entries are ignored without a web span), calling `on_switch` for every stage's switch in time
-    /// order. Returns the number of switches. On error `state` is left unchanged.
+    /// web span's entries are ignored without a web span), calling `on_switch` for every switch
+    /// of a stage or a body in time order. Returns the number of switches. On error `state` is
+    /// left unchanged. With friction the law of stiction is applied at the step's start with
+    /// these inputs first (a body at rest that they break away slides from there; not a switch
+    /// inside the step).
     pub fn step(
         &mut self,
         state: &mut ChainState<S>,
         inputs: &Inputs,
         h: f64,
-        on_switch: &mut dyn FnMut(StageSwitch),
+        on_switch: &mut dyn FnMut(ChainEvent),
     ) -> Result<usize, StepError> {
         self.advance(state, inputs, h, on_switch, false).map(|(n, _)| n)
     }
@@ -297,7 +375,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         state: &mut ChainState<S>,
         inputs: &Inputs,
         h: f64,
-        on_switch: &mut dyn FnMut(StageSwitch),
+        on_switch: &mut dyn FnMut(ChainEvent),
     ) -> Result<Option<f64>, StepError> {
         self.advance(state, inputs, h, on_switch, true).map(|(_, at)| at)
     }
@@ -307,7 +385,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         state: &mut ChainState<S>,
         inputs: &Inputs,
         h: f64,
-        on_switch: &mut dyn FnMut(StageSwitch),
+        on_switch: &mut dyn FnMut(ChainEvent),
         stop_at_switch: bool,
     ) -> Result<(usize, Option<f64>), StepError> {
         self.check(state, inputs, h)?;
@@ -320,19 +398,23 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         let mut budget = roots::work_budget(pieces);
         let mut next = *state;
         let mut switches = 0;
+        if self.friction {
+            switches += self.stiction_at_start(&mut next, inputs, on_switch);
+        }
         for piece in 0..pieces {
             // Pieces all have length `len`; the last ends on h to round-off of the time grid.
             let start = piece as f64 * len;
             let index = next.mode.index();
-            self.fill_maps(index);
+            self.fill(index);
             let kernel = self.maps[index].as_ref().expect("filled above");
             // The whole piece in one pass, when every stage is certified clear of its
             // thresholds over it: the common case.
             let at_start = PieceStart::of(&next, inputs, start);
             let whole_piece = kernel.apply(&at_start);
-            if self.clear_by(&next.mode, &at_start, len, |i| {
+            let stages_clear = self.clear_by(&next.mode, &at_start, len, |i| {
                 PieceKernel::<S, N, KO>::certificate(&whole_piece, i)
-            }) {
+            });
+            if stages_clear && (!self.friction || self.bodies_clear_at(&next, inputs, start, index)) {
                 for i in self.damped_stages() {
                     let (d2, c3) = PieceKernel::<S, N, KO>::certificate(&whole_piece, i);
                     let u_end = whole_piece[Layout::<S>::u(i)];
@@ -349,8 +431,8 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             loop {
                 let span = if whole { len } else { len - (t - start) };
                 let index = next.mode.index();
-                self.fill_maps(index);
-                let dynamics = &self.modes[index];
+                self.fill(index);
+                let dynamics = self.modes[index].as_deref().expect("filled above");
                 let kernel = self.maps[index].as_ref().expect("filled above");
                 let start_y = y;
                 if !whole && self.clear(&next.mode, dynamics, &y, span) {
@@ -360,7 +442,8 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                     break;
                 }
                 let model = TaylorModel::new(&dynamics.sparse, &y, span);
-                let Some((offset, crossings)) = self.earliest(&next.mode, dynamics, &model, &y, t, span, &mut budget)
+                let Some((offset, crossings, body_crossings)) =
+                    self.earliest(&next.mode, dynamics, &model, &y, t, span, &mut budget)
                 else {
                     let mut probe = None;
                     if whole {
@@ -392,14 +475,38 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                     if let Some(du) = c.du {
                         y[Layout::<S>::v(i)] = du;
                     }
-                    on_switch(StageSwitch {
+                    on_switch(ChainEvent::Stage(StageSwitch {
                         offset: t,
                         stage: i,
                         from: next.mode.stages[i],
                         to: c.to,
-                    });
+                    }));
                     next.mode.stages[i] = c.to;
                     switches += 1;
+                }
+                for crossing in &body_crossings {
+                    let j = crossing.body;
+                    let from = next.mode.body(j);
+                    let to = match crossing.exit {
+                        BodyExit::Breaks(to) => to,
+                        BodyExit::Stops => {
+                            // On ω_j = 0 exactly; what it does there is the law at rest with the
+                            // torques in the modes now in force.
+                            stop_body(&self.chain, &mut y, j);
+                            let holding = Rows::<S, N>::new(&self.chain, &next.mode).holding(j);
+                            at_rest(holding.dot(&y), self.chain.body(j).friction.breakaway())
+                        }
+                    };
+                    if to != from {
+                        on_switch(ChainEvent::Body(BodySwitch {
+                            offset: t,
+                            body: j,
+                            from,
+                            to,
+                        }));
+                        next.mode.set_body(j, to);
+                        switches += 1;
+                    }
                 }
                 // Inputs are functions of time: re-evaluate rather than carry round-off.
                 y[Layout::<S>::TAU_M] = inputs.tau_m + inputs.dtau_m * t;
@@ -479,17 +586,13 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         self.maps.iter_mut().for_each(|m| *m = None);
     }
 
-    #[inline(always)]
-    fn fill_maps(&mut self, index: usize) {
-        if self.maps[index].is_none() {
-            self.fill_maps_of(index);
-        }
-    }
-
     #[cold]
     #[inline(never)]
     fn fill_maps_of(&mut self, index: usize) {
-        let ModeDynamics { m, sparse, u_rows } = &self.modes[index];
+        if self.modes[index].is_none() {
+            self.build_mode(index);
+        }
+        let ModeDynamics { m, sparse, u_rows, .. } = self.modes[index].as_deref().expect("built above");
         let remainder = std::array::from_fn(|i| u_rows[i].remainder_row(m, self.len));
         self.maps[index] = Some(PieceKernel::new(&exp_series(sparse, self.len), u_rows, &remainder));
     }
@@ -500,7 +603,59 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         self.clear_by(mode, &PieceStart::from_augmented(y), span, |i| {
             let rows = &dynamics.u_rows[i];
             (rows.derivative(2, y), rows.third_bound(y, span))
-        })
+        }) && (!self.friction || bodies_clear(&self.chain, mode, dynamics, y, span))
+    }
+
+    /// The bodies' surfaces certified clear over the whole piece from its start (with friction).
+    fn bodies_clear_at(&self, state: &ChainState<S>, inputs: &Inputs, start: f64, index: usize) -> bool {
+        let y = augmented::<S, N>(state, inputs, start);
+        let dynamics = self.modes[index].as_deref().expect("filled with the maps");
+        bodies_clear(&self.chain, &state.mode, dynamics, &y, self.len)
+    }
+
+    /// The law of stiction at the step's start with its inputs: each body with friction slides by
+    /// the sign of its speed; at rest it sticks while |τ_h| ≤ peak·τ_c, else breaks away in the
+    /// direction of τ_h (not a switch inside the step: the inputs changed). A body whose speed
+    /// went through 0 at the end of the last step, within round-off of it, is stopped here: set at
+    /// rest and the law applied, reported as a switch at the step's start. Returns the switches.
+    fn stiction_at_start(
+        &mut self,
+        state: &mut ChainState<S>,
+        inputs: &Inputs,
+        on_switch: &mut dyn FnMut(ChainEvent),
+    ) -> usize {
+        let index = state.mode.index();
+        self.fill(index);
+        let dynamics = self.modes[index].as_deref().expect("filled above");
+        let mut switches = 0;
+        for j in 0..=S {
+            let Some(signal) = &dynamics.bodies[j] else { continue };
+            let (from, omega) = (state.mode.body(j), state.body(j).omega);
+            let passed = (from == BodyMode::Forward && omega < 0.0) || (from == BodyMode::Backward && omega > 0.0);
+            if passed {
+                rest_body(&self.chain, state, j);
+            }
+            let omega = state.body(j).omega;
+            let to = if omega > 0.0 {
+                BodyMode::Forward
+            } else if omega < 0.0 {
+                BodyMode::Backward
+            } else {
+                let y = augmented::<S, N>(state, inputs, 0.0);
+                at_rest(signal.holding.dot(&y), self.chain.body(j).friction.breakaway())
+            };
+            if passed && to != from {
+                on_switch(ChainEvent::Body(BodySwitch {
+                    offset: 0.0,
+                    body: j,
+                    from,
+                    to,
+                }));
+                switches += 1;
+            }
+            state.mode.set_body(j, to);
+        }
+        switches
     }
 
     /// The cubic test of docs/model.md §2 per stage over `span` from `start`, with each
@@ -548,12 +703,38 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         t: f64,
         span: f64,
         budget: &mut usize,
-    ) -> Option<(f64, [Option<Crossing>; S])> {
+    ) -> Option<(f64, [Option<Crossing>; S], Vec<BodyCrossing>)> {
         // The time grid's resolution here: the step time t + span to a few ulps, and the
         // search's own resolution (roots.rs: f64::EPSILON/4 of the span).
         let same_instant = 4.0 * f64::EPSILON * (t + span);
         let mut found: [Option<Crossing>; S] = [None; S];
         let mut best = f64::INFINITY;
+        // The bodies' surfaces first (with friction): their earliest crossing bounds the
+        // stages' searches as the stages' own do.
+        let mut bodies: Vec<BodyCrossing> = Vec::new();
+        if self.friction {
+            for (j, signal) in dynamics.bodies.iter().enumerate() {
+                let Some(signal) = signal else { continue };
+                let breakaway = self.chain.body(j).friction.breakaway();
+                let tol = body_floor(signal, y, breakaway);
+                let mut poly = None;
+                for (side, exit) in body_sides(mode.body(j), breakaway, tol).into_iter().flatten() {
+                    if signal_clear(&signal.rows, side, y, span) {
+                        continue;
+                    }
+                    let p = poly.get_or_insert_with(|| model.signal(signal.rows.row(0)));
+                    let limit = span.min(best + same_instant);
+                    if let Ok(Some(offset)) = roots::first_exit(p, side, limit, budget) {
+                        match bodies.iter_mut().find(|c| c.body == j) {
+                            Some(c) if offset < c.offset => *c = BodyCrossing { offset, body: j, exit },
+                            Some(_) => {}
+                            None => bodies.push(BodyCrossing { offset, body: j, exit }),
+                        }
+                        best = best.min(offset);
+                    }
+                }
+            }
+        }
         for (i, slot) in found.iter_mut().enumerate() {
             let stage = self.chain.stage(i);
             let g = stage.g;
@@ -622,7 +803,8 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                 *slot = None;
             }
         }
-        Some((best, found))
+        bodies.retain(|c| c.offset <= best + same_instant);
+        Some((best, found, bodies))
     }
 
     /// The stages with a damper.
@@ -697,6 +879,21 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             let s = self.chain.stage(i);
             let driven = next.body(i + 1).omega;
             next.body_mut(i).omega = (next.du[i] + s.c * driven) / s.a;
+        }
+        if self.friction {
+            self.hold_stuck(next);
+        }
+    }
+
+    /// A stuck body's speed is 0 (its rate is 0 in its mode, and round-off must not move it):
+    /// set exactly, with its members' u′ from the speeds on either side.
+    #[cold]
+    #[inline(never)]
+    fn hold_stuck(&self, next: &mut ChainState<S>) {
+        for j in 0..=S {
+            if self.chain.body(j).friction.tau_c > 0.0 && next.mode.body(j) == BodyMode::Stuck {
+                rest_body(&self.chain, next, j);
+            }
         }
     }
 }
@@ -895,5 +1092,111 @@ fn tension_of<const S: usize, const N: usize>(y: &SVector<f64, N>) -> f64 {
         y[Layout::<S>::TENSION]
     } else {
         0.0
+    }
+}
+
+/// A located crossing of a body's surface: where it stops (sliding) or breaks away (stuck).
+#[derive(Clone, Copy, Debug)]
+struct BodyCrossing {
+    offset: f64,
+    body: usize,
+    exit: BodyExit,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum BodyExit {
+    /// Sliding, its speed reaches 0: the law at rest decides what follows.
+    Stops,
+    /// Stuck, τ_h reaches ±peak·τ_c: it slides in that direction.
+    Breaks(BodyMode),
+}
+
+/// The law at rest: stuck while |τ_h| ≤ peak·τ_c (`breakaway`), else sliding in τ_h's direction.
+fn at_rest(holding: f64, breakaway: f64) -> BodyMode {
+    if holding > breakaway {
+        BodyMode::Forward
+    } else if holding < -breakaway {
+        BodyMode::Backward
+    } else {
+        BodyMode::Stuck
+    }
+}
+
+/// The surfaces a body in `mode` may cross, each as the admissible side of its signal (the
+/// speed sliding, τ_h stuck) and what crossing it means.
+fn body_sides(mode: BodyMode, breakaway: f64, tol: f64) -> [Option<(Side, BodyExit)>; 2] {
+    let side = |offset: f64, sign: f64| Side { offset, sign, tol };
+    match mode {
+        BodyMode::Forward => [Some((side(0.0, 1.0), BodyExit::Stops)), None],
+        BodyMode::Backward => [Some((side(0.0, -1.0), BodyExit::Stops)), None],
+        BodyMode::Stuck => [
+            Some((side(breakaway, -1.0), BodyExit::Breaks(BodyMode::Forward))),
+            Some((side(breakaway, 1.0), BodyExit::Breaks(BodyMode::Backward))),
+        ],
+    }
+}
+
+/// Round-off floor of a body's signal at y: a few ulps of the magnitudes it sums, and of the
+/// breakaway torque it is compared with.
+fn body_floor<const N: usize>(signal: &BodySignal<N>, y: &SVector<f64, N>, breakaway: f64) -> f64 {
+    8.0 * f64::EPSILON * (signal.rows.row(0).abs().dot(&y.abs()) + breakaway)
+}
+
+/// Whether the signal of `rows` stays on `side` over `span` from y (the cubic test of
+/// docs/model.md §2 on its derivatives).
+fn signal_clear<const N: usize>(rows: &SignalRows<N>, side: Side, y: &SVector<f64, N>, span: f64) -> bool {
+    let d = [0, 1, 2].map(|k| rows.derivative(k, y));
+    let c3 = rows.third_bound(y, span);
+    roots::cubic_clear(side.value(d[0]), side.sign * d[1], side.sign * d[2], c3, span, side.tol)
+}
+
+/// True when no body with friction can leave its mode within `span` after y.
+fn bodies_clear<const S: usize, const N: usize>(
+    chain: &Chain<S>,
+    mode: &ChainMode<S>,
+    dynamics: &ModeDynamics<S, N>,
+    y: &SVector<f64, N>,
+    span: f64,
+) -> bool {
+    dynamics.bodies.iter().enumerate().all(|(j, signal)| {
+        let Some(signal) = signal else { return true };
+        let breakaway = chain.body(j).friction.breakaway();
+        let tol = body_floor(signal, y, breakaway);
+        body_sides(mode.body(j), breakaway, tol)
+            .into_iter()
+            .flatten()
+            .all(|(side, _)| signal_clear(&signal.rows, side, y, span))
+    })
+}
+
+/// Puts body j exactly at rest in the augmented state y: its speed 0, its members' u′ from the
+/// speeds on either side (the angles and u are untouched).
+fn stop_body<const S: usize, const N: usize>(chain: &Chain<S>, y: &mut SVector<f64, N>, j: usize) {
+    // The speeds from the load down, before the change.
+    let mut omega = vec![0.0; S + 1];
+    omega[S] = y[Layout::<S>::OMEGA_LAST];
+    for i in (0..S).rev() {
+        let s = chain.stage(i);
+        omega[i] = (y[Layout::<S>::v(i)] + s.c * omega[i + 1]) / s.a;
+    }
+    if j == S {
+        y[Layout::<S>::OMEGA_LAST] = 0.0;
+    } else {
+        y[Layout::<S>::v(j)] = -chain.stage(j).c * omega[j + 1];
+    }
+    if j > 0 {
+        y[Layout::<S>::v(j - 1)] = chain.stage(j - 1).a * omega[j - 1];
+    }
+}
+
+/// Puts body j of `state` at rest: its speed 0 exactly, its members' u′ from the speeds on either
+/// side (angles and u untouched).
+fn rest_body<const S: usize>(chain: &Chain<S>, state: &mut ChainState<S>, j: usize) {
+    state.body_mut(j).omega = 0.0;
+    if j < S {
+        state.du[j] = -chain.stage(j).c * state.body(j + 1).omega;
+    }
+    if j > 0 {
+        state.du[j - 1] = chain.stage(j - 1).a * state.body(j - 1).omega;
     }
 }
