@@ -5,7 +5,7 @@ use super::linear::{self, AugMatrix, AugVector, AUG, WEB_AUG};
 use super::mode::{ContactMode, PlantState};
 use super::params::{ContactLaw, Plant};
 use super::roots::{self, Side, SignalRows};
-use super::taylor::{exp_series, Sparse, TaylorModel};
+use super::taylor::{exp_series, PieceModel, Sparse};
 use thiserror::Error;
 
 mod damped;
@@ -584,6 +584,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         let switch_limit = 64 + 16 * pieces;
         let mut budget = roots::work_budget(pieces);
         let mut switches = 0;
+        let mut model = PieceModel::new();
         for piece in first..pieces {
             // Pieces all have length `len`; the last ends on h to round-off of the time grid.
             let start = piece as f64 * len;
@@ -603,7 +604,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             loop {
                 let span = len - (t - start);
                 let mode = next.mode.index();
-                let mut model = None;
+                model.clear();
                 let start_y = y;
                 let probed = probe;
                 match self.exit(&y, next.mode, span, probe.take(), &mut model, &mut budget) {
@@ -616,10 +617,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                     }
                     None => {
                         let sparse = &self.modes[mode].sparse;
-                        y = match &model {
-                            Some(model) => model.at(span),
-                            None => TaylorModel::new(sparse, &y, span).at(span),
-                        };
+                        y = model.get_or_expand(sparse, &y, span).at(span);
                         if self.damping != 0.0 {
                             next.variation += self.sub_variation(next.mode, &start_y, None, span, y[linear::U]);
                         }
@@ -627,7 +625,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
                     }
                     Some(exit) => {
                         y = model
-                            .as_ref()
+                            .get()
                             .expect("exits are found on the Taylor model")
                             .at(exit.offset);
                         if self.damping != 0.0 {
@@ -737,7 +735,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         mode: ContactMode,
         span: f64,
         probe: Option<(f64, f64)>,
-        model: &mut Option<TaylorModel<N>>,
+        model: &mut PieceModel<N>,
         budget: &mut usize,
     ) -> Option<Exit> {
         if self.damping != 0.0 {
@@ -809,11 +807,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             }
             if poly.is_none() {
                 let sparse = &self.modes[mode.index()].sparse;
-                poly = Some(
-                    model
-                        .get_or_insert_with(|| TaylorModel::new(sparse, y, span))
-                        .poly(linear::U),
-                );
+                poly = Some(model.get_or_expand(sparse, y, span).poly(linear::U));
             }
             let p = poly.as_ref().expect("filled above");
             let limit = best.map_or(span, |b| b.offset);

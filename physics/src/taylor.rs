@@ -46,7 +46,18 @@ impl<const N: usize> TaylorModel<N> {
     /// Expands until two successive terms are below 1e-17 of the running magnitude of every
     /// component at σ = span (pieces are short, so this takes a dozen or so terms).
     pub fn new(m: &Sparse<N>, y: &SVector<f64, N>, span: f64) -> Self {
-        let mut v = [SVector::<f64, N>::zeros(); TERMS];
+        let mut model = TaylorModel {
+            v: [SVector::<f64, N>::zeros(); TERMS],
+            terms: 0,
+        };
+        model.expand(m, y, span);
+        model
+    }
+
+    /// `new` in place: the terms past the last kept are left as they were (none is read).
+    #[inline]
+    fn expand(&mut self, m: &Sparse<N>, y: &SVector<f64, N>, span: f64) {
+        let v = &mut self.v;
         v[0] = *y;
         let mut magnitude = y.abs();
         let mut quiet = 0;
@@ -65,7 +76,7 @@ impl<const N: usize> TaylorModel<N> {
                 break;
             }
         }
-        TaylorModel { v, terms }
+        self.terms = terms;
     }
 
     /// The polynomial of component `i`.
@@ -99,6 +110,53 @@ impl<const N: usize> TaylorModel<N> {
             acc = acc * s + v;
         }
         acc
+    }
+}
+
+/// The Taylor model of the piece being searched, expanded when a search first needs it, in
+/// storage kept over a whole step: a model is ~2.5 KB, and zeroing and moving a fresh one for
+/// each search cost more than its dozen terms (callgrind: a third of a switching step).
+#[derive(Clone, Debug)]
+pub struct PieceModel<const N: usize> {
+    model: TaylorModel<N>,
+    expanded: bool,
+}
+
+impl<const N: usize> PieceModel<N> {
+    pub fn new() -> Self {
+        PieceModel {
+            model: TaylorModel {
+                v: [SVector::<f64, N>::zeros(); TERMS],
+                terms: 0,
+            },
+            expanded: false,
+        }
+    }
+
+    /// Forgets the model: the next piece needs its own.
+    pub fn clear(&mut self) {
+        self.expanded = false;
+    }
+
+    /// The model, if expanded since the last `clear`.
+    pub fn get(&self) -> Option<&TaylorModel<N>> {
+        self.expanded.then_some(&self.model)
+    }
+
+    /// The model, expanded from y over `span` (by `m`) if not yet since the last `clear`: the
+    /// same as `TaylorModel::new(m, y, span)`.
+    pub fn get_or_expand(&mut self, m: &Sparse<N>, y: &SVector<f64, N>, span: f64) -> &TaylorModel<N> {
+        if !self.expanded {
+            self.model.expand(m, y, span);
+            self.expanded = true;
+        }
+        &self.model
+    }
+}
+
+impl<const N: usize> Default for PieceModel<N> {
+    fn default() -> Self {
+        Self::new()
     }
 }
 

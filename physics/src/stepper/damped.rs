@@ -7,7 +7,7 @@ use super::{Exact, Exit};
 use crate::linear::{self, AugVector};
 use crate::mode::ContactMode;
 use crate::roots::{self, Side};
-use crate::taylor::TaylorModel;
+use crate::taylor::PieceModel;
 
 impl<const N: usize, const KO: usize> Exact<N, KO> {
     /// The growth of [`PlantState::variation`](crate::mode::PlantState::variation) over a piece of length `w` in `mode` that starts
@@ -137,7 +137,7 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         mode: ContactMode,
         span: f64,
         probe: Option<(f64, f64)>,
-        model: &mut Option<TaylorModel<N>>,
+        model: &mut PieceModel<N>,
         budget: &mut usize,
     ) -> Option<Exit> {
         let rows = &self.modes[mode.index()].u_rows;
@@ -151,16 +151,14 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             }
             let (c, tol) = self.damped_signal(surface, y);
             let sparse = &self.modes[mode.index()].sparse;
-            let p = model
-                .get_or_insert_with(|| TaylorModel::new(sparse, y, span))
-                .signal(&c);
+            let p = model.get_or_expand(sparse, y, span).signal(&c);
             let limit = best.map_or(span, |b| b.offset);
             let side = Side { offset: 0.0, sign, tol };
             if let Ok(Some(offset)) = roots::first_exit(&p, side, limit, budget) {
                 let (u_at, du_at) = match surface {
                     DampedSurface::Gap(side) => (Some(side * g), None),
                     DampedSurface::Force(_) | DampedSurface::Cap(_) => {
-                        let at = model.as_ref().expect("filled above").at(offset);
+                        let at = model.get().expect("filled above").at(offset);
                         let side = mode_side(mode, to);
                         let stretch = k * (at[linear::U] - side * g);
                         // τ_c + τ_d = 0: D u′ = −K (u ∓ g); τ_d = τ_c: D u′ = K (u ∓ g).

@@ -167,7 +167,23 @@ impl Instance {
         function: Function,
         body: impl FnOnce(&mut Instance) -> Result<T, FmuError>,
     ) -> Result<T, FmuError> {
-        let result = self.check_legal(function).and_then(|()| body(self));
+        let legal = self.is_legal(function);
+        self.run_judged(function, legal, body)
+    }
+
+    /// [`Instance::run`] with `legal` = [`Instance::is_legal`] tested by the caller: the FFI
+    /// guard tests it before its unwinding boundary, where the mask of its known `function`
+    /// folds to a constant (behind the boundary `function` is read back from memory and its
+    /// mask looked up in a jump table on every call).
+    #[inline]
+    pub fn run_judged<T>(
+        &mut self,
+        function: Function,
+        legal: bool,
+        body: impl FnOnce(&mut Instance) -> Result<T, FmuError>,
+    ) -> Result<T, FmuError> {
+        let checked = if legal { Ok(()) } else { self.illegal(function) };
+        let result = checked.and_then(|()| body(self));
         match &result {
             Ok(_) => self.log.emit(Status::Ok, LogCategory::Calls, || {
                 format!("{} -> OK", function.name(self.flavour.standard))
@@ -177,13 +193,11 @@ impl Instance {
         result
     }
 
-    /// Inlined, so that the mask of a known `function` is a constant.
+    /// Whether `function` is legal in the current state. Inlined, so that the mask of a known
+    /// `function` is a constant.
     #[inline]
-    pub fn check_legal(&self, function: Function) -> Result<(), FmuError> {
-        if function.is_legal_in(self.flavour, self.phase()) {
-            return Ok(());
-        }
-        self.illegal(function)
+    pub fn is_legal(&self, function: Function) -> bool {
+        function.is_legal_in(self.flavour, self.phase())
     }
 
     #[cold]
