@@ -23,7 +23,7 @@ import numpy as np
 from reference import Plant, run_open_loop
 
 # The paper's rig in shaft form and the belt rig (tests/fixtures/rigs.toml, by FMU names).
-from rigs import BELT, SHAFT  # noqa: E402
+from rigs import BELT, SHAFT
 
 OUTPUTS = ("theta_m", "omega_m", "theta_L", "omega_L")
 

@@ -18,6 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import backlash_fmu
 import numpy as np
 import pytest
 from scipy.stats import binom
@@ -25,12 +26,24 @@ from scipy.stats import binom
 import identify_data as data
 from identify_data import Sensors
 
-backlash_fmu = pytest.importorskip("backlash_fmu")
 
 H = 0.01  # sample step [s]
 N = 300  # samples: a 3 s run, ~1 s per fit
 U0_FRACTION = 0.4  # u0 = 0.4 g: off centre, so that the two flanks are reached at different times
 Z95 = 1.959963984540054
+# A single run's check: the truth within the 99.9% interval, the reported 95% one widened by
+# z(0.9995)/z(0.975) = 3.29/1.96. Each parameter of each run then fails by chance with probability
+# 1e-3 (about 2% over the ~20 checked here), where "inside the 95% interval" would fail one run in
+# twenty per parameter; whether the 95% intervals hold 95% is the coverage test's question.
+WIDEN = 3.2905267314919255 / Z95
+
+
+def within(est: dict, true: float) -> bool:
+    """The truth within the reported interval widened to 99.9% about the estimate (and the
+    estimate inside its own interval)."""
+    lo, hi = est["ci95"]
+    v = est["value"]
+    return lo <= v <= hi and v - WIDEN * (v - lo) <= true <= v + WIDEN * (hi - v)
 
 
 def backlash_command() -> Path:
@@ -69,7 +82,7 @@ def clean_run(model: str, kind: str = "reversing") -> data.Run:
 SENSOR_SETS = {
     "omega_m": Sensors(("omega_m",)),
     "omega_m+omega_L": Sensors(("omega_m", "omega_L")),
-    "theta_m+theta_L": Sensors(("theta_m", "theta_L"), counts_per_rev=1 << 16, angle_sigma=2e-5),
+    "theta_m+theta_L": Sensors(("theta_m", "theta_L"), counts_per_rev=1 << 16, angle_sigma=5e-5),
 }
 
 
@@ -146,6 +159,26 @@ def test_the_data_maker_follows_the_closed_form_until_first_contact():
     assert np.all(run.clean["omega_L"][~free][1:] > 0.0)
 
 
+def test_the_data_maker_agrees_with_the_fmu(shaft):
+    """The same run through the BacklashShaft FMU (exact stepping, θ_L's start value −u0): the
+    speeds agree to 1e-9 of their range. A check of this simulator and of the u0 convention
+    (u(0) = θ_m(0) − θ_L(0)); measured agreement 6e-14."""
+    p = data.rig("shaft")
+    run = clean_run("shaft")
+    inst = shaft.co_simulation("identify_data", {**p, "theta_L": -run.u0})
+    try:
+        got = [inst.get("omega_m", "omega_L")]
+        for k, tm in enumerate(run.tau_m[:-1]):
+            inst.step(k * H, H, tau_m=float(tm))
+            got.append(inst.get("omega_m", "omega_L"))
+    finally:
+        inst.free()
+    got = np.array(got)
+    scale = np.abs(run.clean["omega_m"]).max()
+    assert np.abs(got[:, 0] - run.clean["omega_m"]).max() < 1e-9 * scale
+    assert np.abs(got[:, 1] - run.clean["omega_L"]).max() < 1e-9 * scale
+
+
 def test_the_runs_cross_the_gap_or_not_as_designed():
     assert clean_run("shaft").switches >= 10
     assert clean_run("belt").switches >= 10
@@ -163,7 +196,8 @@ CASES = [("shaft", key) for key in SENSOR_SETS] + [("belt", "omega_m+omega_L")]
 @pytest.mark.parametrize("model,sensor_key", CASES)
 def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, sensor_key):
     """Each fitted parameter whose predicted 95% half-width is below 30% of its size (the data
-    determine it) is reported identifiable, its interval contains the truth, and the interval's
+    determine it) is reported identifiable, the truth is within its interval widened to 99.9%
+    (WIDEN), and the interval's
     half-width is within a factor 2 of the prediction (the library's σ is estimated from the
     residuals and its linearisation is at the estimate, not the truth: a factor 2 leaves room for
     that and still fails an interval that is uselessly wide or falsely narrow)."""
@@ -184,9 +218,8 @@ def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, 
             continue
         determined += 1
         assert est["identifiable"] is True, (name, est, result["messages"])
+        assert within(est, true), (name, true, est)
         lo, hi = est["ci95"]
-        assert lo <= true <= hi, (name, true, est)
-        assert lo <= est["value"] <= hi
         half = (hi - lo) / 2
         assert 0.5 * predicted[name] <= half <= 2.0 * predicted[name], (name, half, predicted[name])
     # Δ, the stiffness and u0 are determined by every one of these runs (predicted below 30%)
@@ -351,16 +384,15 @@ def test_the_command_answers_as_the_function_and_the_table_as_the_csv(tmp):
 
 
 def test_fit_restricts_the_estimated_parameters(tmp):
-    """--fit Delta,k with J_L, b_L given: only those two are estimated (the others are not
-    reported as estimates) and the truth is inside their intervals."""
+    """--fit Delta,k,u0 with J_L, b_L given: only those three are estimated (the others are not
+    reported as estimates) and the truth is within their intervals (widened to 99.9%)."""
     path = measured_csv(tmp, "shaft", "omega_m+omega_L", seed=5)
     run = clean_run("shaft")
     p = data.rig("shaft")
     result = identify("shaft", path, fit=["Delta", "k", "u0"], J_L=p["J_L"], b_L=p["b_L"])
     assert set(result["estimates"]) == {"Delta", "k", "u0"}
     for name in ("Delta", "k", "u0"):
-        lo, hi = result["estimates"][name]["ci95"]
-        assert lo <= run.truth()[name] <= hi, name
+        assert within(result["estimates"][name], run.truth()[name]), name
     out = subprocess.run([backlash_command(), "identify", "--model", "shaft", str(path), "--fit", "Delta,k,u0",
                           "--json"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
@@ -372,7 +404,8 @@ def test_fit_restricts_the_estimated_parameters(tmp):
 
 def test_excite_writes_a_reversing_schedule_within_the_limit_that_identifies_the_truth(tmp):
     """`backlash excite` writes time,tau_m on a uniform step, within ±limit, reversing; the run it
-    drives (simulated here, by identify_data) identifies Δ and k within their intervals."""
+    drives (simulated here, by identify_data) identifies Δ and k within their intervals (widened
+    to 99.9%)."""
     limit = 2.5
     path = Path(tmp) / "schedule.csv"
     out = subprocess.run([backlash_command(), "excite", "--model", "shaft", "--duration", "3", "--step", "0.01",
@@ -393,8 +426,7 @@ def test_excite_writes_a_reversing_schedule_within_the_limit_that_identifies_the
     for name in ("Delta", "k"):
         est = result["estimates"][name]
         assert est["identifiable"] is True, est
-        lo, hi = est["ci95"]
-        assert lo <= run.truth()[name] <= hi, (name, est)
+        assert within(est, run.truth()[name]), (name, est)
     bad = subprocess.run([backlash_command(), "excite", "--model", "shaft", "--torque-limit", "-1"],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.startswith("error: ") and bad.stderr.count("\n") == 1, bad.stderr
