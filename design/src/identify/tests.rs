@@ -1,0 +1,198 @@
+//! The identification against the physics crate's own stepper: the same trajectory, the
+//! sensitivities against central differences, and a round trip that recovers the truth.
+
+use super::model::{Model, DELTA_INDEX, K_INDEX, P, U0_INDEX};
+use super::*;
+use backlash_physics::{Inputs, PlantState, Stepper};
+
+/// The run of `params` under `tau` (held per sample, step h) from rest with u(0) = u0, by the
+/// physics crate's exact stepper: [θ_m, ω_m, θ_L, ω_L] per sample, angles from the start.
+fn stepper_run(params: &PlantParams, u0: f64, tau: &[f64], h: f64) -> Vec<[f64; 4]> {
+    let plant = Plant::new(*params).unwrap();
+    let r_m = plant.r_m();
+    let mut state = PlantState::new(&plant, u0 / r_m, 0.0, 0.0, 0.0);
+    let mut stepper = Stepper::new(plant);
+    let mut out = Vec::new();
+    for &t in tau {
+        out.push([state.theta_m - u0 / r_m, state.omega_m, state.theta_l, state.omega_l]);
+        stepper.step(&mut state, &Inputs::held(t, 0.0), h, &mut |_| {}).unwrap();
+    }
+    out
+}
+
+fn belt() -> PlantParams {
+    crate::default_params(Form::Belt).unwrap()
+}
+
+fn torque(params: &PlantParams, seconds: f64, h: f64) -> Vec<f64> {
+    excite::schedule(params, seconds, h, None)
+        .unwrap()
+        .into_iter()
+        .map(|(_, t)| t)
+        .collect()
+}
+
+#[test]
+fn the_model_follows_the_physics_stepper() {
+    for (params, seconds) in [(PlantParams::paper_rig(0.775e-3), 10.0), (belt(), 0.3)] {
+        let h = 1e-3;
+        let tau = torque(&params, seconds, h);
+        let g = Model::new(&params, 0.0, vec![]).g();
+        let u0 = 0.3 * g;
+        let reference = stepper_run(&params, u0, &tau, h);
+        let inputs: Vec<[f64; 4]> = tau.iter().map(|&t| [t, 0.0, 0.0, 0.0]).collect();
+        let sim = Model::new(&params, u0, vec![]).simulate(&inputs, h, 0.0).unwrap();
+        assert!(sim.switches > 20, "the run crosses the gap: {}", sim.switches);
+        for i in 0..4 {
+            let scale = reference.iter().map(|x| x[i].abs()).fold(0.0, f64::max);
+            let worst = reference
+                .iter()
+                .zip(&sim.states)
+                .map(|(a, b)| (a[i] - b[i]).abs())
+                .fold(0.0, f64::max);
+            // Two exact solutions: they differ by the round-off of their matrix exponentials and
+            // switch instants, which accumulates at most linearly over the steps.
+            let tol = 64.0 * f64::EPSILON * tau.len() as f64 * scale;
+            assert!(worst <= tol, "state {i}: {worst:e} > {tol:e} (scale {scale:e})");
+        }
+    }
+}
+
+#[test]
+fn the_sensitivities_match_central_differences() {
+    for (params, seconds) in [(PlantParams::paper_rig(0.775e-3), 3.0), (belt(), 0.1)] {
+        let h = 1e-3;
+        let tau = torque(&params, seconds, h);
+        let inputs: Vec<[f64; 4]> = tau.iter().map(|&t| [t, 0.0, 0.0, 0.0]).collect();
+        let base = Model::new(&params, 0.0, vec![]);
+        let mut theta = base.theta;
+        theta[U0_INDEX] = 0.2 * base.g();
+        let all: Vec<usize> = (0..P).collect();
+        let mut with_sens = base.clone().with_theta(&theta);
+        with_sens.sens = all.clone();
+        let sim = with_sens.simulate(&inputs, h, 0.0).unwrap();
+        assert!(sim.switches > 4);
+        for &j in &all {
+            // Central difference: truncation ~ δ² f''' and round-off ~ eps f / δ; with δ = 1e-6 of
+            // the parameter's scale both are below 1e-5 of the sensitivity's scale, while a
+            // missing term (a saltation, a wrong derivative) would be O(1).
+            let scale = if j == U0_INDEX { base.g() } else { theta[j] };
+            let d = 1e-6 * scale;
+            let at = |v: f64| {
+                let mut t = theta;
+                t[j] = v;
+                base.clone().with_theta(&t).simulate(&inputs, h, 0.0).unwrap()
+            };
+            let (plus, minus) = (at(theta[j] + d), at(theta[j] - d));
+            for i in 0..4 {
+                let sens_scale = sim.sens.iter().map(|s| s[j][i].abs()).fold(0.0, f64::max);
+                for k in 0..tau.len() {
+                    let fd = (plus.states[k][i] - minus.states[k][i]) / (2.0 * d);
+                    let err = (fd - sim.sens[k][j][i]).abs();
+                    assert!(
+                        err <= 1e-4 * sens_scale + 1e-12,
+                        "{} state {i} sample {k}: fd {fd:e} vs {:e}",
+                        model::NAMES[j],
+                        sim.sens[k][j][i]
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_vector_field_is_continuous_at_a_switch_so_no_saltation() {
+    // At u = ±g the force of the contact mode is K (u ∓ g) = 0, the free mode's: f⁺ = f⁻, so the
+    // correction (f⁺ − f⁻) dt*/dp vanishes. Check it on the mode matrices at a state on the guard.
+    let params = PlantParams::paper_rig(0.775e-3);
+    let model = Model::new(&params, 0.0, vec![DELTA_INDEX, K_INDEX]);
+    let g = model.g();
+    for sigma in [-1.0, 1.0] {
+        // y with θ_m = σ g (u on the guard), some speeds and inputs.
+        let contact = model.mode_matrix(sigma);
+        let free = model.mode_matrix(0.0);
+        let mut y = nalgebra::DVector::zeros(contact.nrows());
+        y[0] = sigma * g;
+        y[1] = 0.3;
+        y[3] = -0.1;
+        let dim = y.len();
+        y[dim - 5] = 1.5;
+        y[dim - 1] = 1.0;
+        let (a, b) = (&contact * &y, &free * &y);
+        for i in 0..4 {
+            assert!(
+                (a[i] - b[i]).abs() <= 1e-15 * (a[i].abs() + 1.0),
+                "{i}: {} vs {}",
+                a[i],
+                b[i]
+            );
+        }
+    }
+}
+
+/// A measured run: the stepper's trajectory of the truth plus deterministic noise of `noise`
+/// of each signal's spread, as columns.
+fn measured(params: &PlantParams, u0: f64, tau: &[f64], h: f64, noise: f64, outputs: &[usize]) -> Columns {
+    let run = stepper_run(params, u0, tau, h);
+    let mut cols: Columns = vec![
+        ("time".into(), (0..tau.len()).map(|i| i as f64 * h).collect()),
+        ("tau_m".into(), tau.to_vec()),
+    ];
+    let mut seed: u64 = 12345;
+    for &i in outputs {
+        let spread = run.iter().map(|x| x[i].abs()).fold(0.0, f64::max);
+        let values = run
+            .iter()
+            .map(|x| {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let unit = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                x[i] + noise * spread * unit
+            })
+            .collect();
+        cols.push((data::OUTPUTS[i].into(), values));
+    }
+    cols
+}
+
+#[test]
+fn a_round_trip_recovers_the_truth_within_the_interval() {
+    let truth = PlantParams::paper_rig(1.2e-3);
+    let h = 1e-3;
+    let tau = torque(&truth, 10.0, h);
+    let cols = measured(&truth, 0.4e-3, &tau, h, 1e-3, &[0, 2]);
+    // Start from the rig's defaults: Δ 0.775e-3, k 200, J_L 2.55, b_L 0.05 — off by 1.5× in Δ.
+    let request = build(Form::Shaft, &[], None, Vocabulary::Arguments).unwrap();
+    let answer = identify(&request, &cols).unwrap();
+    let truth_of = |i: usize| match i {
+        DELTA_INDEX => 1.2e-3,
+        K_INDEX => 200.0,
+        1 => 2.55,
+        3 => 0.05,
+        _ => 0.4e-3,
+    };
+    for e in &answer.estimates {
+        let (lo, hi) = e.ci95.unwrap();
+        assert!(
+            e.identifiable && lo <= truth_of(e.name) && truth_of(e.name) <= hi,
+            "{e:?}"
+        );
+    }
+}
+
+#[test]
+fn a_run_that_never_reverses_leaves_the_gap_undetermined() {
+    let truth = PlantParams::paper_rig(1e-3);
+    let h = 1e-3;
+    let tau = vec![0.5; 3000];
+    let cols = measured(&truth, -0.5e-3, &tau, h, 1e-4, &[0, 2]);
+    let request = build(Form::Shaft, &[], None, Vocabulary::Arguments).unwrap();
+    let answer = identify(&request, &cols).unwrap();
+    let delta = answer.estimates.iter().find(|e| e.name == DELTA_INDEX).unwrap();
+    assert!(!delta.identifiable && delta.ci95.is_none());
+    assert!(
+        answer.messages.iter().any(|m| m.contains("Delta")),
+        "{:?}",
+        answer.messages
+    );
+}
