@@ -378,7 +378,13 @@ def test_the_command_answers_as_the_function_and_the_table_as_the_csv(tmp):
             assert other["estimates"][name]["identifiable"] == est["identifiable"]
             if est["ci95"] is not None:
                 assert other["estimates"][name]["ci95"] == pytest.approx(est["ci95"], rel=1e-9, abs=1e-15), name
+
+
+def test_a_pandas_frame_is_a_table(tmp):
+    """A DataFrame (pandas is not among the test requirements: skipped without it)."""
     pandas = pytest.importorskip("pandas")
+    cols = data.table(clean_run("shaft"), SENSOR_SETS["omega_m"], seed=12)
+    by_path = identify("shaft", data.write_csv(Path(tmp) / "frame.csv", cols))
     by_frame = identify("shaft", pandas.DataFrame(cols))
     assert by_frame["estimates"]["Delta"]["value"] == pytest.approx(by_path["estimates"]["Delta"]["value"], rel=1e-9)
 
