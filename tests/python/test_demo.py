@@ -230,7 +230,8 @@ def test_the_identification_step_recovers_the_rig_and_answers_the_accuracy(demo)
     assert rows["Delta"]["identifiable"] == rows["k"]["identifiable"] == "True"
     answer = json.loads((out / "identify.json").read_text())
     acc = answer["accuracy"]
-    assert acc["meets"] == (acc["bound_sup_worst"] <= 0.02)
+    assert acc["epsilon"] == 0.02 and acc["meets"] == (acc["bound_sup_worst"] <= 0.02)
+    assert acc["bound_sup_worst"] >= acc["bound_sup_estimate"] > 0
     header = (out / "identify_run.csv").read_text().splitlines()[0]
     assert header == "time,tau_m,omega_m,omega_L"
     assert "accuracy ε = 0.02 m/s" in stdout

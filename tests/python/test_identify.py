@@ -443,34 +443,39 @@ def test_excite_writes_a_reversing_schedule_within_the_limit_that_identifies_the
 
 @pytest.mark.parametrize("factor", [0.5, 2.0])
 def test_accuracy_answer_is_the_bound_at_the_estimate(tmp, shaft, factor):
-    """--accuracy ε: the bound at the estimate is K g ∫|h| of docs/model.md §3 at the estimated
+    """--accuracy ε (fitting Δ, k, J_L and u0, b_L given, so that every parameter of the box is
+    determined): the bound at the estimate is K g ∫|h| of docs/model.md §3 at the estimated
     parameters. It is checked against a computation that does not go through identify: the
     design study's δ_max for the same parameters and ε (bound_sup is linear in Δ, so
-    bound_sup(Δ̂) = ε Δ̂ / δ_max), and, where the answer names its PI gains, the BacklashShaft FMU's
-    own bound_sup with them, both to 1e-6 relative. The worst end of the box is no better than the
+    bound_sup(Δ̂) = ε Δ̂ / δ_max), and the BacklashShaft FMU's own bound_sup with the PI gains the
+    answer names, both to 1e-6 relative. The worst end of the box is no better than the
     estimate, and `meets` is exactly bound_sup_worst <= ε. ε is put at half and twice the bound at
     the truth, so that both answers occur (the box is narrow: Δ and k within a few percent)."""
     path = measured_csv(tmp, "shaft", "omega_m+omega_L", seed=9)
     truth = data.rig("shaft")
     at_truth = backlash_fmu.design("shaft", accuracy=1.0, **truth)
     eps = factor * truth["Delta"] / at_truth["delta_max"]  # ε = factor × bound_sup at the truth
-    out = subprocess.run([backlash_command(), "identify", "--model", "shaft", str(path), "--accuracy", repr(eps),
-                          "--json"], capture_output=True, text=True)
+    out = subprocess.run([backlash_command(), "identify", "--model", "shaft", str(path), "--fit", "Delta,k,J_L,u0",
+                          "--set", f"b_L={truth['b_L']!r}", "--accuracy", repr(eps), "--json"],
+                         capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     answer = json.loads(out.stdout)
     acc = answer["accuracy"]
     est = answer["estimates"]
-    params = {**known("shaft"), **{name: est[name]["value"] for name in ("J_L", "b_L", "k", "Delta")}}
-    gains = {g: acc.get(g, answer.get(g)) for g in ("Kp", "Ki")}
-    gains = gains if None not in gains.values() else {}
+    assert acc["epsilon"] == eps
+    params = {**known("shaft"), "b_L": truth["b_L"], **{name: est[name]["value"] for name in ("J_L", "k", "Delta")}}
+    gains = {"Kp": acc["Kp"], "Ki": acc["Ki"]}
     designed = backlash_fmu.design("shaft", accuracy=eps, **params, **gains)
-    assert acc["bound_sup"] == pytest.approx(eps * params["Delta"] / designed["delta_max"], rel=1e-6)
-    if gains:
-        inst = shaft.co_simulation("sup", {**params, **gains})
-        try:
-            assert acc["bound_sup"] == pytest.approx(inst.get("bound_sup")[0], rel=1e-6)
-        finally:
-            inst.free()
-    assert acc["bound_sup_worst"] >= acc["bound_sup"] * (1 - 1e-12)
+    assert acc["bound_sup_estimate"] == pytest.approx(eps * params["Delta"] / designed["delta_max"], rel=1e-6)
+    # without given gains, identify's are the design study's best-damped ones for the estimate
+    assert (gains["Kp"], gains["Ki"]) == pytest.approx(
+        (backlash_fmu.design("shaft", accuracy=eps, **params)["Kp"], backlash_fmu.design("shaft", accuracy=eps, **params)["Ki"]),
+        rel=1e-9)
+    inst = shaft.co_simulation("sup", {**params, **gains})
+    try:
+        assert acc["bound_sup_estimate"] == pytest.approx(inst.get("bound_sup")[0], rel=1e-6)
+    finally:
+        inst.free()
+    assert acc["bound_sup_worst"] >= acc["bound_sup_estimate"] * (1 - 1e-12)
     assert acc["meets"] == (acc["bound_sup_worst"] <= eps)
     assert acc["meets"] == (factor > 1), acc
