@@ -92,20 +92,24 @@ pub fn run_from_columns(columns: &Columns, web: bool) -> Result<Run, String> {
     if samples < MIN_SAMPLES {
         return Err(format!("{samples} samples: too few, at least {MIN_SAMPLES} are needed"));
     }
-    let step = (time[samples - 1] - time[0]) / (samples - 1) as f64;
     for (i, w) in time.windows(2).enumerate() {
-        let dt = w[1] - w[0];
-        if dt <= 0.0 {
+        if w[1] <= w[0] {
             return Err(format!("row {}, column time: {} does not increase", i + 3, w[1]));
         }
+    }
+    let step = time[1] - time[0];
+    for (i, w) in time.windows(2).enumerate() {
         // Uniform to what a printed time column keeps: 1e-6 of the step and a few ulps of t.
+        let dt = w[1] - w[0];
         if (dt - step).abs() > 1e-6 * step + 8.0 * f64::EPSILON * w[1].abs() {
             return Err(format!(
-                "row {}, column time: step {dt} differs from the run's uniform step {step}",
+                "row {}, column time: step {dt} differs from the first step {step}: the time must be uniform",
                 i + 3
             ));
         }
     }
+    // The step from the whole run: the printed first step carries the rounding of two times.
+    let step = (time[samples - 1] - time[0]) / (samples - 1) as f64;
     let mut inputs = vec![[0.0; 4]; samples];
     for (j, name) in INPUTS.iter().enumerate() {
         if let Some(values) = column(name) {

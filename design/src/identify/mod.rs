@@ -9,6 +9,7 @@
 //!
 //! [`identify`] ties them: request → answer; [`to_json`] and [`to_text`] write it.
 
+pub mod command;
 pub mod data;
 pub mod excite;
 pub mod fit;
