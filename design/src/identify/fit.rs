@@ -176,10 +176,10 @@ pub fn grid_start(p: &Problem, theta: [f64; P], lost_motion: Option<f64>) -> Res
             Some(l) if l > 0.0 => l / alpha,
             _ => 30.0 * theta[DELTA_INDEX].max(1e-12),
         };
-        (0..10).map(|i| top * 10f64.powf(-3.0 * i as f64 / 9.0)).collect()
+        (0..8).map(|i| top * 10f64.powf(-3.0 * i as f64 / 7.0)).collect()
     };
     let stiffnesses: Vec<f64> = if p.fit.contains(&K_INDEX) {
-        [0.25, 0.5, 1.0, 2.0, 4.0].iter().map(|f| f * theta[K_INDEX]).collect()
+        [0.5, 1.0, 2.0].iter().map(|f| f * theta[K_INDEX]).collect()
     } else {
         vec![theta[K_INDEX]]
     };
@@ -208,7 +208,7 @@ pub fn grid_start(p: &Problem, theta: [f64; P], lost_motion: Option<f64>) -> Res
         return Err("no start on the grid gives a finite simulation".into());
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
-    Ok(scored.into_iter().take(3).map(|(_, t)| t).collect())
+    Ok(scored.into_iter().take(2).map(|(_, t)| t).collect())
 }
 
 /// An estimate with its interval and whether the data determine it.

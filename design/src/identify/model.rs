@@ -286,7 +286,7 @@ impl Model {
                     } else {
                         (&mats[idx] * left).exp() * &y
                     };
-                    match self.first_switch(&mats[idx], &y, &next, left, sigma, g, n) {
+                    match self.first_switch(&mats[idx], &y, &next, left, sigma, g) {
                         None => {
                             y = next;
                             break;
@@ -330,7 +330,6 @@ impl Model {
     /// The time in (0, len] at which the trajectory from `y` in mode σ (reaching `end` after
     /// `len`) first crosses the guard that ends the mode, if it does; a graze (u turning back
     /// inside the piece) is checked at the turn.
-    #[allow(clippy::too_many_arguments)]
     fn first_switch(
         &self,
         mat: &DMatrix<f64>,
@@ -339,23 +338,35 @@ impl Model {
         len: f64,
         sigma: f64,
         g: f64,
-        _n: usize,
     ) -> Option<f64> {
         if g == 0.0 {
             return None; // Both flanks are one spring: no switch changes the dynamics.
         }
         let (rm, rl, u0) = (self.r_m, self.r_l, self.theta[U0_INDEX]);
-        // Guards: in contact σ, u − σ g changes sign; free, u − g or u + g does.
-        let gamma = |y: &DVector<f64>| -> f64 {
-            let u = rm * y[0] - rl * y[2] + u0;
+        let u = |y: &DVector<f64>| rm * y[0] - rl * y[2] + u0;
+        // The guard that ends the mode, ≥ 0 inside it and affine in the state: in contact σ,
+        // σ (u − σ g); free, g − u towards the positive flank or u + g towards the negative one.
+        let towards = |y: &DVector<f64>| {
             if sigma != 0.0 {
-                sigma * (u - sigma * g)
+                sigma
+            } else if u(y) > 0.0 {
+                1.0
             } else {
-                (g - u).min(u + g)
+                -1.0
             }
         };
-        let (g0, g1) = (gamma(y), gamma(end));
-        let mut hi = if g1 < 0.0 {
+        let guard = move |side: f64| {
+            move |y: &DVector<f64>| {
+                let u = rm * y[0] - rl * y[2] + u0;
+                if sigma != 0.0 {
+                    sigma * (u - sigma * g)
+                } else {
+                    g - side * u
+                }
+            }
+        };
+        let side = towards(end);
+        let hi = if guard(side)(end) < 0.0 {
             len
         } else {
             // A graze: u' changes sign inside the piece; look at the turning point.
@@ -364,45 +375,80 @@ impl Model {
             if d0 * d1 >= 0.0 {
                 return None;
             }
-            let turn = self.bisect(mat, y, len, |z| du(z) * d0.signum());
-            if gamma(&((mat * turn).exp() * y)) >= 0.0 {
+            // The turn can reach the guard only if the guard's value at the ends is within what
+            // the speed covers over the piece: |γ| ≤ max|u'| len.
+            let reach = d0.abs().max(d1.abs()) * len;
+            let side = towards(y);
+            if guard(side)(y).min(guard(side)(end)) > reach {
                 return None;
             }
-            turn
+            let turn = self.root(mat, y, len, |z| du(z) * d0.signum());
+            let at_turn = self.propagate_small(mat, y, turn);
+            let side = towards(&at_turn);
+            if guard(side)(&at_turn) >= 0.0 {
+                return None;
+            }
+            return Some(self.root(mat, y, turn, guard(side)).max(f64::MIN_POSITIVE));
         };
-        let _ = g0;
-        hi = self.bisect(mat, y, hi, gamma);
-        Some(hi.max(f64::MIN_POSITIVE))
+        Some(self.root(mat, y, hi, guard(side)).max(f64::MIN_POSITIVE))
     }
 
-    /// The first root in (0, hi] of a function of the state along e^{M s} y that is ≥ 0 at 0 and
-    /// < 0 at `hi`, to round-off (bisection, 60 halvings at most).
-    fn bisect(&self, mat: &DMatrix<f64>, y: &DVector<f64>, hi: f64, f: impl Fn(&DVector<f64>) -> f64) -> f64 {
-        // A small system suffices: x, inputs and 1 do not depend on the sensitivities.
+    /// e^{M s} y on the state, inputs and 1 only (they do not depend on the sensitivities), as a
+    /// full-length vector with zero sensitivities.
+    fn propagate_small(&self, mat: &DMatrix<f64>, y: &DVector<f64>, s: f64) -> DVector<f64> {
         let n = self.n();
         let full = mat.nrows();
         let keep: Vec<usize> = (0..n).chain(full - 5..full).collect();
         let small = DMatrix::from_fn(keep.len(), keep.len(), |i, j| mat[(keep[i], keep[j])]);
         let ys = DVector::from_iterator(keep.len(), keep.iter().map(|&i| y[i]));
-        let at = |s: f64| {
-            let z = (&small * s).exp() * &ys;
+        let z = (&small * s).exp() * &ys;
+        let mut out = DVector::zeros(full);
+        for (i, &k) in keep.iter().enumerate() {
+            out[k] = z[i];
+        }
+        out
+    }
+
+    /// The root in (0, hi] of an affine function `f` of the state along e^{M s} y that is ≥ 0
+    /// at 0 and < 0 at `hi`, to round-off: Newton steps (f' = f(M z) − f(0), f being affine)
+    /// kept inside a shrinking bracket, bisection where Newton would leave it.
+    fn root(&self, mat: &DMatrix<f64>, y: &DVector<f64>, hi: f64, f: impl Fn(&DVector<f64>) -> f64) -> f64 {
+        let n = self.n();
+        let full = mat.nrows();
+        let keep: Vec<usize> = (0..n).chain(full - 5..full).collect();
+        let small = DMatrix::from_fn(keep.len(), keep.len(), |i, j| mat[(keep[i], keep[j])]);
+        let ys = DVector::from_iterator(keep.len(), keep.iter().map(|&i| y[i]));
+        let widen = |z: &DVector<f64>| {
             let mut out = DVector::zeros(full);
             for (i, &k) in keep.iter().enumerate() {
                 out[k] = z[i];
             }
-            f(&out)
+            out
         };
+        let offset = f(&DVector::zeros(full));
         let (mut lo, mut hi) = (0.0_f64, hi);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if mid <= lo || mid >= hi {
-                break;
-            }
-            if at(mid) < 0.0 {
-                hi = mid;
+        let mut s = hi;
+        for _ in 0..100 {
+            let z = (&small * s).exp() * &ys;
+            let value = f(&widen(&z));
+            if value < 0.0 {
+                hi = s;
             } else {
-                lo = mid;
+                lo = s;
             }
+            if value == 0.0 || hi - lo <= 4.0 * f64::EPSILON * hi {
+                return s;
+            }
+            let rate = f(&widen(&(&small * &z))) - offset;
+            let newton = s - value / rate;
+            if (newton - s).abs() <= 4.0 * f64::EPSILON * s {
+                return newton.clamp(lo, hi);
+            }
+            s = if newton.is_finite() && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
         }
         hi
     }
