@@ -191,8 +191,7 @@ pub fn identify(command: &str, args: &[String]) -> Result<String, CliError> {
         .map(|(_, v)| v.split(',').map(str::to_string).collect());
     let refuse = |m: String| CliError::new(command, m);
     let request = build(form, &settings, fit.as_deref(), Vocabulary::Flags).map_err(refuse)?;
-    let text = std::fs::read_to_string(file).map_err(|e| refuse(format!("{file}: {e}")))?;
-    let columns = super::data::parse_csv(&text).map_err(|m| refuse(format!("{file}: {m}")))?;
+    let columns = super::data::read_csv(file).map_err(refuse)?;
     let answer = identify_run(&request, &columns).map_err(|m| refuse(format!("{file}: {m}")))?;
     Ok(if parsed.json {
         to_json(&answer)

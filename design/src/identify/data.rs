@@ -58,6 +58,12 @@ pub fn parse_csv(text: &str) -> Result<Columns, String> {
     Ok(columns)
 }
 
+/// Reads the CSV file at `path` into columns; a refusal names the file.
+pub fn read_csv(path: &str) -> Result<Columns, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    parse_csv(&text).map_err(|m| format!("{path}: {m}"))
+}
+
 /// Checks a table and makes it a run: `time` and `tau_m` present, every column known and given
 /// once, of one length, finite; `time` increasing on a uniform step; one measured output at
 /// least; `web` allows the web's `v_in`, `T_in` and `T`.
