@@ -198,9 +198,10 @@ def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, 
     """Each fitted parameter whose predicted 95% half-width is below 30% of its size (the data
     determine it) is reported identifiable, the truth is within its interval widened to 99.9%
     (WIDEN), and the interval's
-    half-width is within a factor 2 of the prediction (the library's σ is estimated from the
-    residuals and its linearisation is at the estimate, not the truth: a factor 2 leaves room for
-    that and still fails an interval that is uselessly wide or falsely narrow)."""
+    half-width is within 25% of the prediction: the library's σ is estimated from the residuals
+    of this one run (300 samples an output: a relative spread of about 4%, so 25% is six of
+    those) and its linearisation is at the estimate, not the truth (a few % here); an interval
+    uselessly wide or falsely narrow fails."""
     run = clean_run(model)
     result = identify(model, measured_csv(tmp, model, sensor_key, seed=7))
     predicted = predicted_halfwidths(model, sensor_key)
@@ -221,7 +222,7 @@ def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, 
         assert within(est, true), (name, true, est)
         lo, hi = est["ci95"]
         half = (hi - lo) / 2
-        assert 0.5 * predicted[name] <= half <= 2.0 * predicted[name], (name, half, predicted[name])
+        assert 0.75 * predicted[name] <= half <= 1.25 * predicted[name], (name, half, predicted[name])
     # Δ, the stiffness and u0 are determined by every one of these runs (predicted below 30%)
     assert determined >= 3
     for name in ("Delta", stiffness(model), "u0"):
@@ -251,7 +252,9 @@ def test_the_binomial_floor():
 def test_intervals_cover_the_truth_over_repeated_noise_draws(tmp):
     """30 independent noise draws on one clean run (motor and load speed): for each determined
     parameter the number of intervals holding the truth is at least binomial_floor(30) = 24, and
-    not all intervals may be useless: the mean half-width is within a factor 2 of the prediction."""
+    the intervals are not wider than they need be to get there: their mean half-width is within
+    10% of the prediction (averaged over 30 runs the spread of the residual σ is below 1%; the
+    linearisation at the estimate rather than the truth moves it by a few %)."""
     model, key = "shaft", "omega_m+omega_L"
     run = clean_run(model)
     predicted = predicted_halfwidths(model, key)
@@ -269,7 +272,7 @@ def test_intervals_cover_the_truth_over_repeated_noise_draws(tmp):
     floor = binomial_floor(DRAWS)
     for name in ("Delta", "k", "J_L", "u0"):
         assert hits[name] >= floor, (name, hits[name], floor)
-        assert 0.5 * predicted[name] <= np.mean(widths[name]) <= 2.0 * predicted[name], name
+        assert 0.9 * predicted[name] <= np.mean(widths[name]) <= 1.1 * predicted[name], name
 
 
 # --- an unidentifiable run ------------------------------------------------------------------------
