@@ -208,6 +208,26 @@ pub fn grid_start(p: &Problem, theta: [f64; P], lost_motion: Option<f64>) -> Res
         return Err("no start on the grid gives a finite simulation".into());
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // A finer scan of Δ around the best grid point (between its neighbours on the grid): the
+    // basin of the true gap is narrow when the drive rattles through the gap many times.
+    if p.fit.contains(&DELTA_INDEX) && deltas.len() > 1 {
+        let best = scored[0].1;
+        let ratio = deltas[0] / deltas[1];
+        for i in 1..12 {
+            let d = best[DELTA_INDEX] * ratio.powf(-1.0 + 2.0 * i as f64 / 12.0);
+            for &pos in positions {
+                let mut t = best;
+                t[DELTA_INDEX] = d;
+                if pos.is_finite() {
+                    t[U0_INDEX] = pos * alpha * d;
+                }
+                if let Ok(e) = p.evaluate(&t, &[]) {
+                    scored.push((e.cost, t));
+                }
+            }
+        }
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
     Ok(scored.into_iter().take(2).map(|(_, t)| t).collect())
 }
 

@@ -196,3 +196,58 @@ fn a_run_that_never_reverses_leaves_the_gap_undetermined() {
         answer.messages
     );
 }
+
+#[test]
+fn the_belt_round_trip_recovers_the_truth_within_the_interval() {
+    let truth = belt().with_half_gap(8e-5);
+    let h = 1e-3;
+    let tau = torque(&truth, 0.5, h);
+    let g = Model::new(&truth, 0.0, vec![]).g();
+    let cols = measured(&truth, -0.3 * g, &tau, h, 1e-4, &[0, 2]);
+    // Start from BacklashBelt's defaults: Δ = 5e-5.
+    let request = build(Form::Belt, &[], None, Vocabulary::Arguments).unwrap();
+    let answer = identify(&request, &cols).unwrap();
+    let truth_of = |i: usize| match i {
+        DELTA_INDEX => 8e-5,
+        K_INDEX => 2e5,
+        1 => 5e-3,
+        3 => 1e-3,
+        _ => -0.3 * g,
+    };
+    for e in &answer.estimates {
+        let (lo, hi) = e.ci95.unwrap_or((f64::NAN, f64::NAN));
+        assert!(
+            e.identifiable && lo <= truth_of(e.name) && truth_of(e.name) <= hi,
+            "{e:?} {:?}",
+            answer.messages
+        );
+    }
+}
+
+#[test]
+fn a_chaotic_run_is_refused_with_the_reason() {
+    // The undamped belt (b_m = b_L = 0) rattling in its gap under a light reversing torque.
+    let truth = PlantParams {
+        b_m: 0.0,
+        b_l: 0.0,
+        ..belt()
+    };
+    let h = 1e-3;
+    let tau = torque(&truth, 3.0, h).iter().map(|t| 0.05 * t).collect::<Vec<_>>();
+    let cols = measured(&truth, 0.0, &tau, h, 0.0, &[0, 2]);
+    let settings = [("b_m", 0.0), ("b_L", 0.0)].map(|(name, value)| Setting {
+        name,
+        label: name,
+        text: "0".into(),
+        value,
+    });
+    let request = build(
+        Form::Belt,
+        &settings,
+        Some(&["Delta".to_string(), "u0".to_string()]),
+        Vocabulary::Arguments,
+    )
+    .unwrap();
+    let refusal = identify(&request, &cols).unwrap_err();
+    assert!(refusal.contains("chaotic"), "{refusal}");
+}
