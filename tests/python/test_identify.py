@@ -55,9 +55,25 @@ def stiffness(model: str) -> str:
     return "k" if model == "shaft" else "K_b"
 
 
+# The drives the runs are made of. The shaft's is not BacklashShaft's default (k 200, J_L 2.55,
+# b_L 0.05, Δ 0.775 mm: where the fit starts), so that a fit which stays where it starts fails;
+# J_m and b_m are the defaults (the command lines below give no --set for them).
+RIGS = {"shaft": {**data.rig("shaft"), "k": 150.0, "J_L": 3.2, "b_L": 0.1, "Delta": 2.0e-3},
+        "belt": data.rig("belt")}
+# BacklashBelt's defaults are another, small drive (J_L 0.005 kg.m2, K_b 2e5 N/m, 500 and 10 times
+# off the belt rig's): its fits are given starts within a factor 2 of the truth (as `--set NAME=VALUE`
+# gives the start of a fitted parameter). test_a_fit_far_from_its_start_is_right_or_says_so is
+# about starting from the defaults.
+STARTS = {"shaft": {}, "belt": {"K_b": 3.0e4, "J_L": 1.5, "b_L": 0.1}}
+
+
+def rig(model: str) -> dict:
+    return dict(RIGS[model])
+
+
 def known(model: str) -> dict:
     """The parameters not fitted, given explicitly (the library's defaults are not relied on)."""
-    p = data.rig(model)
+    p = rig(model)
     fitted = {"Delta", stiffness(model), "J_L", "b_L"}
     return {k: v for k, v in p.items() if k not in fitted}
 
@@ -68,7 +84,7 @@ def gap(model: str, p: dict) -> float:
 
 @functools.cache
 def clean_run(model: str, kind: str = "reversing") -> data.Run:
-    p = data.rig(model)
+    p = rig(model)
     amplitude = 2.0
     if kind == "reversing":
         tau = data.reversing_steps(N, H, amplitude, period=1.0, multisine=1.0, seed=1)
@@ -94,32 +110,38 @@ def noise_variance(sensors: Sensors, name: str) -> float:
     return sensors.angle_sigma**2 + q**2 / 12
 
 
-@functools.cache
-def predicted_halfwidths(model: str, sensor_key: str) -> dict:
-    """Independent prediction of the 95% half-widths: 1.96 sqrt(diag(F⁻¹)) with the Fisher
-    information F = Σ_outputs SᵀS / σ², S the sensitivities of the clean outputs to the fitted
-    parameters by central differences of this file's simulator (relative step 1e-3)."""
-    run = clean_run(model)
-    sensors = SENSOR_SETS[sensor_key]
-    truth = run.truth()
-    names = list(truth)
-    cols = {name: [] for name in sensors.outputs}
+def fisher_halfwidths(model: str, tau, params: dict, u0: float, variances: dict) -> dict:
+    """Independent 95% half-widths of the fitted parameters (Delta, the stiffness, J_L, b_L, u0):
+    1.96 sqrt(diag(F⁻¹)) with the Fisher information F = Σ_outputs SᵀS / σ², S the sensitivities
+    of the outputs (`variances`: output -> σ²) at `params`, `u0` by central differences of this
+    file's simulator (relative step 1e-3; the library's are dual numbers on its exact stepping)."""
+    names = ["Delta", stiffness(model), "J_L", "b_L", "u0"]
+    scale = {**params, "u0": gap(model, params)}
+    cols = {out: [] for out in variances}
     for name in names:
-        step = 1e-3 * (abs(truth[name]) if name != "u0" else gap(model, run.params))
+        step = 1e-3 * abs(scale[name])
         sims = []
         for sign in (1, -1):
-            p = dict(run.params)
-            u0 = run.u0
+            p, start = dict(params), u0
             if name == "u0":
-                u0 += sign * step
+                start += sign * step
             else:
                 p[name] += sign * step
-            sims.append(data.simulate(model, p, run.tau_m, H, u0))
-        for out in sensors.outputs:
+            sims.append(data.simulate(model, p, tau, H, start))
+        for out in variances:
             cols[out].append((sims[0].clean[out] - sims[1].clean[out]) / (2 * step))
-    fisher = sum(np.array(cols[out]) @ np.array(cols[out]).T / noise_variance(sensors, out) for out in sensors.outputs)
+    fisher = sum(np.array(cols[out]) @ np.array(cols[out]).T / var for out, var in variances.items())
     cov = np.linalg.inv(fisher)
     return {name: Z95 * math.sqrt(cov[i, i]) for i, name in enumerate(names)}
+
+
+@functools.cache
+def predicted_halfwidths(model: str, sensor_key: str) -> dict:
+    """The half-widths expected at the truth, with the sensors' known noise."""
+    run = clean_run(model)
+    sensors = SENSOR_SETS[sensor_key]
+    return fisher_halfwidths(model, run.tau_m, run.params, run.u0,
+                             {out: noise_variance(sensors, out) for out in sensors.outputs})
 
 
 @functools.cache
@@ -135,7 +157,7 @@ def tmp(tmp_path_factory) -> str:
 
 
 def identify(model: str, path, **kw) -> dict:
-    return backlash_fmu.identify(model, path, **{**known(model), **kw})
+    return backlash_fmu.identify(model, path, **{**known(model), **STARTS[model], **kw})
 
 
 # --- the simulator itself, before it is trusted as the truth -----------------------------------
@@ -145,7 +167,7 @@ def test_the_data_maker_follows_the_closed_form_until_first_contact():
     """From rest inside the gap the motor runs alone: ω_m = (τ/b_m)(1 − e^(−b_m t/J_m)) and the load
     stays still, until u = u0 + θ_m reaches g. The simulator must match that to 1e-9 relative
     (its tolerance is 1e-11), and show the load moving only after the computed contact time."""
-    p = data.rig("shaft")
+    p = rig("shaft")
     tau = 2.0
     run = data.simulate("shaft", p, np.full(N, tau), H, 0.4 * p["Delta"])
     t = run.time
@@ -163,7 +185,7 @@ def test_the_data_maker_agrees_with_the_fmu(shaft):
     """The same run through the BacklashShaft FMU (exact stepping, θ_L's start value −u0): the
     speeds agree to 1e-9 of their range. A check of this simulator and of the u0 convention
     (u(0) = θ_m(0) − θ_L(0)); measured agreement 6e-14."""
-    p = data.rig("shaft")
+    p = rig("shaft")
     run = clean_run("shaft")
     inst = shaft.co_simulation("identify_data", {**p, "theta_L": -run.u0})
     try:
@@ -196,12 +218,14 @@ CASES = [("shaft", key) for key in SENSOR_SETS] + [("belt", "omega_m+omega_L")]
 @pytest.mark.parametrize("model,sensor_key", CASES)
 def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, sensor_key):
     """Each fitted parameter whose predicted 95% half-width is below 30% of its size (the data
-    determine it) is reported identifiable, the truth is within its interval widened to 99.9%
-    (WIDEN), and the interval's
-    half-width is within 25% of the prediction: the library's σ is estimated from the residuals
-    of this one run (300 samples an output: a relative spread of about 4%, so 25% is six of
-    those) and its linearisation is at the estimate, not the truth (a few % here); an interval
-    uselessly wide or falsely narrow fails."""
+    determine it) is reported identifiable and the truth is within its interval widened to 99.9%
+    (WIDEN). The interval's half-width is the linearised one: it must equal, within 3%, the
+    Fisher half-width computed here at the reported estimate with the reported residual rms as
+    the noise level (measured: 0.4% apart, the library's degrees-of-freedom correction
+    sqrt(n/(n-5)); the rest is the central differences), so the library's sensitivities are
+    checked against finite differences of an independent simulator. The residual rms must be
+    the noise level the data were made with, within 20% (300 samples an output: its spread is
+    about 4%)."""
     run = clean_run(model)
     result = identify(model, measured_csv(tmp, model, sensor_key, seed=7))
     predicted = predicted_halfwidths(model, sensor_key)
@@ -211,6 +235,10 @@ def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, 
     for out, rms in result["residual_rms"].items():
         # a good fit leaves the noise: rms within 20% of its standard deviation (300 samples)
         assert rms == pytest.approx(math.sqrt(noise_variance(SENSOR_SETS[sensor_key], out)), rel=0.2), out
+    ests = result["estimates"]
+    at_estimate = fisher_halfwidths(
+        model, run.tau_m, {**run.params, **{n: ests[n]["value"] for n in ("Delta", stiffness(model), "J_L", "b_L")}},
+        ests["u0"]["value"], {out: rms**2 for out, rms in result["residual_rms"].items()})
     determined = 0
     for name, true in run.truth().items():
         est = result["estimates"][name]
@@ -222,7 +250,7 @@ def test_recovers_the_truth_within_intervals_of_the_predicted_width(tmp, model, 
         assert within(est, true), (name, true, est)
         lo, hi = est["ci95"]
         half = (hi - lo) / 2
-        assert 0.75 * predicted[name] <= half <= 1.25 * predicted[name], (name, half, predicted[name])
+        assert 0.97 * at_estimate[name] <= half <= 1.03 * at_estimate[name], (name, half, at_estimate[name])
     # Δ, the stiffness and u0 are determined by every one of these runs (predicted below 30%)
     assert determined >= 3
     for name in ("Delta", stiffness(model), "u0"):
@@ -252,9 +280,9 @@ def test_the_binomial_floor():
 def test_intervals_cover_the_truth_over_repeated_noise_draws(tmp):
     """30 independent noise draws on one clean run (motor and load speed): for each determined
     parameter the number of intervals holding the truth is at least binomial_floor(30) = 24, and
-    the intervals are not wider than they need be to get there: their mean half-width is within
-    10% of the prediction (averaged over 30 runs the spread of the residual σ is below 1%; the
-    linearisation at the estimate rather than the truth moves it by a few %)."""
+    the intervals are not so wide that coverage comes cheap: their mean half-width is within
+    0.8 to 1.5 times the Fisher half-width at the truth (each run's interval is linearised at its
+    own estimate, where the contact pattern differs; measured 1.00 to 1.18 on this rig)."""
     model, key = "shaft", "omega_m+omega_L"
     run = clean_run(model)
     predicted = predicted_halfwidths(model, key)
@@ -272,7 +300,33 @@ def test_intervals_cover_the_truth_over_repeated_noise_draws(tmp):
     floor = binomial_floor(DRAWS)
     for name in ("Delta", "k", "J_L", "u0"):
         assert hits[name] >= floor, (name, hits[name], floor)
-        assert 0.9 * predicted[name] <= np.mean(widths[name]) <= 1.1 * predicted[name], name
+        assert 0.8 * predicted[name] <= np.mean(widths[name]) <= 1.5 * predicted[name], name
+
+
+@pytest.mark.parametrize("fit", [["K_b"], ["J_L"], None])
+def test_a_fit_far_from_its_start_is_right_or_says_so(tmp, fit):
+    """The belt rig's run fitted from BacklashBelt's defaults (K_b 10 times, J_L 500 times off the
+    truth), every other parameter given its true value: the answer is right (the truth within
+    the widened intervals), or refused (ValueError), or says so (a fitted parameter not
+    identifiable, or a message); never a confident wrong number (spec §13). A fit stuck far from
+    the data shows in its residuals: their rms is checked against the noise (5 times it)."""
+    model = "belt"
+    run = clean_run(model)
+    truth = run.truth()
+    given = {**rig(model), "u0": truth["u0"]}
+    names = fit or list(truth)
+    given = {k: v for k, v in given.items() if k not in names}
+    path = measured_csv(tmp, model, "omega_m+omega_L", seed=7)
+    try:
+        result = backlash_fmu.identify(model, path, fit=fit, **given)
+    except ValueError:
+        return
+    ests = result["estimates"]
+    right = all(ests[n]["ci95"] is not None and within(ests[n], truth[n]) for n in names)
+    fitted_to_noise = all(rms < 5 * math.sqrt(noise_variance(SENSOR_SETS["omega_m+omega_L"], out))
+                          for out, rms in result["residual_rms"].items())
+    says_so = result["messages"] or not all(ests[n]["identifiable"] for n in names)
+    assert (right and fitted_to_noise) or says_so, (ests, result["residual_rms"], truth)
 
 
 # --- an unidentifiable run ------------------------------------------------------------------------
@@ -397,7 +451,7 @@ def test_fit_restricts_the_estimated_parameters(tmp):
     reported as estimates) and the truth is within their intervals (widened to 99.9%)."""
     path = measured_csv(tmp, "shaft", "omega_m+omega_L", seed=5)
     run = clean_run("shaft")
-    p = data.rig("shaft")
+    p = rig("shaft")
     result = identify("shaft", path, fit=["Delta", "k", "u0"], J_L=p["J_L"], b_L=p["b_L"])
     assert set(result["estimates"]) == {"Delta", "k", "u0"}
     for name in ("Delta", "k", "u0"):
@@ -427,7 +481,7 @@ def test_excite_writes_a_reversing_schedule_within_the_limit_that_identifies_the
     assert np.allclose(np.diff(t), 0.01, rtol=1e-6)
     assert np.all(np.abs(tau) <= limit * (1 + 1e-12))
     assert np.max(tau) > 0.2 * limit and np.min(tau) < -0.2 * limit  # it reverses
-    p = data.rig("shaft")
+    p = rig("shaft")
     run = data.simulate("shaft", p, tau, t[1] - t[0], 0.4 * p["Delta"])
     assert run.switches >= 4  # the gap is crossed both ways
     cols = data.table(run, SENSOR_SETS["omega_m+omega_L"], seed=21)
@@ -455,7 +509,7 @@ def test_accuracy_answer_is_the_bound_at_the_estimate(tmp, shaft, factor):
     estimate, and `meets` is exactly bound_sup_worst <= ε. ε is put at half and twice the bound at
     the truth, so that both answers occur (the box is narrow: Δ and k within a few percent)."""
     path = measured_csv(tmp, "shaft", "omega_m+omega_L", seed=9)
-    truth = data.rig("shaft")
+    truth = rig("shaft")
     at_truth = backlash_fmu.design("shaft", accuracy=1.0, **truth)
     eps = factor * truth["Delta"] / at_truth["delta_max"]  # ε = factor × bound_sup at the truth
     out = subprocess.run([backlash_command(), "identify", "--model", "shaft", str(path), "--fit", "Delta,k,J_L,u0",
