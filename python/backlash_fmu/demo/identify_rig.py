@@ -127,6 +127,7 @@ def run(out: Path, short: bool, archive: Path | None = None) -> int:
         rows.append({"parameter": name, "true": truth[name], "estimate": est["value"],
                      "ci95_lo": None if ci is None else ci[0], "ci95_hi": None if ci is None else ci[1],
                      "identifiable": est["identifiable"], "inside": inside})
+    print("inside: the true value within the 95% interval (expected of 19 parameters in 20, not of all)")
     print("residual rms: " + ", ".join(f"{k} {v:.3g}" for k, v in answer["residual_rms"].items())
           + f" (noise σ {SPEED_SIGMA:g} m/s)")
     for message in answer["messages"]:
