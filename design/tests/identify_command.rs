@@ -141,3 +141,24 @@ fn bad_data_gives_one_error_line_naming_it_and_status_2() {
         );
     }
 }
+
+#[test]
+fn the_commands_are_listed_and_explain_themselves() {
+    let out = backlash(&["--help"]);
+    let usage = text(&out.stdout);
+    assert!(
+        usage.contains("\n  identify  ") && usage.contains("\n  excite    "),
+        "{usage}"
+    );
+    for (args, first) in [
+        (
+            &["identify", "--help"][..],
+            "usage: backlash identify --model shaft|belt|web FILE",
+        ),
+        (&["excite", "-h"], "usage: backlash excite --model shaft|belt|web"),
+    ] {
+        let out = backlash(args);
+        assert_eq!(out.status.code(), Some(0), "{args:?}");
+        assert!(text(&out.stdout).starts_with(first), "{args:?}: {}", text(&out.stdout));
+    }
+}

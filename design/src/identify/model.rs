@@ -1,7 +1,7 @@
 //! The exact model of a measured run and its sensitivities (docs/model.md §11).
 //!
-//! State x = [θ_m, ω_m, θ_L, ω_L] (and T on the web), angles from the start, u = r_m θ_m − r_L θ_L
-//! + u0. In each contact mode the plant is affine, x' = A x + B w + c, with w the held inputs.
+//! State x = [θ_m, ω_m, θ_L, ω_L] (and T on the web), angles from the start, and
+//! u = u0 + r_m θ_m − r_L θ_L. In each contact mode the plant is affine, x' = A x + B w + c, with w the held inputs.
 //! The sensitivities S_j = ∂x/∂p_j obey S_j' = A S_j + A_j x + B_j w + c_j, affine too, so the
 //! state and its sensitivities together are one linear system y' = M y, stepped exactly by
 //! e^{M s}. A, B, c and their parameter derivatives A_j, B_j, c_j come from the right-hand side

@@ -251,3 +251,51 @@ fn a_chaotic_run_is_refused_with_the_reason() {
     let refusal = identify(&request, &cols).unwrap_err();
     assert!(refusal.contains("chaotic"), "{refusal}");
 }
+
+#[test]
+fn the_web_round_trip_recovers_the_truth_within_the_interval() {
+    // BacklashWeb's drive pulling its film span, still upstream web (v_in = T_in = 0): the span's
+    // tension is a fifth state, measured beside the angles.
+    let request = build(Form::Web, &[], None, Vocabulary::Arguments).unwrap();
+    let truth = request.params.with_half_gap(8e-5);
+    let h = 1e-3;
+    let plain = PlantParams { web: None, ..truth };
+    let tau = torque(&plain, 0.5, h);
+    let plant = Plant::new(truth).unwrap();
+    let g = Model::new(&truth, 0.0, vec![]).g();
+    let u0 = 0.2 * g;
+    let mut state = PlantState::new(&plant, u0 / plant.r_m(), 0.0, 0.0, 0.0);
+    let mut stepper = Stepper::new(plant);
+    let (mut tm, mut tl, mut tt) = (Vec::new(), Vec::new(), Vec::new());
+    for &t in &tau {
+        tm.push(state.theta_m - u0 / plant.r_m());
+        tl.push(state.theta_l);
+        tt.push(state.tension);
+        stepper.step(&mut state, &Inputs::held(t, 0.0), h, &mut |_| {}).unwrap();
+    }
+    let cols: Columns = vec![
+        ("time".into(), (0..tau.len()).map(|i| i as f64 * h).collect()),
+        ("tau_m".into(), tau.clone()),
+        ("theta_m".into(), tm),
+        ("theta_L".into(), tl),
+        ("T".into(), tt),
+    ];
+    let answer = identify(&request, &cols).unwrap();
+    let truth_of = |i: usize| match i {
+        DELTA_INDEX => 8e-5,
+        K_INDEX => 2e5,
+        1 => 5e-3,
+        3 => 1e-3,
+        _ => u0,
+    };
+    for e in &answer.estimates {
+        let (lo, hi) = e.ci95.unwrap_or((f64::NAN, f64::NAN));
+        // Noise-free data: the interval is the round-off's; the estimate within 1e-6 of the truth.
+        let close = (e.value - truth_of(e.name)).abs() <= 1e-6 * truth_of(e.name).abs();
+        assert!(
+            e.identifiable && (close || (lo <= truth_of(e.name) && truth_of(e.name) <= hi)),
+            "{e:?} {:?}",
+            answer.messages
+        );
+    }
+}
