@@ -299,3 +299,24 @@ fn the_web_round_trip_recovers_the_truth_within_the_interval() {
         );
     }
 }
+
+#[test]
+fn a_gap_near_zero_gets_the_profile_interval() {
+    // Δ = 2e-6 against angles that swing by 1e-2: the linearised interval reaches 0, so Δ's
+    // interval is the profile of the cost, which must still hold the truth.
+    let truth = PlantParams::paper_rig(2e-6);
+    let h = 1e-3;
+    let tau = torque(&PlantParams::paper_rig(0.775e-3), 10.0, h);
+    let cols = measured(&truth, 0.0, &tau, h, 1e-3, &[0, 2]);
+    let fit = ["Delta", "k", "u0"].map(String::from);
+    let request = build(Form::Shaft, &[], Some(&fit), Vocabulary::Arguments).unwrap();
+    let answer = identify(&request, &cols).unwrap();
+    let delta = answer.estimates.iter().find(|e| e.name == DELTA_INDEX).unwrap();
+    assert!(
+        answer.messages.iter().any(|m| m.contains("profile")),
+        "{:?}",
+        answer.messages
+    );
+    let (lo, hi) = delta.ci95.unwrap();
+    assert!(delta.identifiable && lo == 0.0 && 2e-6 <= hi, "{delta:?}");
+}
