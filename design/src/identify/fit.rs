@@ -3,7 +3,7 @@
 //! cost; identifiability from the Jacobian's conditioning and the flanks the run visits.
 
 use super::data::Run;
-use super::model::{Model, Simulation, DELTA_INDEX, K_INDEX, NAMES, P, U0_INDEX};
+use super::model::{Model, Simulation, DELTA_INDEX, K_INDEX, P, U0_INDEX};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use std::cell::Cell;
 
@@ -243,44 +243,62 @@ pub struct Estimate {
 /// Linearised 95 % intervals from s² (JᵀJ)⁻¹ and the parameters the Jacobian does not
 /// determine: the fitted columns scaled to unit length, an eigenvalue of their Gram matrix
 /// below 1e-10 of the largest marks the parameters loading on its eigenvector.
-pub fn intervals(fit: &[usize], theta: &[f64; P], e: &Evaluation, dof: usize) -> (Vec<Estimate>, Vec<(usize, String)>) {
+pub fn intervals(
+    fit: &[usize],
+    theta: &[f64; P],
+    e: &Evaluation,
+    dof: usize,
+    name: impl Fn(usize) -> &'static str,
+) -> (Vec<Estimate>, Vec<(usize, String)>) {
     let m = fit.len();
     let s2 = 2.0 * e.cost / dof.max(1) as f64;
-    let scale: Vec<f64> = (0..m).map(|i| e.jtj[(i, i)].sqrt().max(f64::MIN_POSITIVE)).collect();
+    // A column of zeros (the outputs do not depend on the parameter) keeps scale 1: its zero
+    // eigenvalue then marks it below.
+    let scale: Vec<f64> = (0..m)
+        .map(|i| {
+            let norm = e.jtj[(i, i)].sqrt();
+            if norm > 0.0 && norm.is_finite() {
+                norm
+            } else {
+                1.0
+            }
+        })
+        .collect();
     let c = DMatrix::from_fn(m, m, |i, j| e.jtj[(i, j)] / (scale[i] * scale[j]));
     let eig = SymmetricEigen::new(c.clone());
     let top = eig.eigenvalues.max();
     let mut weak = vec![false; m];
     let mut reasons = Vec::new();
     for (k, &lam) in eig.eigenvalues.iter().enumerate() {
-        if lam < 1e-10 * top {
+        if !(lam >= 1e-10 * top && top > 0.0) {
             let v = eig.eigenvectors.column(k);
             let involved: Vec<usize> = (0..m).filter(|&i| v[i].abs() > 0.1).collect();
             for &i in &involved {
                 weak[i] = true;
             }
-            let names: Vec<&str> = involved.iter().map(|&i| NAMES[fit[i]]).collect();
+            let names: Vec<&str> = involved.iter().map(|&i| name(fit[i])).collect();
             for &i in &involved {
-                reasons.push((
-                    fit[i],
+                let why = if involved.len() == 1 {
+                    "the outputs of this run do not depend on it".to_string()
+                } else {
                     format!(
-                        "{} is not determined by the data: the sensitivities of {} are linearly dependent on this run",
-                        NAMES[fit[i]],
+                        "the sensitivities of {} are linearly dependent on this run",
                         names.join(", ")
-                    ),
-                ));
+                    )
+                };
+                reasons.push((fit[i], format!("{} is not determined by the data: {why}", name(fit[i]))));
             }
         }
     }
     // Covariance on the determined subspace (pseudo-inverse of the scaled Gram matrix).
     let mut cov = DMatrix::zeros(m, m);
     for (k, &lam) in eig.eigenvalues.iter().enumerate() {
-        if lam >= 1e-10 * top {
+        if lam >= 1e-10 * top && top > 0.0 {
             let v = eig.eigenvectors.column(k);
             cov += v * v.transpose() / lam;
         }
     }
-    let estimates = (0..m)
+    let estimates: Vec<Estimate> = (0..m)
         .map(|i| {
             let half = Z95 * (s2 * cov[(i, i)]).sqrt() / scale[i];
             let value = theta[fit[i]];
@@ -292,5 +310,16 @@ pub fn intervals(fit: &[usize], theta: &[f64; P], e: &Evaluation, dof: usize) ->
             }
         })
         .collect();
+    for e in &estimates {
+        if !e.identifiable && !reasons.iter().any(|(i, _)| *i == e.name) {
+            reasons.push((
+                e.name,
+                format!(
+                    "{} is not determined by the data: the run carries no information on it",
+                    name(e.name)
+                ),
+            ));
+        }
+    }
     (estimates, reasons)
 }

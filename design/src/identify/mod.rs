@@ -275,7 +275,7 @@ pub fn identify(request: &Request, columns: &Columns) -> Result<Answer, String> 
         ));
     }
     let dof = run.samples * run.outputs.len() - request.fit.len();
-    let (mut estimates, reasons) = fit::intervals(&request.fit, &theta, &fitted, dof);
+    let (mut estimates, reasons) = fit::intervals(&request.fit, &theta, &fitted, dof, |i| name(request.form, i));
     messages.extend(reasons.into_iter().map(|(_, r)| r));
     let both_flanks = fitted.sim.flanks.0 && fitted.sim.flanks.1;
     for e in estimates.iter_mut() {

@@ -320,3 +320,25 @@ fn a_gap_near_zero_gets_the_profile_interval() {
     let (lo, hi) = delta.ci95.unwrap();
     assert!(delta.identifiable && lo == 0.0 && 2e-6 <= hi, "{delta:?}");
 }
+
+#[test]
+fn a_run_that_does_not_move_the_drive_determines_nothing() {
+    let h = 1e-3;
+    let cols: Columns = vec![
+        ("time".into(), (0..200).map(|i| i as f64 * h).collect()),
+        ("tau_m".into(), vec![0.0; 200]),
+        ("theta_m".into(), vec![0.0; 200]),
+        ("theta_L".into(), vec![0.0; 200]),
+    ];
+    let request = build(Form::Belt, &[], None, Vocabulary::Arguments).unwrap();
+    let answer = identify(&request, &cols).unwrap();
+    for e in &answer.estimates {
+        let named = name(Form::Belt, e.name);
+        assert!(!e.identifiable && e.ci95.is_none(), "{e:?}");
+        assert!(
+            answer.messages.iter().any(|m| m.starts_with(named)),
+            "{named}: {:?}",
+            answer.messages
+        );
+    }
+}
