@@ -209,10 +209,13 @@ pub fn grid_start(p: &Problem, theta: [f64; P], lost_motion: Option<f64>) -> Res
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     // A finer scan of Δ around the best grid point (between its neighbours on the grid): the
-    // basin of the true gap is narrow when the drive rattles through the gap many times.
+    // basin of the true gap is narrow when the drive rattles through the gap many times. Its
+    // best point joins the grid's two best as a third start.
+    let mut starts: Vec<[f64; P]> = scored.iter().take(2).map(|(_, t)| *t).collect();
     if p.fit.contains(&DELTA_INDEX) && deltas.len() > 1 {
         let best = scored[0].1;
         let ratio = deltas[0] / deltas[1];
+        let mut fine: Option<(f64, [f64; P])> = None;
         for i in 1..12 {
             let d = best[DELTA_INDEX] * ratio.powf(-1.0 + 2.0 * i as f64 / 12.0);
             for &pos in positions {
@@ -222,13 +225,15 @@ pub fn grid_start(p: &Problem, theta: [f64; P], lost_motion: Option<f64>) -> Res
                     t[U0_INDEX] = pos * alpha * d;
                 }
                 if let Ok(e) = p.evaluate(&t, &[]) {
-                    scored.push((e.cost, t));
+                    if fine.as_ref().is_none_or(|(c, _)| e.cost < *c) {
+                        fine = Some((e.cost, t));
+                    }
                 }
             }
         }
-        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        starts.extend(fine.map(|(_, t)| t));
     }
-    Ok(scored.into_iter().take(2).map(|(_, t)| t).collect())
+    Ok(starts)
 }
 
 /// An estimate with its interval and whether the data determine it.
