@@ -64,6 +64,20 @@ pub fn read_csv(path: &str) -> Result<Columns, String> {
     parse_csv(&text).map_err(|m| format!("{path}: {m}"))
 }
 
+/// The noise level of a measured signal from its sample-to-sample scatter: for white noise of
+/// σ the second difference has variance 6σ², while a smooth signal's is h² x'' (small at the
+/// sample rate); the median of |Δ²x| (× 1.4826, its ratio to σ for a normal law) keeps steps
+/// and kinks out.
+pub fn noise_level(values: &[f64]) -> f64 {
+    let mut d2: Vec<f64> = values.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).collect();
+    if d2.is_empty() {
+        return 0.0;
+    }
+    let mid = d2.len() / 2;
+    let (_, median, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *median / 6f64.sqrt()
+}
+
 /// Checks a table and makes it a run: `time` and `tau_m` present, every column known and given
 /// once, of one length, finite; `time` increasing on a uniform step; one measured output at
 /// least; `web` allows the web's `v_in`, `T_in` and `T`.

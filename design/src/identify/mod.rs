@@ -296,7 +296,18 @@ pub fn identify(request: &Request, columns: &Columns) -> Result<Answer, String> 
     if let Some(i) = delta_at {
         let e = &estimates[i];
         let (lo, hi) = e.ci95.unwrap_or((0.0, 2.0 * e.value));
-        if lo <= 0.0 || hi - lo > 0.5 * e.value || fitted.sim.switches < 8 {
+        // One flank seen only (a run that does not reverse the force): a wider gap with the seen
+        // flank kept in place costs nothing, and the linear interval hides it. One evaluation
+        // each way tells.
+        let flat_above = [1.0, -1.0].iter().any(|&side| {
+            let mut t = theta;
+            let grow = e.value.max(hi - lo);
+            t[DELTA_INDEX] = e.value + grow;
+            t[U0_INDEX] += side * (base.clone().with_theta(&t).g() - base.clone().with_theta(&theta).g());
+            let threshold = fitted.cost * (1.0 + 0.5 * 3.841_458_820_694_124 / dof.max(1) as f64 * 2.0);
+            problem.evaluate(&t, &[]).is_ok_and(|c| c.cost <= threshold)
+        });
+        if flat_above || lo <= 0.0 || hi - lo > 0.5 * e.value || fitted.sim.switches < 8 {
             match profile(&problem, &theta, fitted.cost, dof, (hi - lo) / 2.0) {
                 Ok((lo, hi)) => {
                     messages.push(format!(
@@ -311,6 +322,16 @@ pub fn identify(request: &Request, columns: &Columns) -> Result<Answer, String> 
                     estimates[i].identifiable = false;
                 }
             }
+        }
+    }
+    for ((state, values), ssr) in run.outputs.iter().zip(&fitted.ssr) {
+        let rms = (ssr / n_samples).sqrt();
+        let noise = data::noise_level(values);
+        if noise > 0.0 && rms > 3.0 * noise {
+            messages.push(format!(
+                "the fit does not reach the noise of {}: residual rms {rms:.3e} against about {noise:.3e} from the data's sample-to-sample scatter; a side minimum of the cost or a drive the model does not describe, so the intervals are not to be trusted",
+                OUTPUTS[*state]
+            ));
         }
     }
     let residual_rms = run
