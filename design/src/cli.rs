@@ -13,6 +13,10 @@ usage: backlash <command> [args]
 commands:
   design    the design study: the backlash and stiffness that meet a load-speed accuracy, or a
             web line's tension accuracy (see `backlash design --help`)
+  identify  a drive's half gap, stiffness and load from one measured run, with 95% intervals
+            (see `backlash identify --help`)
+  excite    a reversing motor-torque schedule that makes the gap identifiable (see
+            `backlash excite --help`)
   help      this text
 
 A command line without an answer (an unknown command or argument, a bad or missing value, a
@@ -102,7 +106,7 @@ impl CliError {
     /// The exit status of a command line without an answer.
     pub const EXIT_STATUS: i32 = 2;
 
-    fn new(command: &str, message: impl Into<String>) -> CliError {
+    pub(crate) fn new(command: &str, message: impl Into<String>) -> CliError {
         CliError {
             message: message.into(),
             command: command.to_string(),
@@ -110,7 +114,7 @@ impl CliError {
         }
     }
 
-    fn with_usage(command: &str, message: impl Into<String>, usage: String) -> CliError {
+    pub(crate) fn with_usage(command: &str, message: impl Into<String>, usage: String) -> CliError {
         CliError {
             usage: Some(usage),
             ..CliError::new(command, message)
@@ -151,6 +155,8 @@ pub fn run(args: &[String]) -> Result<String, CliError> {
         None => Err(CliError::with_usage("backlash", "no command given", USAGE.to_string())),
         Some((command, _)) if matches!(command.as_str(), "help" | "--help" | "-h") => Ok(USAGE.to_string()),
         Some((command, rest)) if command == "design" => design("backlash design", rest),
+        Some((command, rest)) if command == "identify" => crate::identify::command::identify("backlash identify", rest),
+        Some((command, rest)) if command == "excite" => crate::identify::command::excite("backlash excite", rest),
         Some((other, _)) => Err(CliError::with_usage(
             "backlash",
             format!("unknown command `{other}`"),
@@ -282,7 +288,7 @@ pub fn parse(command: &str, args: &[String]) -> Result<Option<(Request, bool)>, 
 }
 
 /// `--model`'s value (shaft when absent), read before the other flags, whose defaults it sets.
-fn model_choice(args: &[String]) -> Result<Form, String> {
+pub(crate) fn model_choice(args: &[String]) -> Result<Form, String> {
     let mut found = None;
     let mut it = args.iter();
     while let Some(arg) = it.next() {
@@ -475,7 +481,7 @@ mod tests {
     }
 
     #[test]
-    fn the_command_takes_design_and_help_only() {
+    fn the_command_takes_its_commands_and_help_only() {
         assert_eq!(run(&args(&["--help"])), Ok(USAGE.to_string()));
         assert_eq!(run(&args(&["help"])), Ok(USAGE.to_string()));
         let unknown = run(&args(&["desing", "--accuracy", "0.02"])).unwrap_err();

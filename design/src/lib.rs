@@ -20,6 +20,7 @@
 //! from the interface description (their start values).
 
 pub mod cli;
+pub mod identify;
 mod layout;
 pub mod request;
 pub mod speed;

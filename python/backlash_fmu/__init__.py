@@ -6,6 +6,9 @@
 
 - `design(model, accuracy=None, tension_accuracy=None, **parameters)`: the design answer, the
   same keys and numbers as `backlash design ... --json`;
+- `identify(model, data, fit=None, **known)`: a drive's half gap, stiffness and load from one
+  measured run (a CSV path or a table), with 95 % intervals: the same keys and numbers as
+  `backlash identify ... --json` (docs/model.md §11);
 - `fmu_path(model, fmi=2)`: the FMI 2.0 or FMI 3.0 archive of BacklashShaft, BacklashBelt or
   BacklashWeb, built from the same sources as this package;
 - `backlash_fmu.fmu`: the driver of the archives (FMI 2.0 and 3.0, Co-Simulation and Model
@@ -16,11 +19,13 @@
 from __future__ import annotations
 
 import json
+import os
+from collections.abc import Mapping
 from pathlib import Path
 
 from . import fmu
 
-__all__ = ["design", "design_json", "fmu_path", "MODELS", "CONTROLLERS"]
+__all__ = ["design", "design_json", "identify", "identify_json", "fmu_path", "MODELS", "CONTROLLERS"]
 
 # The plants whose archives ship with the package, as their manifest lists them, and the
 # controllers (BacklashController, docs/model.md §9).
@@ -55,6 +60,59 @@ def design_json(model: str, accuracy: float | None = None, tension_accuracy: flo
         None if tension_accuracy is None else _number("tension_accuracy", tension_accuracy),
         list(values.items()),
     )
+
+
+def identify(model: str, data, fit=None, **known: float) -> dict:
+    """Identifies the drive `model` ("shaft", "belt" or "web") from one measured run: `data` is
+    the path of a CSV file or a table (a dict of column name -> sequence, a pandas DataFrame or
+    anything with `.columns`, a numpy structured array) with `time`, `tau_m` and measured
+    outputs (docs/model.md §11); `fit` the names to estimate (a list, or one comma-separated
+    string; default: Delta, the stiffness, J_L, b_L, u0); `known` the other parameters by their
+    FMU names, and `accuracy` / `tension_accuracy` to check the drive against a design accuracy.
+    Returns the answer as `backlash identify ... --json` prints it. Raises ValueError with the
+    one-line reason on bad data (a missing or unknown column, a non-uniform or decreasing time,
+    NaN, too few samples) or input."""
+    return json.loads(identify_json(model, data, fit, **known))
+
+
+def identify_json(model: str, data, fit=None, **known: float) -> str:
+    """`identify`'s answer as the JSON text `backlash identify ... --json` prints."""
+    from . import _native  # the identification library, compiled
+
+    if not isinstance(model, str):
+        raise ValueError(f"model = {model!r}: choose 'shaft', 'belt' or 'web'")
+    if isinstance(fit, str):
+        fit = fit.split(",")
+    elif fit is not None:
+        fit = [str(name) for name in fit]
+    values = [(name, _number(name, value)) for name, value in known.items()]
+    if isinstance(data, (str, os.PathLike)):
+        return _native.identify_json(model, os.fspath(data), None, fit, values)
+    return _native.identify_json(model, None, _columns(data), fit, values)
+
+
+def _columns(data) -> list[tuple[str, list[float]]]:
+    """A table as (column name, values): a numpy structured array, anything with `.columns`
+    (a pandas DataFrame), or a mapping of name -> sequence."""
+    names = getattr(getattr(data, "dtype", None), "names", None)
+    if names:
+        pass
+    elif hasattr(data, "columns"):
+        names = list(data.columns)
+    elif isinstance(data, Mapping):
+        names = list(data.keys())
+    else:
+        raise ValueError("data: give the path of a CSV file or a table (a dict of columns, a pandas "
+                         "DataFrame, a numpy structured array)")
+    columns = []
+    for name in names:
+        values = data[name]
+        values = values.tolist() if hasattr(values, "tolist") else values
+        try:
+            columns.append((str(name), [float(v) for v in values]))
+        except (TypeError, ValueError):
+            raise ValueError(f"column {name}: the values are not all numbers") from None
+    return columns
 
 
 def _number(name: str, value: object) -> float:

@@ -1,8 +1,9 @@
 //! `backlash_fmu._native`: the design library ([`backlash_design`]) for Python. The package's
-//! `backlash_fmu.design()` and the `backlash` command installed with it call these two
+//! `backlash_fmu.design()` and the `backlash` command installed with it call these
 //! functions; everything they compute, check and refuse is the design library's.
 
 use backlash_design::cli;
+use backlash_design::identify;
 use backlash_design::request::{self, Setting};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -30,6 +31,33 @@ fn design_json(
         .map_err(PyValueError::new_err)
 }
 
+/// The identification as the JSON text `backlash identify --json` prints, for `model`, the run
+/// from the CSV file `path` or as `columns` (name, values), the names to `fit` (None: the
+/// default) and the known `parameters` (and `accuracy`, `tension_accuracy`) as (name, value)
+/// pairs. Bad data or input raises ValueError with the library's one-line reason.
+#[pyfunction]
+#[pyo3(signature = (model, path, columns, fit, parameters))]
+fn identify_json(
+    py: Python<'_>,
+    model: &str,
+    path: Option<String>,
+    columns: Option<Vec<(String, Vec<f64>)>>,
+    fit: Option<Vec<String>>,
+    parameters: Vec<(String, f64)>,
+) -> PyResult<String> {
+    let settings: Vec<Setting> = parameters.iter().map(|(name, value)| setting(name, *value)).collect();
+    // A fit takes about a second: other Python threads go on.
+    py.detach(|| {
+        let columns = match (path, columns) {
+            (Some(path), _) => identify::data::read_csv(&path)?,
+            (None, Some(columns)) => columns,
+            (None, None) => return Err("data: give a CSV path or a table".to_string()),
+        };
+        identify::identify_json(model, &columns, fit.as_deref(), &settings)
+    })
+    .map_err(PyValueError::new_err)
+}
+
 /// A value given by keyword: its name is its label, its value written as Rust writes it.
 fn setting(name: &str, value: f64) -> Setting<'_> {
     Setting {
@@ -50,6 +78,7 @@ fn command(py: Python<'_>, args: Vec<String>) -> (i32, String, String) {
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(design_json, m)?)?;
+    m.add_function(wrap_pyfunction!(identify_json, m)?)?;
     m.add_function(wrap_pyfunction!(command, m)?)?;
     Ok(())
 }

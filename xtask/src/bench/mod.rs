@@ -23,8 +23,8 @@ const USAGE: &str = "\
 usage: cargo xtask bench [--smoke]
 
 Runs every benchmark (native C host through the FMI C ABI, the PI loop through fmpy and in scipy,
-growth with steps and instances, the tolerance sweep serially and on Dask, criterion
-bench of the physics core) and rewrites BENCHMARKS.md
+growth with steps and instances, the tolerance sweep serially and on Dask, identification of
+a 10 s run, criterion bench of the physics core) and rewrites BENCHMARKS.md
 with the numbers, the machine facts and the exact commands. Takes a few minutes.
 
   --smoke   tiny sizes, no criterion: checks that the harness runs (seconds after the build);
@@ -130,6 +130,9 @@ pub fn run(args: &[String]) -> Result<(), String> {
 
     step("the tolerance sweep: serial and on a Dask LocalCluster (benches/sweep_bench.py)");
     runner.sweep(&plan)?;
+
+    step("identification of a 10 s run at 1 kHz (design/benches/identify.rs)");
+    runner.identify()?;
 
     if !plan.smoke {
         step("criterion bench of the physics core (benches/physics.rs)");

@@ -56,6 +56,7 @@ const COMMON: &str = "\
 @ simulate_me_s 1.6812 1.6734 1.6845 10 3 35
 @ simulate_cs_s 0.3012 0.2987 0.3034 10 3 35
 @ simulate_me_cs_diff 0.00037 0.2281
+@ identify_10s_1khz 1.3526 141 5 1.3474 1.3867
 @ sweep_config 240 1.5 0.001 3
 @ sweep_serial 42.56 5.639
 @ sweep_dask1 41.62 5.7665 0.8711

@@ -394,6 +394,18 @@ impl Runner {
         self.run(&mut py)
     }
 
+    /// Identification of a 10 s run at 1 kHz (design/benches/identify.rs), built first, then
+    /// measured on one core (taskset), as the target says.
+    pub(super) fn identify(&mut self) -> Result<(), String> {
+        util::run(util::cargo().args(["bench", "-p", "backlash-design", "--bench", "identify", "--no-run"]))?;
+        let mut cmd = Command::new("taskset");
+        cmd.current_dir(util::repo_root())
+            .args(["-c", "0"])
+            .arg(util::cargo().get_program())
+            .args(["bench", "-p", "backlash-design", "--bench", "identify"]);
+        self.run(&mut cmd)
+    }
+
     /// The criterion bench of the physics core; its figures are read from the estimates.json
     /// files criterion writes during this run.
     pub(super) fn criterion(&mut self) -> Result<(), String> {
