@@ -183,11 +183,11 @@ pub fn to_text(a: &Answer) -> String {
         let other = 2 - j;
         out.push(match s.delta_max {
             Some(max) => format!(
-                "  Delta_{n} max = {max:.9e} rad with Delta_{other} at its value ({:.9e} rad with Delta_{other} = 0)",
+                "  delta_max of Delta_{n} = {max:.9e} rad with Delta_{other} at its value ({:.9e} rad with Delta_{other} = 0)",
                 s.delta_max_alone
             ),
             None => format!(
-                "  no Delta_{n}: Delta_{other} alone spends the accuracy ({:.9e} rad with Delta_{other} = 0)",
+                "  delta_max of Delta_{n}: none, Delta_{other} alone spends the accuracy ({:.9e} rad with Delta_{other} = 0)",
                 s.delta_max_alone
             ),
         });
