@@ -68,6 +68,7 @@ pub(crate) fn write_type_attributes(x: &mut String, v: &Var, state_reference: im
     }
     match v.range {
         Range::NonNegative => x.push_str(" min=\"0.0\""),
+        Range::AtLeastOne => x.push_str(" min=\"1.0\""),
         Range::Integers { min, max } => {
             let _ = write!(x, " min=\"{min}\" max=\"{max}\"");
         }
@@ -157,6 +158,9 @@ pub(crate) fn output_dependencies(name: &str) -> &'static [&'static str] {
         // The mode exactly on +-g depends on the sign of u' as well, and with a damper its
         // force, the sign of psi, on u'.
         "contact" => &["theta_m", "omega_m", "theta_L", "omega_L"],
+        // The friction mode: the sign of the speed sliding, the law of stiction at rest (the
+        // torque on the body, from every state).
+        "sliding_m" | "sliding_L" => &["theta_m", "omega_m", "theta_L", "omega_L"],
         "bound" | "bound_paper" | "bound_T" => &[],
         other => panic!("{other} is not an output whose dependencies are listed"),
     }

@@ -89,6 +89,8 @@ pub enum Range {
     NonNegative,
     /// Finite and > 0.
     Positive,
+    /// Finite and >= 1 (a ratio such as a breakaway torque over a sliding one).
+    AtLeastOne,
     /// A whole number from `min` to `max`.
     Integers { min: i32, max: i32 },
 }
@@ -100,6 +102,7 @@ impl Range {
                 Range::Finite => true,
                 Range::NonNegative => value >= 0.0,
                 Range::Positive => value > 0.0,
+                Range::AtLeastOne => value >= 1.0,
                 Range::Integers { min, max } => value.trunc() == value && min as f64 <= value && value <= max as f64,
             }
     }
@@ -110,6 +113,7 @@ impl Range {
             Range::Finite => "finite".into(),
             Range::NonNegative => "finite and >= 0".into(),
             Range::Positive => "finite and > 0".into(),
+            Range::AtLeastOne => "finite and >= 1".into(),
             Range::Integers { min, max } if max == min + 1 => format!("{min} or {max}").into(),
             Range::Integers { min, max } => format!("an integer from {min} to {max}").into(),
         }

@@ -56,8 +56,9 @@ fn input_lines(models: &[Model]) -> Vec<&'static str> {
 
 /// Each symbol's source, as the library's `Source` in Rust: a parameter (Real or Integer, as
 /// `contact_law`) is stored; an input stored in its slot; a continuous state is the plant
-/// state's entry of its symbol (and its derivative that entry's rate); the one other Integer
-/// variable, the `contact` output (docs/model.md §4), is the sign of ψ in the mode in force;
+/// state's entry of its symbol (and its derivative that entry's rate); the other Integer
+/// outputs, `contact` (docs/model.md §4), the sign of ψ in the mode in force, and `sliding_m`,
+/// `sliding_L` (§12), each body's friction mode;
 /// every other variable is calculated from the physics, by the `Calculated` of its symbol (a new
 /// one without such a variant does not compile). A controller's inputs are stored and sampled,
 /// its output is the command it holds.
@@ -87,7 +88,12 @@ fn sources(models: &[Model], controllers: &[Model]) -> Vec<(&'static str, String
                 let state = m.variables.iter().find(|w| w.vr == of).expect("a derivative's state");
                 format!("Source::Derivative(StateEntry::{})", state.symbol)
             } else if v.ty == Type::Integer {
-                "Source::Contact".to_string()
+                match v.name {
+                    "contact" => "Source::Contact".to_string(),
+                    "sliding_m" => "Source::Sliding(0)".to_string(),
+                    "sliding_L" => "Source::Sliding(1)".to_string(),
+                    other => panic!("{}: Integer output {other} has no source", m.identifier),
+                }
             } else {
                 format!("Source::Calculated(Calculated::{})", v.symbol)
             };

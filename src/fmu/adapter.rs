@@ -34,6 +34,8 @@ pub enum Source {
     Derivative(StateEntry),
     /// The `contact` output: the sign of ψ in the mode in force (Integer; docs/model.md §4).
     Contact,
+    /// A body's `sliding` output (Integer; docs/model.md §12): 0 the motor, 1 the load.
+    Sliding(usize),
     /// A controller's input, stored; read at each sample (docs/model.md §9).
     Sampled,
     /// A controller's output: the command of its last sample, held (before the first sample,
@@ -159,6 +161,9 @@ impl Calculated {
                 let i = self.indicator().expect("an event indicator");
                 sim.plant().event_indicators(&sim.state)[i]
             }
+            Calculated::Bound | Calculated::BoundSup | Calculated::BoundT | Calculated::BoundTSup if !sim.bounded() => {
+                f64::INFINITY
+            }
             Calculated::Bound => sim.bound.bound(sim.trajectory()),
             Calculated::BoundPaper => sim.bound.bound_paper(),
             Calculated::BoundSup => sim.bound_sup_value(),
@@ -184,6 +189,7 @@ impl Calculated {
                 let i = self.indicator().expect("an event indicator");
                 Some(indicator_rates(sim.plant(), z_dot)[i])
             }
+            Calculated::Bound | Calculated::BoundT if !sim.bounded() => None,
             Calculated::Bound => Some(sim.bound.bound_rate(sim.trajectory())),
             Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
             Calculated::BoundT => Some(sim.bound.bound_t_rate(sim.trajectory())),

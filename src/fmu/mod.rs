@@ -6,6 +6,7 @@
 pub mod adapter;
 pub mod bounds;
 pub mod error;
+pub mod friction;
 pub mod instance;
 pub mod logging;
 pub mod simulation;

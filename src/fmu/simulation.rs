@@ -4,13 +4,18 @@
 use super::adapter::{self, StateVector, Values};
 use super::bounds::Bounds;
 use super::error::FmuError;
+use super::friction::{self, Friction};
 use super::variables::{Causality, ModelInfo};
 use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, PlantState, Stepper, Trajectory};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
     pub stepper: Stepper,
+    /// The plant's state; with friction, the mirror of the chain's.
     pub state: PlantState,
+    /// With Coulomb friction on a body (docs/model.md §12): the chain that steps the plant.
+    /// None without: the single-gap stepper steps it.
+    pub friction: Option<Box<Friction>>,
     pub bound: Bounds,
     /// The longest step accepted ([`max_step`]).
     pub max_step: f64,
@@ -136,9 +141,38 @@ impl Simulation {
     /// from the start values of θ and ω, bound at elapsed time 0.
     pub fn build(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         let mut sim = template(model, v)?;
-        sim.state = adapter::initial_state(sim.plant(), v);
+        let state = adapter::initial_state(sim.plant(), v);
+        let inputs = adapter::inputs(sim.plant(), v, &[0.0; adapter::MAX_INPUTS]);
+        sim.set_state(state, &inputs);
         sim.check_state(&sim.state, format_args!("the initial state overflows"))?;
         Ok(sim)
+    }
+
+    /// Makes `state` the plant's, with friction each body's mode by the law of stiction under
+    /// `inputs` (docs/model.md §12: the initial mode follows the law at the start time; a state
+    /// the importer sets likewise).
+    pub fn set_state(&mut self, state: PlantState, inputs: &Inputs) {
+        match &mut self.friction {
+            None => self.state = state,
+            Some(f) => {
+                f.start(&state, inputs);
+                self.state = friction::plant_state(f.state());
+            }
+        }
+    }
+
+    /// Body `j`'s `sliding` output (0 the motor, 1 the load; docs/model.md §12).
+    pub fn sliding(&self, j: usize) -> i32 {
+        match &self.friction {
+            None => friction::sign_of(friction::speed(&self.state, j)),
+            Some(f) => f.sliding(j, &self.state),
+        }
+    }
+
+    /// Whether the bounds stand for this plant: not with Coulomb friction, whose twin is not
+    /// linear (docs/model.md §12); they are +∞ then.
+    pub fn bounded(&self) -> bool {
+        self.friction.is_none()
     }
 
     /// Whether `state` is finite and its force ψ = K·dz(u, g) too: finite but huge angles,
@@ -183,8 +217,15 @@ impl Simulation {
         what: std::fmt::Arguments<'_>,
     ) -> Result<StateVector, FmuError> {
         let plant = self.plant();
-        let [a, b, c, d] = plant.rates(state, inputs.tau_m, inputs.tau_l);
-        let rates = [a, b, c, d, plant.tension_rate(state, inputs.span)];
+        let rates = match &self.friction {
+            None => {
+                let [a, b, c, d] = plant.rates(state, inputs.tau_m, inputs.tau_l);
+                [a, b, c, d, plant.tension_rate(state, inputs.span)]
+            }
+            // Model Exchange, where the importer sets states, serves no friction: `state` is
+            // the chain's.
+            Some(f) => f.rates(inputs),
+        };
         // θ' = ω is finite with the state; the rest are checked in one branch.
         if finite(rates[1]) & finite(rates[3]) & finite(rates[4]) {
             return Ok(rates);
@@ -197,6 +238,9 @@ impl Simulation {
     /// nothing changed and the general path does the step, or says why it cannot.
     #[inline]
     pub fn quiet_step(&mut self, inputs: &Inputs, h: f64) -> bool {
+        if self.friction.is_some() {
+            return false;
+        }
         let Some(next) = self.stepper.quiet_step(&self.state, inputs, h) else {
             return false;
         };
@@ -267,6 +311,7 @@ impl Simulation {
         model: &ModelInfo,
         v: &Values,
         state: PlantState,
+        bodies: [crate::physics::chain::BodyMode; 2],
         bound: &[f64],
         bounds_behind: f64,
         events: EventTerms,
@@ -277,6 +322,9 @@ impl Simulation {
         }
         sim.check_state(&state, format_args!("the saved plant state overflows"))?;
         sim.state = state;
+        if let Some(f) = &mut sim.friction {
+            f.restore(&state, bodies);
+        }
         sim.bound.restore(bound)?;
         if !(bounds_behind.is_finite() && bounds_behind >= 0.0) {
             return Err(FmuError::StateRefused(format!(
@@ -416,12 +464,16 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let (speed, tension) = adapter::gains(v);
     let bound = Bounds::new(&plant, speed, tension)?;
     let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
-    let longest = max_step(&plant);
+    let friction = Friction::of(&plant, friction::coulomb_of(v))?;
+    let longest = friction
+        .as_ref()
+        .map_or(max_step(&plant), |f| max_step(&plant).min(f.max_step()));
     let lag_limit = longest.min(bound.max_advance());
     let sim = Simulation {
         max_step: longest,
         stepper: Stepper::new(plant),
         state,
+        friction: friction.map(Box::new),
         bound,
         bounds_behind: 0.0,
         lag_limit,

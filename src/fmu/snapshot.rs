@@ -1,6 +1,6 @@
 //! FMU states (fmi2GetFMUstate) and their pointer-free serialized form.
 //!
-//! Byte format, version 4, all numbers little-endian, f64 as IEEE-754 bits:
+//! Byte format, version 5, all numbers little-endian, f64 as IEEE-754 bits:
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -15,6 +15,7 @@
 //! | | 8·m | values by symbol: inputs, parameters (an Integer's as its f64), start values |
 //! | | 8·4 | the input lines' slopes dτ_m/dt, dτ_L/dt, dv_in/dt, dT_in/dt |
 //! | | 8·8 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', V (∫|u'| off ordinary contact, with a damper), mode (signed byte: −1/0/+1 negative flank, free, positive flank; ±2 slack, ±3 capped) |
+//! | | 2 | the friction mode of the motor and of the load (signed bytes: +1 sliding forward, 0 stuck, −1 sliding backward; +1 for a body without friction; docs/model.md §12) |
 //! | | 8·b | bounds: elapsed, response[n], integral[n], l1, peak, variation of each loop bound; b = 14 for the drive trains (one bound, n = 5), 36 for the web line (speed and tension, n = 7) |
 //! | | 8 | how far the bounds lag behind the plant [s] (Co-Simulation: the steps since they were last read) |
 //! | | 8·5 | the damped bound's terms gathered at events (Model Exchange): tracked (0/1), the phase's mode code, u at its start, Σ|Δu| over slack and capped phases, phases in the gap |
@@ -32,15 +33,18 @@ use super::instance::{Experiment, TimeMarks};
 use super::simulation::EventTerms;
 use super::state_machine::{Flavour, Interface, Phase, Standard};
 use super::variables::{ModelInfo, Symbol};
+use crate::physics::chain::BodyMode;
 use crate::physics::{ContactMode, PlantState};
 
 pub const MAGIC: &[u8; 8] = b"BKLSHFMU";
-pub const FORMAT_VERSION: u16 = 4;
+pub const FORMAT_VERSION: u16 = 5;
 
 /// The plant and bound state of an initialized instance.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PhysicsSnapshot {
     pub plant: PlantState,
+    /// The friction mode of the motor and of the load (`Forward` without friction).
+    pub bodies: [BodyMode; 2],
     /// [`Bounds::words`].
     pub bound: Vec<f64>,
     /// How far the bounds lag behind the plant ([`super::simulation::Simulation::bounds_behind`]).
@@ -75,7 +79,7 @@ const FLAG_FMI3: u8 = 16;
 /// plant, bounds, their lag, the time marks, checksum.
 fn body_len(model: &ModelInfo) -> usize {
     let bounds = Bounds::word_count(model.web);
-    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 8 + 1) + 8 * bounds + 8 + 8 * 5 + 8 * 3 + 8
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 8 + 1) + 2 + 8 * bounds + 8 + 8 * 5 + 8 * 3 + 8
 }
 
 fn fnv1a_64(bytes: &[u8]) -> u64 {
@@ -141,6 +145,10 @@ impl Snapshot {
             .unwrap_or([0.0; 8]);
         z.iter().for_each(|x| put(*x));
         b.push(plant.map(|s| s.mode.code() as i8).unwrap_or(0) as u8);
+        let bodies = self.physics.as_ref().map_or([BodyMode::Forward; 2], |p| p.bodies);
+        for body in bodies {
+            b.push(body.sliding() as i8 as u8);
+        }
         let no_bounds = vec![0.0; Bounds::word_count(self.model.web)];
         let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
@@ -172,6 +180,7 @@ impl Snapshot {
         let (time, experiment) = r.times(flags)?;
         let (values, input_slopes) = r.values(model)?;
         let plant = r.plant()?;
+        let bodies = [r.body_mode("the motor")?, r.body_mode("the load")?];
         let mut bound = vec![0.0; Bounds::word_count(model.web)];
         for x in bound.iter_mut() {
             *x = r.finite("a bound's state")?;
@@ -203,6 +212,7 @@ impl Snapshot {
         }
         let physics = has_physics.then_some(PhysicsSnapshot {
             plant,
+            bodies,
             bound,
             bounds_behind,
             events,
@@ -400,6 +410,15 @@ impl Reader<'_> {
             variation: z[7],
             mode,
         })
+    }
+
+    /// A body's friction mode, by its `sliding` code.
+    fn body_mode(&mut self, body: &str) -> Result<BodyMode, FmuError> {
+        let code = self.u8() as i8 as i32;
+        BodyMode::ALL
+            .into_iter()
+            .find(|m| m.sliding() == code)
+            .ok_or_else(|| FmuError::StateRefused(format!("unknown friction mode {code} of {body}")))
     }
 
     /// How far back the time may be set, none of it before the start time.

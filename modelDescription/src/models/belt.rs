@@ -56,7 +56,11 @@ fn model() -> Model {
             SquareWave { input: "tau_m", level: 0.0, amplitude: 0.02, half_period: 250 },
             SquareWave { input: "tau_L", level: -0.005, amplitude: 0.005, half_period: 1000 },
         ],
-        variables: belt_variables().into_iter().chain(damper_variables()).collect(),
+        variables: belt_variables()
+            .into_iter()
+            .chain(damper_variables())
+            .chain(super::friction_variables())
+            .collect(),
     })
 }
 

@@ -315,6 +315,83 @@ fn damper_variables(transmission: &Transmission) -> [Var; 6] {
     ]
 }
 
+/// Bearing friction with stiction on the motor and on the load (docs/model.md §12), after the
+/// damper in every plant: the sliding torques `tau_c_m`, `tau_c_L` (value references 48, 49),
+/// breakaway over sliding `peak_m`, `peak_L` (50, 51), and the Integer outputs `sliding_m`,
+/// `sliding_L` (52, 53). With both `tau_c` 0 (the default) the plant has no friction modes.
+fn friction_variables() -> [Var; 6] {
+    let sliding = |name, symbol, vr, body| {
+        var(
+            name,
+            symbol,
+            vr,
+            Type::Integer,
+            Causality::Output,
+            Variability::Discrete,
+            Initial::Calculated,
+            None,
+            Range::Integers { min: -1, max: 1 },
+            "",
+            "",
+            body,
+        )
+    };
+    [
+        parameter(
+            "tau_c_m",
+            "TauCM",
+            48,
+            0.0,
+            Range::NonNegative,
+            "N.m",
+            "Torque",
+            "Coulomb friction torque in the motor bearing while it slides (>= 0; 0: no friction)",
+        ),
+        parameter(
+            "tau_c_L",
+            "TauCL",
+            49,
+            0.0,
+            Range::NonNegative,
+            "N.m",
+            "Torque",
+            "Coulomb friction torque in the load bearing while it slides (>= 0; 0: no friction)",
+        ),
+        parameter(
+            "peak_m",
+            "PeakM",
+            50,
+            1.0,
+            Range::AtLeastOne,
+            "",
+            "",
+            "Breakaway torque of the motor bearing over tau_c_m (>= 1): at rest the motor sticks while the torque on it stays within peak_m*tau_c_m",
+        ),
+        parameter(
+            "peak_L",
+            "PeakL",
+            51,
+            1.0,
+            Range::AtLeastOne,
+            "",
+            "",
+            "Breakaway torque of the load bearing over tau_c_L (>= 1): at rest the load sticks while the torque on it stays within peak_L*tau_c_L",
+        ),
+        sliding(
+            "sliding_m",
+            "SlidingM",
+            52,
+            "Friction mode of the motor at the communication point: +1 sliding forward, 0 stuck, -1 sliding backward (without friction the sign of omega_m)",
+        ),
+        sliding(
+            "sliding_L",
+            "SlidingL",
+            53,
+            "Friction mode of the load at the communication point: +1 sliding forward, 0 stuck, -1 sliding backward (without friction the sign of omega_L)",
+        ),
+    ]
+}
+
 /// `der(theta_m)` … `der(omega_L)`, value references 24–27 in every model, after the state
 /// outputs of `v`.
 fn state_derivatives(v: &[Var]) -> [Var; 4] {

@@ -5,8 +5,8 @@ use backlash_physics::{Geometry, PlantParams};
 
 use super::Transmission;
 use super::{
-    common_head, damper_variables, drive_train, event_indicators, parameter, pi_gains, state_derivatives,
-    with_state_nominals, ModelDef,
+    common_head, damper_variables, drive_train, event_indicators, friction_variables, parameter, pi_gains,
+    state_derivatives, with_state_nominals, ModelDef,
 };
 use crate::{DefaultExperiment, Kind, Model, Range, SquareWave};
 
@@ -108,6 +108,7 @@ fn model() -> Model {
     v.extend(derivatives);
     v.extend(event_indicators(&SHAFT));
     v.extend(damper_variables(&SHAFT));
+    v.extend(friction_variables());
     with_state_nominals(Model {
         identifier: "BacklashShaft",
         kind: Kind::Plant(plant_params),

@@ -164,5 +164,6 @@ fn web_variables() -> Vec<Var> {
         ),
     ]);
     v.extend(damper_variables());
+    v.extend(super::friction_variables());
     v
 }

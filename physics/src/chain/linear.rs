@@ -59,20 +59,7 @@ impl<const S: usize> Layout<S> {
 pub fn mode_matrix<const S: usize, const N: usize>(chain: &Chain<S>, mode: &ChainMode<S>) -> SMatrix<f64, N, N> {
     let rows = Rows::<S, N>::new(chain, mode);
     let speed = &rows.speed;
-    // ω_j′ as a row over y.
-    let accel = |j: usize| {
-        let body = chain.body(j);
-        let friction = body.friction.tau_c;
-        let body_mode = mode.body(j);
-        if friction > 0.0 && body_mode == BodyMode::Stuck {
-            return SVector::<f64, N>::zeros();
-        }
-        let mut row = rows.torques(j, speed[j] * (-body.b));
-        if friction > 0.0 {
-            row += unit::<N>(Layout::<S>::ONE) * (body_mode.friction_sign() * friction);
-        }
-        row / body.j
-    };
+    let accel = |j: usize| rows.acceleration(j);
     let mut m = SMatrix::<f64, N, N>::zeros();
     for i in 0..S {
         let s = chain.stage(i);
@@ -157,6 +144,22 @@ impl<'a, const S: usize, const N: usize> Rows<'a, S, N> {
             row -= self.force(j) * self.chain.stage(j).a;
         }
         row
+    }
+
+    /// ω_j′ as a row over y: J_j ω_j′ = −b_j ω_j + the torques on it, ∓τ_c sliding with
+    /// Coulomb friction; 0 stuck.
+    pub fn acceleration(&self, j: usize) -> SVector<f64, N> {
+        let body = self.chain.body(j);
+        let friction = body.friction.tau_c;
+        let body_mode = self.mode.body(j);
+        if friction > 0.0 && body_mode == BodyMode::Stuck {
+            return SVector::<f64, N>::zeros();
+        }
+        let mut row = self.torques(j, self.speed[j] * (-body.b));
+        if friction > 0.0 {
+            row += unit::<N>(Layout::<S>::ONE) * (body_mode.friction_sign() * friction);
+        }
+        row / body.j
     }
 
     /// τ_h of body j as a row: what its bearing's friction must cancel to hold it at rest

@@ -82,7 +82,8 @@ impl<const S: usize> ChainMode<S> {
         }
     }
 
-    pub(crate) fn set_body(&mut self, j: usize, mode: BodyMode) {
+    /// Sets body j's friction mode.
+    pub fn set_body(&mut self, j: usize, mode: BodyMode) {
         if j == 0 {
             self.motor = mode;
         } else {

@@ -380,6 +380,36 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         self.advance(state, inputs, h, on_switch, true).map(|(_, at)| at)
     }
 
+    /// The law of stiction applied to `state` with `inputs` (docs/model.md §12): each body
+    /// with friction slides by the sign of its speed, and at rest sticks or breaks away in the
+    /// direction of the torque on it. The mode a step from `state` with these inputs starts
+    /// in; the initial mode at the start time.
+    pub fn apply_stiction(&mut self, state: &mut ChainState<S>, inputs: &Inputs) {
+        if self.friction {
+            self.stiction_at_start(state, inputs, &mut |_| {});
+        }
+    }
+
+    /// The time derivative of `state` in its mode under `inputs`: [θ_0′, ω_0′, …, θ_S′, ω_S′,
+    /// T′] (T′ = 0 without a web span), from the mode's rows of docs/model.md §2 (a stuck body
+    /// does not accelerate).
+    pub fn rates(&self, state: &ChainState<S>, inputs: &Inputs) -> Vec<f64> {
+        let y = augmented::<S, N>(state, inputs, 0.0);
+        let rows = Rows::<S, N>::new(&self.chain, &state.mode);
+        let mut out = Vec::with_capacity(2 * S + 3);
+        for j in 0..=S {
+            out.push(rows.speed[j].dot(&y));
+            out.push(rows.acceleration(j).dot(&y));
+        }
+        out.push(match self.chain.web() {
+            Some(w) => {
+                (w.ea * w.r_w * y[Layout::<S>::OMEGA_LAST] - w.v_ref * state.tension) / w.l_w + y[Layout::<S>::SPAN]
+            }
+            None => 0.0,
+        });
+        out
+    }
+
     fn advance(
         &mut self,
         state: &mut ChainState<S>,

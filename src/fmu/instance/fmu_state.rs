@@ -7,6 +7,7 @@ use crate::fmu::error::{FmuError, Status};
 use crate::fmu::simulation::Simulation;
 use crate::fmu::snapshot::{check_values, PhysicsSnapshot, Snapshot};
 use crate::fmu::state_machine::Function;
+use crate::physics::chain::BodyMode;
 
 impl Instance {
     /// Refused for a controller, which has no FMU state.
@@ -23,6 +24,7 @@ impl Instance {
             input_slopes: self.input_slopes,
             physics: self.life.sim().map(|sim| PhysicsSnapshot {
                 plant: sim.state,
+                bodies: sim.friction.as_ref().map_or([BodyMode::Forward; 2], |f| f.bodies()),
                 bound: sim.bound.words(),
                 bounds_behind: sim.bounds_behind,
                 events: sim.events,
@@ -59,6 +61,7 @@ impl Instance {
                 self.model,
                 &snapshot.values,
                 p.plant,
+                p.bodies,
                 &p.bound,
                 p.bounds_behind,
                 p.events,

@@ -27,6 +27,10 @@ use lifecycle::Lifecycle;
 /// exitInitializationMode warns.
 const SUP_SLACK_WARNING: f64 = 1e-9;
 
+/// Why the bounds are +∞ with Coulomb friction (docs/model.md §12).
+const FRICTION_UNBOUNDED: &str = "with Coulomb friction (tau_c_m or tau_c_L > 0) the twin without backlash is \
+                                  no longer linear, and no bound is proven for this plant yet";
+
 /// Experiment set by fmi2SetupExperiment (defaults: start 0, no stop time).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Experiment {
@@ -433,13 +437,24 @@ impl Instance {
             Some(sim) => sim,
             None => Simulation::build(self.model, &self.values)?,
         };
+        if self.flavour.interface == Interface::ModelExchange && sim.friction.is_some() {
+            return Err(FmuError::InvalidArgument(
+                "Coulomb friction (tau_c_m or tau_c_L > 0) is served in Co-Simulation only: in Model Exchange \
+                 tau_c_m and tau_c_L must stay 0 (docs/model.md §12)"
+                    .into(),
+            ));
+        }
         // Every output, the state derivatives included, must be finite from here on.
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         sim.rates(&sim.state, &inputs, format_args!("the initial accelerations overflow"))?;
         let unbounded = match (sim.bound.sup(), sim.bound.sup_t()) {
-            (Err(why), Err(_)) => Some(("bound_sup and bound_T_sup", why)),
-            (Err(why), _) => Some(("bound_sup", why)),
-            (_, Err(why)) => Some(("bound_T_sup", why)),
+            _ if !sim.bounded() => Some((
+                "bound and bound_sup (bound_T and bound_T_sup too on a web line)",
+                FRICTION_UNBOUNDED.to_string(),
+            )),
+            (Err(why), Err(_)) => Some(("bound_sup and bound_T_sup", why.to_string())),
+            (Err(why), _) => Some(("bound_sup", why.to_string())),
+            (_, Err(why)) => Some(("bound_T_sup", why.to_string())),
             _ => None,
         };
         let slack = sim.bound.sup_slack();

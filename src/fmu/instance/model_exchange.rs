@@ -274,6 +274,7 @@ impl Instance {
                 | Source::Calculated(_)
                 | Source::Derivative(_)
                 | Source::Contact
+                | Source::Sliding(_)
                 | Source::Sampled
                 | Source::Command => {
                     return Err(FmuError::InvalidArgument(format!(
@@ -361,7 +362,12 @@ impl Unknown {
                 Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
                 Calculated::BoundSup | Calculated::BoundTSup => None,
             },
-            Source::Input(_) | Source::Parameter | Source::Contact | Source::Sampled | Source::Command => None,
+            Source::Input(_)
+            | Source::Parameter
+            | Source::Contact
+            | Source::Sliding(_)
+            | Source::Sampled
+            | Source::Command => None,
         }
     }
 }

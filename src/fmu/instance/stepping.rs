@@ -4,7 +4,9 @@
 use super::Instance;
 use crate::fmu::adapter::{self, MAX_INPUTS};
 use crate::fmu::error::{FmuError, Status};
+use crate::fmu::friction;
 use crate::fmu::logging::LogCategory;
+use crate::physics::chain::ChainEvent;
 use crate::physics::{finite, Inputs, StepError, MAX_PERIODS_PER_STEP};
 
 /// Relative tolerance for "the communication point equals the current time": steps are
@@ -179,6 +181,9 @@ impl Instance {
             )),
             e => e.into(),
         };
+        if self.life.sim().is_some_and(|sim| sim.friction.is_some()) {
+            return self.friction_step(communication_point, inputs, h, early_return, &overflow);
+        }
         let sim = self.life.running()?;
         // The plant steps a copy of its state, and the bound fails (on a bad h, excluded above)
         // before changing anything: a failed step leaves the instance as it was.
@@ -233,6 +238,69 @@ impl Instance {
                     "contact switch at t = {t} s: {:?} -> {:?} (g = {half_gap})",
                     e.from, e.to
                 )
+            });
+        }
+        Ok(stopped)
+    }
+
+    /// `general_step` of a plant with Coulomb friction (docs/model.md §12): the chain steps it,
+    /// with its contact and friction switches located, and the plant state mirrors the chain's.
+    #[cold]
+    #[inline(never)]
+    fn friction_step(
+        &mut self,
+        communication_point: f64,
+        inputs: &Inputs,
+        h: f64,
+        early_return: bool,
+        overflow: &dyn Fn(StepError) -> FmuError,
+    ) -> Result<Option<f64>, FmuError> {
+        let want_switches = self.log.is_enabled(LogCategory::ContactEvents);
+        let sim = self.life.running()?;
+        let friction = sim.friction.as_mut().expect("a plant with friction");
+        let mut switches = Vec::new();
+        let mut record = |event| {
+            if want_switches {
+                switches.push(event)
+            }
+        };
+        let (mut next, mut stopped) = friction.step(inputs, h, early_return, &mut record).map_err(overflow)?;
+        // As `general_step`: a switch that does not move time is no reason to return early.
+        if stopped.is_some_and(|offset| {
+            let t = communication_point + offset;
+            t <= communication_point || t >= communication_point + h
+        }) {
+            switches.clear();
+            let mut record = |event| {
+                if want_switches {
+                    switches.push(event)
+                }
+            };
+            (next, stopped) = friction.step(inputs, h, false, &mut record).map_err(overflow)?;
+        }
+        let advanced = stopped.unwrap_or(h);
+        let end = communication_point + advanced;
+        let state = friction::plant_state(&next);
+        if !sim.state_ok(&state) {
+            return Err(sim.overflow(&state, format_args!("the step to t = {end} overflows")));
+        }
+        sim.friction.as_mut().expect("a plant with friction").commit(next);
+        sim.state = state;
+        sim.bounds_lag(advanced);
+        let half_gap = sim.plant().half_gap();
+        for e in switches {
+            let t = communication_point + e.offset();
+            self.log.emit(Status::Ok, LogCategory::ContactEvents, || match e {
+                ChainEvent::Stage(s) => format!(
+                    "contact switch at t = {t} s: {:?} -> {:?} (g = {half_gap})",
+                    s.from, s.to
+                ),
+                ChainEvent::Body(b) => format!(
+                    "friction switch of the {} at t = {t} s: {:?} -> {:?}",
+                    friction::BODIES[b.body],
+                    b.from,
+                    b.to
+                ),
             });
         }
         Ok(stopped)

@@ -108,7 +108,7 @@ impl Instance {
             }
             Source::Calculated(quantity) => quantity.of(self.physics()?),
             Source::Derivative(entry) => self.rates()?[entry.index()],
-            Source::Contact => return Err(Self::wrong_type(v, "Real")),
+            Source::Contact | Source::Sliding(_) => return Err(Self::wrong_type(v, "Real")),
         })
     }
 
@@ -140,12 +140,14 @@ impl Instance {
             }
             let v = self.typed_variable(*vr, VarType::Real)?;
             let x = self.real_value(v)?;
-            // The suprema are +∞ by definition when the loop is unstable (docs/model.md §4); nothing
-            // else may leave the FMU as ∞ or NaN.
-            let supremum = matches!(
-                v.symbol.source(),
-                Source::Calculated(Calculated::BoundSup | Calculated::BoundTSup)
-            );
+            // The suprema are +∞ by definition when the loop is unstable (docs/model.md §4), and
+            // every bound with Coulomb friction (§12); nothing else may leave the FMU as ∞ or NaN.
+            let unbounded = |s: &mut Self| s.physics().is_ok_and(|sim| !sim.bounded());
+            let supremum = match v.symbol.source() {
+                Source::Calculated(Calculated::BoundSup | Calculated::BoundTSup) => true,
+                Source::Calculated(Calculated::Bound | Calculated::BoundT) => x == f64::INFINITY && unbounded(self),
+                _ => false,
+            };
             if x.is_nan() || (x.is_infinite() && !supremum) {
                 return Err(FmuError::Overflow(format!("{} evaluates to {x}", v.name)));
             }
@@ -165,6 +167,7 @@ impl Instance {
                     let sim = self.physics()?;
                     contact_indicator(&sim.state, sim.plant())
                 }
+                Source::Sliding(j) => self.physics()?.sliding(j),
                 Source::Parameter => self.values[v.symbol.index()] as i32,
                 _ => return Err(Self::wrong_type(v, "Integer")),
             };
@@ -343,7 +346,10 @@ impl Instance {
             }
         }
         match (&mut self.life, state) {
-            (Lifecycle::Running { sim, .. }, Some(state)) => sim.state = state,
+            (Lifecycle::Running { sim, .. }, Some(state)) => {
+                let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
+                sim.set_state(state, &inputs)
+            }
             (Lifecycle::Running { .. }, None) | (Lifecycle::Sampling { .. }, _) => {}
             (Lifecycle::Setup { preview, .. }, _) => *preview = None,
         }
@@ -433,13 +439,17 @@ impl Instance {
                 )));
             }
             // d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (at a switch: the mode entered).
-            let z_dot = *rates.get_or_insert_with(|| sim.stepper.time_derivative(&sim.state, &inputs, 1));
+            let z_dot = *rates.get_or_insert_with(|| match &sim.friction {
+                None => sim.stepper.time_derivative(&sim.state, &inputs, 1),
+                Some(f) => f.rates(&inputs),
+            });
             let rate = match v.symbol.source() {
                 Source::State(entry) => Some(z_dot[entry.index()]),
                 Source::Calculated(quantity) => quantity.rate(sim, &z_dot),
                 Source::Input(_)
                 | Source::Parameter
                 | Source::Contact
+                | Source::Sliding(_)
                 | Source::Derivative(_)
                 | Source::Sampled
                 | Source::Command => None,

@@ -68,7 +68,7 @@ impl Fmu3 {
         self.model.vr(name)
     }
 
-    fn set(&self, names: &[&str], values: &[f64]) -> fmi3Status {
+    pub(crate) fn set(&self, names: &[&str], values: &[f64]) -> fmi3Status {
         let vrs: Vec<u32> = names.iter().map(|n| self.vr(n)).collect();
         // SAFETY: arrays of the announced lengths.
         unsafe { fmi3SetFloat64(self.c, vrs.as_ptr(), vrs.len(), values.as_ptr(), values.len()) }
@@ -89,7 +89,7 @@ impl Fmu3 {
         out
     }
 
-    fn initialize(&self, params: &[(&str, f64)]) {
+    pub(crate) fn initialize(&self, params: &[(&str, f64)]) {
         let (names, values): (Vec<&str>, Vec<f64>) = params.iter().copied().unzip();
         assert_eq!(self.set(&names, &values), OK3);
         assert_eq!(fmi3EnterInitializationMode(self.c, false, 0.0, 0.0, false, 0.0), OK3);
@@ -97,7 +97,7 @@ impl Fmu3 {
     }
 
     /// fmi3DoStep: (status, eventHandlingNeeded, earlyReturn, lastSuccessfulTime).
-    fn step(&self, t: f64, h: f64) -> (fmi3Status, bool, bool, f64) {
+    pub(crate) fn step(&self, t: f64, h: f64) -> (fmi3Status, bool, bool, f64) {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, f64::NAN);
         // SAFETY: pointers to locals.
         let s = unsafe { fmi3DoStep(self.c, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };

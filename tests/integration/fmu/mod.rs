@@ -10,6 +10,7 @@ pub(crate) mod ffi;
 mod fmi3_description;
 #[cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 pub(crate) mod fmi3_ffi;
+mod friction;
 pub(crate) mod simulation;
 mod variables;
 pub(crate) mod web;

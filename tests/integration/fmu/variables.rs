@@ -168,7 +168,7 @@ fn the_guid_is_the_hash_of_the_description_and_differs_per_model() {
 /// A value in the variable's range, different from its start value.
 fn other_value(start: f64, range: Range) -> f64 {
     match range {
-        Range::Positive | Range::NonNegative => start * 1.5 + 0.25,
+        Range::Positive | Range::NonNegative | Range::AtLeastOne => start * 1.5 + 0.25,
         Range::Finite => start - 0.75,
         Range::Integers { max, .. } if start < max as f64 => start + 1.0,
         Range::Integers { .. } => start - 1.0,

@@ -670,6 +670,7 @@ fn bad_values(range: backlash_fmu::fmu::variables::Range) -> Vec<f64> {
         Finite => {}
         NonNegative => v.extend([-1e-300, -1.0, -f64::MAX]),
         Positive => v.extend([0.0, -0.0, -1e-300, -1.0]),
+        AtLeastOne => v.extend([1.0 - f64::EPSILON / 2.0, 0.0, -1.0]),
         Integers { .. } => unreachable!("an Integer is set by fmi2SetInteger"),
     }
     v

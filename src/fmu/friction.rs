@@ -1,0 +1,227 @@
+//! Bearing friction with stiction in an instance (docs/model.md §12): when a body's `tau_c` is
+//! above 0 the plant is stepped as the one-stage chain with Coulomb friction on its bodies
+//! (`backlash_physics::chain`), whose modes join each body's (sliding forward, backward, stuck)
+//! to the contact mode. The simulation's plant state mirrors the chain's after every change, so
+//! that every output reads the same quantities with and without friction; without friction the
+//! chain is not built at all and the single-gap stepper runs as before, bit for bit.
+
+use super::adapter::Values;
+use super::error::FmuError;
+use super::variables::Symbol;
+use crate::physics::chain::{
+    BodyMode, ChainEvent, ChainMode, ChainParams, ChainState, Coulomb, Motion, OneStageStepper, OneStageWebStepper,
+};
+use crate::physics::{Chain, Inputs, Plant, PlantState, StepError};
+
+/// The motor (body 0) and the load (body 1), as the chain numbers them.
+pub const BODIES: [&str; 2] = ["motor", "load"];
+
+/// The one-stage chain that steps a plant with friction, without or with a web span (the
+/// augmented systems differ in size).
+#[derive(Clone, Debug)]
+pub enum Friction {
+    Drive(Chained<10, 8>),
+    Web(Chained<13, 10>),
+}
+
+/// A chain stepper and its state.
+#[derive(Clone, Debug)]
+pub struct Chained<const N: usize, const KO: usize> {
+    stepper: crate::physics::chain::ChainStepper<1, N, KO>,
+    state: ChainState<1>,
+}
+
+/// The friction of each body from the stored values: `tau_c_m`, `peak_m` on the motor,
+/// `tau_c_L`, `peak_L` on the load.
+pub fn coulomb_of(v: &Values) -> [Coulomb; 2] {
+    let at = |s: Symbol| v[s.index()];
+    [
+        Coulomb {
+            tau_c: at(Symbol::TauCM),
+            peak: at(Symbol::PeakM),
+        },
+        Coulomb {
+            tau_c: at(Symbol::TauCL),
+            peak: at(Symbol::PeakL),
+        },
+    ]
+}
+
+/// Dispatches to the chain of either size.
+macro_rules! each {
+    ($self:expr, $c:ident => $body:expr) => {
+        match $self {
+            Friction::Drive($c) => $body,
+            Friction::Web($c) => $body,
+        }
+    };
+}
+
+impl Friction {
+    /// The chain of `plant` with `coulomb` on its bodies, None when neither has friction (the
+    /// plant then has no friction modes). Refused when the chain refuses its parameters.
+    pub fn of(plant: &Plant, coulomb: [Coulomb; 2]) -> Result<Option<Friction>, FmuError> {
+        if coulomb.iter().all(|c| c.tau_c == 0.0) {
+            return Ok(None);
+        }
+        let mut params = ChainParams::from_plant(plant).expect("every plant is a one-stage chain");
+        params.motor.friction = coulomb[0];
+        params.driven[0].friction = coulomb[1];
+        let chain = Chain::new(params).map_err(|e| FmuError::InvalidArgument(e.to_string()))?;
+        let start = ChainState::new(&chain, Motion::default(), [Motion::default()]);
+        Ok(Some(match chain.web() {
+            None => Friction::Drive(Chained {
+                stepper: OneStageStepper::new(chain),
+                state: start,
+            }),
+            Some(_) => Friction::Web(Chained {
+                stepper: OneStageWebStepper::new(chain),
+                state: start,
+            }),
+        }))
+    }
+
+    /// The longest step the chain accepts [s].
+    pub fn max_step(&self) -> f64 {
+        each!(self, c => c.stepper.max_step())
+    }
+
+    /// The chain's state.
+    pub fn state(&self) -> &ChainState<1> {
+        each!(self, c => &c.state)
+    }
+
+    /// Starts from `plant_state` with the law of stiction applied with `inputs` (docs/model.md
+    /// §12: the initial mode follows the law at the start time; a state set by the importer
+    /// likewise).
+    pub fn start(&mut self, plant_state: &PlantState, inputs: &Inputs) {
+        each!(self, c => {
+            let mut state = chain_state(plant_state, ChainMode::new([plant_state.mode]));
+            for j in 0..2 {
+                let omega = state.body(j).omega;
+                let mode = if omega > 0.0 {
+                    BodyMode::Forward
+                } else if omega < 0.0 {
+                    BodyMode::Backward
+                } else {
+                    BodyMode::Stuck
+                };
+                state.mode.set_body(j, if c.stepper.chain().body(j).friction.tau_c > 0.0 { mode } else { BodyMode::Forward });
+            }
+            c.stepper.apply_stiction(&mut state, inputs);
+            c.state = state;
+        })
+    }
+
+    /// Continues from a saved plant state with the bodies' saved modes.
+    pub fn restore(&mut self, plant_state: &PlantState, bodies: [BodyMode; 2]) {
+        let mut mode = ChainMode::new([plant_state.mode]);
+        mode.set_body(0, bodies[0]);
+        mode.set_body(1, bodies[1]);
+        each!(self, c => c.state = chain_state(plant_state, mode))
+    }
+
+    /// The bodies' friction modes.
+    pub fn bodies(&self) -> [BodyMode; 2] {
+        let mode = self.state().mode;
+        [mode.body(0), mode.body(1)]
+    }
+
+    /// Steps the chain's state over `h` (to the first switch with `early_return`), calling
+    /// `record` for each switch; returns the new state, as the plant state it mirrors, and the
+    /// offset of the switch it stopped at. Nothing changes until [`Friction::commit`].
+    pub fn step(
+        &mut self,
+        inputs: &Inputs,
+        h: f64,
+        early_return: bool,
+        record: &mut dyn FnMut(ChainEvent),
+    ) -> Result<(ChainState<1>, Option<f64>), StepError> {
+        each!(self, c => {
+            let mut next = c.state;
+            let stopped = if early_return {
+                c.stepper.step_to_first_switch(&mut next, inputs, h, record)?
+            } else {
+                c.stepper.step(&mut next, inputs, h, record)?;
+                None
+            };
+            Ok((next, stopped))
+        })
+    }
+
+    /// Makes `next` (from [`Friction::step`]) the chain's state.
+    pub fn commit(&mut self, next: ChainState<1>) {
+        each!(self, c => c.state = next)
+    }
+
+    /// d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (a stuck body does not accelerate).
+    pub fn rates(&self, inputs: &Inputs) -> [f64; 5] {
+        let r = each!(self, c => c.stepper.rates(&c.state, inputs));
+        [r[0], r[1], r[2], r[3], r[4]]
+    }
+
+    /// Body `j`'s `sliding` output (docs/model.md §12): its friction mode with friction, the
+    /// sign of its speed without.
+    pub fn sliding(&self, j: usize, plant_state: &PlantState) -> i32 {
+        let with_friction = each!(self, c => c.stepper.chain().body(j).friction.tau_c > 0.0);
+        if with_friction {
+            self.state().mode.body(j).sliding()
+        } else {
+            sign_of(speed(plant_state, j))
+        }
+    }
+}
+
+/// Body `j`'s speed in `state`.
+pub fn speed(state: &PlantState, j: usize) -> f64 {
+    if j == 0 {
+        state.omega_m
+    } else {
+        state.omega_l
+    }
+}
+
+/// +1, 0 or −1 by the sign of `x`: a body without friction's `sliding`.
+pub fn sign_of(x: f64) -> i32 {
+    if x > 0.0 {
+        1
+    } else if x < 0.0 {
+        -1
+    } else {
+        0
+    }
+}
+
+/// The chain state of a plant state, in `mode`: the same angles, speeds, u, u′, V and T.
+fn chain_state(s: &PlantState, mode: ChainMode<1>) -> ChainState<1> {
+    ChainState {
+        motor: Motion {
+            theta: s.theta_m,
+            omega: s.omega_m,
+        },
+        driven: [Motion {
+            theta: s.theta_l,
+            omega: s.omega_l,
+        }],
+        u: [s.u],
+        du: [s.du],
+        mode,
+        variation: [s.variation],
+        tension: s.tension,
+    }
+}
+
+/// The plant state a chain state mirrors.
+pub fn plant_state(c: &ChainState<1>) -> PlantState {
+    PlantState {
+        theta_m: c.motor.theta,
+        omega_m: c.motor.omega,
+        theta_l: c.driven[0].theta,
+        omega_l: c.driven[0].omega,
+        tension: c.tension,
+        u: c.u[0],
+        du: c.du[0],
+        variation: c.variation[0],
+        mode: c.mode.stages()[0],
+    }
+}
