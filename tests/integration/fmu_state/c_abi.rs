@@ -59,7 +59,7 @@ fn fmu_states_through_bytes_and_refusals() {
         garbage[size - 20] ^= 0x10;
         for (bad, why) in [
             (&bytes[..0], "empty"),
-            (&bytes[..size - 1], "bytes, a version-4 state"),
+            (&bytes[..size - 1], "bytes, a version-5 state"),
             (&garbage[..], "checksum"),
             (&[7 as c_char; 64][..], "magic"),
         ] {

@@ -83,7 +83,7 @@ fn truncated_extended_and_empty_bytes_are_refused() {
         }
         let mut longer = bytes.clone();
         longer.push(0);
-        refused(&f, &longer, "bytes, a version-4 state");
+        refused(&f, &longer, "bytes, a version-5 state");
         // The instance, in state Error now, comes back with fmi2Reset.
         f.reset_and_check();
         // The controller's own rows: any length of any bytes, refused for lack of a state.
@@ -132,8 +132,8 @@ fn garbage_and_other_model_bytes_are_refused() {
     refused(&f, &vec![0u8; shaft.len()], "magic");
     refused(&f, &vec![0xffu8; shaft.len()], "magic");
     let mut version = shaft.clone();
-    version[8] = 5;
-    refused(&f, &version, "format version 5");
+    version[8] = 6;
+    refused(&f, &version, "format version 6");
     // A guid length pointing past the end.
     let mut long_guid = shaft.clone();
     long_guid[10..12].copy_from_slice(&u16::MAX.to_le_bytes());
@@ -227,9 +227,12 @@ fn invalid_fields_are_refused(model: usize) {
     let mode = mode_offset(&bytes);
     edit(mode, &[4], "unknown contact mode 4");
     edit(mode, &[0x80], "unknown contact mode");
+    edit(mode + 1, &[2], "unknown friction mode 2 of the motor");
+    edit(mode + 2, &[0x80], "unknown friction mode -128 of the load");
     // The first and the last word of the bound part.
-    edit(mode + 1, &f64::NAN.to_le_bytes(), "a bound's state");
-    let last = mode + 1 + 8 * (bound_words(m) - 1);
+    let bound = bound_offset(&bytes);
+    edit(bound, &f64::NAN.to_le_bytes(), "a bound's state");
+    let last = bound + 8 * (bound_words(m) - 1);
     edit(last, &f64::NAN.to_le_bytes(), "a bound's state");
     edit(lag_offset(&bytes), &f64::NAN.to_le_bytes(), "the bounds' lag");
     edit(lag_offset(&bytes), &(-1e-3f64).to_le_bytes(), "the bounds' lag");

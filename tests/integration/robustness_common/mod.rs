@@ -114,9 +114,10 @@ pub fn states(model: usize, drive_train: [f64; 4], tension: f64) -> Vec<f64> {
 
 /// Whether `x` is an admissible value of the variable `name`: never NaN; finite, except for
 /// the calculated parameters bound_sup and (BacklashWeb) bound_T_sup, which are +∞ when their
-/// loop is not asymptotically stable (docs/model.md §4, §8).
+/// loop is not asymptotically stable (docs/model.md §4, §8), and every bound with Coulomb
+/// friction (§12).
 pub fn admissible(name: &str, x: f64) -> bool {
-    x.is_finite() || (x == f64::INFINITY && matches!(name, "bound_sup" | "bound_T_sup"))
+    x.is_finite() || (x == f64::INFINITY && matches!(name, "bound_sup" | "bound_T_sup" | "bound" | "bound_T"))
 }
 
 /// A fresh fmi2EventInfo with every flag set, so that a call that fills it is seen to.
@@ -740,11 +741,17 @@ pub fn model_of_state(bytes: &[u8]) -> &'static ModelInfo {
         .expect("the bytes of a state of one of the models")
 }
 
-/// Offset of the contact-mode byte of a state: counted from the end, before the bound part
-/// ([`bound_words`] f64), the bounds' lag (one f64), the bound's terms gathered at events
-/// (five), the time marks (three) and the checksum (8 bytes).
+/// Offset of the contact-mode byte of a state: counted from the end, before the bodies'
+/// friction modes (two bytes), the bound part ([`bound_words`] f64), the bounds' lag (one f64),
+/// the bound's terms gathered at events (five), the time marks (three) and the checksum (8
+/// bytes).
 pub fn mode_offset(bytes: &[u8]) -> usize {
-    lag_offset(bytes) - 8 * bound_words(model_of_state(bytes)) - 1
+    bound_offset(bytes) - 2 - 1
+}
+
+/// Offset of the bound part, after the contact mode and the two friction modes.
+pub fn bound_offset(bytes: &[u8]) -> usize {
+    lag_offset(bytes) - 8 * bound_words(model_of_state(bytes))
 }
 
 /// Offset of the bounds' lag behind the plant, the f64 before the bound's terms gathered at
