@@ -173,17 +173,29 @@ pub(crate) fn depends_on_time(name: &str) -> bool {
     matches!(name, "bound" | "bound_paper" | "bound_T")
 }
 
-/// The event indicators of every model, in the order the physics computes them
-/// (`Plant::event_indicators`, docs/model.md §6) and of the description (value references 28,
-/// 29 and 44–47; FMI 2.0 counts them in `numberOfEventIndicators`, FMI 3.0 lists them).
-pub(crate) const EVENT_INDICATORS: [&str; backlash_physics::vector_field::EVENT_INDICATORS] = [
+/// The event indicators of every plant in the order of the description (value references 28,
+/// 29, 44–47 and 54–57; FMI 2.0 counts them in `numberOfEventIndicators`, FMI 3.0 lists them):
+/// the contact surfaces, in the order the physics computes them (`Plant::event_indicators`,
+/// docs/model.md §6), then the bodies' friction surfaces (§12).
+pub(crate) const EVENT_INDICATORS: [&str; CONTACT_INDICATORS + FRICTION_INDICATORS.len()] = [
     "u_minus_g",
     "u_plus_g",
     "force_upper",
     "force_lower",
     "cap_upper",
     "cap_lower",
+    FRICTION_INDICATORS[0],
+    FRICTION_INDICATORS[1],
+    FRICTION_INDICATORS[2],
+    FRICTION_INDICATORS[3],
 ];
+
+/// The contact surfaces' event indicators (docs/model.md §6).
+pub(crate) const CONTACT_INDICATORS: usize = backlash_physics::vector_field::EVENT_INDICATORS;
+
+/// The friction surfaces' event indicators (docs/model.md §12): where the motor and the load
+/// stop sliding, and break away.
+pub(crate) const FRICTION_INDICATORS: [&str; 4] = ["stop_m", "breakaway_m", "stop_L", "breakaway_L"];
 
 /// Whether `v` is an unknown of Initialization Mode as FMI 2.0 §2.2.8 and FMI 3.0 §2.4.8 define
 /// the list: outputs and state derivatives with initial = calculated (the states themselves are

@@ -169,6 +169,23 @@ pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
 /// Continuous-Time Mode: u ∓ g on the angles, the damped force's and the cap's on the angles and
 /// the speeds (u and u′; docs/model.md §6).
 pub(crate) fn event_indicator_dependencies(model: &Model, name: &str) -> Vec<&'static str> {
+    // A friction surface (docs/model.md §12): a sliding body's speed, or the torque on a stuck
+    // one, from every state of the drive and the body's own input.
+    let input = match name {
+        "stop_m" => return vec!["omega_m"],
+        "stop_L" => return vec!["omega_L"],
+        "breakaway_m" => "tau_m",
+        "breakaway_L" => "tau_L",
+        _ => "",
+    };
+    if !input.is_empty() {
+        let mut names: Vec<&'static str> = in_vr_order(model, Var::is_continuous_state)
+            .iter()
+            .map(|v| v.name)
+            .collect();
+        names.push(input);
+        return names;
+    }
     let i = EVENT_INDICATORS
         .iter()
         .position(|n| *n == name)
@@ -238,6 +255,13 @@ pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
         let rate = Quantity::Rate(state_index(model, v));
         let mut names = derivative_dependencies(model, v);
         names.extend(parameter_dependencies(model, rate));
+        // A body's bearing friction (docs/model.md §12): its sliding torque, and its breakaway
+        // for the mode it starts in.
+        names.extend(match v.name {
+            "der(omega_m)" => &["tau_c_m", "peak_m"][..],
+            "der(omega_L)" => &["tau_c_L", "peak_L"][..],
+            _ => &[],
+        });
         names
     } else if v.causality == Causality::CalculatedParameter {
         generic_values(model).iter().map(|(name, _)| *name).collect()
@@ -391,10 +415,25 @@ mod tests {
             let psi = m.variables.iter().find(|v| v.name == "psi").unwrap();
             let all = ["omega_L", "omega_m", "theta_L", "theta_m"];
             assert_eq!(sorted(output_dependencies(&m, psi)), all, "{id}");
+            // The friction surfaces (docs/model.md §12): a speed, or the torque on a body at
+            // rest (every state of the drive, the web's T included, and its own input).
+            let states: Vec<&str> = in_vr_order(&m, Var::is_continuous_state)
+                .iter()
+                .map(|v| v.name)
+                .collect();
+            let with = |input: &'static str| {
+                let mut names = states.clone();
+                names.push(input);
+                sorted(names)
+            };
             for name in EVENT_INDICATORS {
-                let expected: &[&str] = match name {
-                    "u_minus_g" | "u_plus_g" => &["theta_L", "theta_m"],
-                    _ => &all,
+                let expected: Vec<&str> = match name {
+                    "u_minus_g" | "u_plus_g" => vec!["theta_L", "theta_m"],
+                    "stop_m" => vec!["omega_m"],
+                    "stop_L" => vec!["omega_L"],
+                    "breakaway_m" => with("tau_m"),
+                    "breakaway_L" => with("tau_L"),
+                    _ => all.to_vec(),
                 };
                 assert_eq!(sorted(event_indicator_dependencies(&m, name)), expected, "{id} {name}");
             }

@@ -9,7 +9,10 @@
 
 use super::simulation::Simulation;
 use super::variables::{Kind, ModelInfo, Symbol, MODELS};
-use crate::physics::vector_field::EVENT_INDICATORS;
+
+/// The event indicators of a plant: the contact surfaces (docs/model.md §6), then the friction
+/// surfaces (§12).
+pub const EVENT_INDICATORS: usize = crate::physics::vector_field::EVENT_INDICATORS + 4;
 use crate::physics::{Inputs, PiGains, Plant, PlantParams, PlantState};
 
 /// Values of the settable variables (inputs, parameters, the initial state), by [`Symbol`]. An
@@ -77,6 +80,12 @@ pub enum Calculated {
     /// D u′ − K (u − g) and D u′ − K (u + g), law 1's cap on either flank.
     CapUpper,
     CapLower,
+    /// The friction surfaces of the motor and the load (docs/model.md §12): a sliding body's
+    /// speed, peak·τ_c − |τ_h| of a stuck one.
+    StopM,
+    BreakawayM,
+    StopL,
+    BreakawayL,
     Bound,
     BoundPaper,
     BoundSup,
@@ -140,6 +149,10 @@ impl Calculated {
         Calculated::ForceLower,
         Calculated::CapUpper,
         Calculated::CapLower,
+        Calculated::StopM,
+        Calculated::BreakawayM,
+        Calculated::StopL,
+        Calculated::BreakawayL,
     ];
 
     /// Its index among the event indicators, None for the other quantities.
@@ -147,9 +160,10 @@ impl Calculated {
         Calculated::INDICATORS.iter().position(|c| *c == self)
     }
 
-    /// Its value in the physics in force; `bound_sup` is +∞ when the loop is unstable.
+    /// Its value in the physics in force with the inputs of `v` and `slopes`; `bound_sup` is +∞
+    /// when the loop is unstable.
     #[inline]
-    pub fn of(self, sim: &Simulation) -> f64 {
+    pub fn of(self, sim: &Simulation, v: &Values, slopes: &InputSlopes) -> f64 {
         match self {
             Calculated::Psi => sim.plant().force(sim.state.u, sim.state.du),
             Calculated::UMinusG
@@ -160,6 +174,10 @@ impl Calculated {
             | Calculated::CapLower => {
                 let i = self.indicator().expect("an event indicator");
                 sim.plant().event_indicators(&sim.state)[i]
+            }
+            Calculated::StopM | Calculated::BreakawayM | Calculated::StopL | Calculated::BreakawayL => {
+                let i = self.indicator().expect("an event indicator") - crate::physics::vector_field::EVENT_INDICATORS;
+                sim.friction_indicators(&inputs(sim.plant(), v, slopes))[i]
             }
             Calculated::Bound | Calculated::BoundSup | Calculated::BoundT | Calculated::BoundTSup if !sim.bounded() => {
                 f64::INFINITY
@@ -189,6 +207,8 @@ impl Calculated {
                 let i = self.indicator().expect("an event indicator");
                 Some(indicator_rates(sim.plant(), z_dot)[i])
             }
+            // Locals, not outputs: no output derivative.
+            Calculated::StopM | Calculated::BreakawayM | Calculated::StopL | Calculated::BreakawayL => None,
             Calculated::Bound | Calculated::BoundT if !sim.bounded() => None,
             Calculated::Bound => Some(sim.bound.bound_rate(sim.trajectory())),
             Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
@@ -201,7 +221,7 @@ impl Calculated {
 /// The rates of the event indicators (or their directional derivatives) for z' (or a change of
 /// z) `dz`: from u′ = r_m θ_m′ − r_L θ_L′ and u″ = r_m ω_m′ − r_L ω_L′ (docs/model.md §6).
 #[inline]
-pub fn indicator_rates(plant: &Plant, dz: &StateVector) -> [f64; EVENT_INDICATORS] {
+pub fn indicator_rates(plant: &Plant, dz: &StateVector) -> [f64; crate::physics::vector_field::EVENT_INDICATORS] {
     plant.event_indicator_rates(plant.transmission(dz[0], dz[2]), plant.transmission(dz[1], dz[3]))
 }
 

@@ -155,9 +155,11 @@ impl Friction {
     }
 
     /// d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (a stuck body does not accelerate).
+    /// θ′ is the speed itself, ω′ and T′ from the chain's mode.
     pub fn rates(&self, inputs: &Inputs) -> [f64; 5] {
         let r = each!(self, c => c.stepper.rates(&c.state, inputs));
-        [r[0], r[1], r[2], r[3], r[4]]
+        let s = self.state();
+        [s.motor.omega, r[1], s.driven[0].omega, r[3], r[4]]
     }
 
     /// Body `j`'s `sliding` output (docs/model.md §12): its friction mode with friction, the
@@ -169,6 +171,134 @@ impl Friction {
         } else {
             sign_of(speed(plant_state, j))
         }
+    }
+}
+
+/// τ_h of body `j` at `state` under `inputs` (docs/model.md §12): every torque on it but its
+/// bearing's, τ_m − r_m ψ on the motor, τ_L + r_L ψ − R_w T on the load (the viscous term
+/// vanishes at rest).
+pub fn holding_torque(plant: &Plant, state: &PlantState, inputs: &Inputs, j: usize) -> f64 {
+    let psi = plant.force(state.u, state.du);
+    if j == 0 {
+        inputs.tau_m - plant.r_m() * psi
+    } else {
+        inputs.tau_l + plant.r_l() * psi - plant.web_lever() * state.tension
+    }
+}
+
+/// Its change for a change `dz` of z = [θ_m, ω_m, θ_L, ω_L, T] and `dtau` of (τ_m, τ_L).
+fn holding_rate(plant: &Plant, state: &PlantState, dz: &[f64; 5], dtau: [f64; 2], j: usize) -> f64 {
+    let dpsi = plant.force_rate(state.mode, [dz[0], dz[2]], [dz[1], dz[3]]);
+    if j == 0 {
+        dtau[0] - plant.r_m() * dpsi
+    } else {
+        dtau[1] + plant.r_l() * dpsi - plant.web_lever() * dz[4]
+    }
+}
+
+/// The index of body `j`'s speed in z = [θ_m, ω_m, θ_L, ω_L, T].
+pub const fn speed_index(j: usize) -> usize {
+    2 * j + 1
+}
+
+impl Friction {
+    /// Body `j`'s friction, when it has any.
+    fn coulomb(&self, j: usize) -> Option<Coulomb> {
+        let c = each!(self, c => c.stepper.chain().body(j).friction);
+        (c.tau_c > 0.0).then_some(c)
+    }
+
+    /// The friction surfaces' event indicators [stop_m, breakaway_m, stop_L, breakaway_L]
+    /// (docs/model.md §12): a sliding body's speed, peak·τ_c − |τ_h| of a stuck one; 1 where
+    /// the body has no such surface.
+    pub fn indicators(&self, plant: &Plant, state: &PlantState, inputs: &Inputs) -> [f64; 4] {
+        let mut out = [1.0; 4];
+        for j in 0..2 {
+            let Some(c) = self.coulomb(j) else { continue };
+            match self.state().mode.body(j) {
+                BodyMode::Stuck => out[2 * j + 1] = c.breakaway() - holding_torque(plant, state, inputs, j).abs(),
+                BodyMode::Forward | BodyMode::Backward => out[2 * j] = speed(state, j),
+            }
+        }
+        out
+    }
+
+    /// Their changes for a change `dz` of the state and `dtau` of the torques (the Jacobian's
+    /// rows; 0 where an indicator is the constant 1).
+    pub fn indicator_rates(
+        &self,
+        plant: &Plant,
+        state: &PlantState,
+        inputs: &Inputs,
+        dz: &[f64; 5],
+        dtau: [f64; 2],
+    ) -> [f64; 4] {
+        let mut out = [0.0; 4];
+        for j in 0..2 {
+            if self.coulomb(j).is_none() {
+                continue;
+            }
+            match self.state().mode.body(j) {
+                BodyMode::Stuck => {
+                    let tau_h = holding_torque(plant, state, inputs, j);
+                    out[2 * j + 1] = -tau_h.signum() * holding_rate(plant, state, dz, dtau, j)
+                }
+                BodyMode::Forward | BodyMode::Backward => out[2 * j] = dz[speed_index(j)],
+            }
+        }
+        out
+    }
+
+    /// Whether body `j` is stuck (its speed held at 0: Model Exchange's Jacobian row of its
+    /// acceleration is 0).
+    pub fn stuck(&self, j: usize) -> bool {
+        self.coulomb(j).is_some() && self.state().mode.body(j) == BodyMode::Stuck
+    }
+
+    /// Model Exchange's Event Mode (docs/model.md §12): the law of stiction applied to the held
+    /// modes at `state` under `inputs`. A sliding body whose speed reached 0 (or passed it, by the
+    /// solver's tolerance) sticks while |τ_h| ≤ peak·τ_c, its speed set to 0 exactly, and slides on
+    /// in τ_h's direction beyond; a stuck body breaks away in τ_h's direction once |τ_h| exceeds
+    /// peak·τ_c. Returns the state with the speeds set, when one was.
+    pub fn settle(&mut self, plant: &Plant, state: &PlantState, inputs: &Inputs) -> Option<PlantState> {
+        let mut z = [
+            state.theta_m,
+            state.omega_m,
+            state.theta_l,
+            state.omega_l,
+            state.tension,
+        ];
+        let mut modes = self.bodies();
+        let mut moved = false;
+        for (j, mode) in modes.iter_mut().enumerate() {
+            let Some(c) = self.coulomb(j) else { continue };
+            let omega = z[speed_index(j)];
+            let tau_h = holding_torque(plant, state, inputs, j);
+            let beyond = tau_h.abs() > c.breakaway();
+            let stopped = match *mode {
+                BodyMode::Forward => omega <= 0.0,
+                BodyMode::Backward => omega >= 0.0,
+                BodyMode::Stuck => true,
+            };
+            if !stopped {
+                continue;
+            }
+            *mode = match (beyond, tau_h > 0.0) {
+                (false, _) => BodyMode::Stuck,
+                (true, true) => BodyMode::Forward,
+                (true, false) => BodyMode::Backward,
+            };
+            if *mode == BodyMode::Stuck && omega != 0.0 {
+                z[speed_index(j)] = 0.0;
+                moved = true;
+            }
+        }
+        let settled = match moved {
+            true => PlantState::new(plant, z[0], z[1], z[2], z[3]).with_tension(z[4]),
+            false => *state,
+        };
+        self.restore(&settled, modes);
+        moved.then_some(settled)
     }
 }
 

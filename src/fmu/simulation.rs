@@ -161,6 +161,39 @@ impl Simulation {
         }
     }
 
+    /// Sets the continuous states of Model Exchange: each body's friction mode is a discrete
+    /// state, kept until Event Mode (docs/model.md §12).
+    pub fn set_continuous(&mut self, state: PlantState) {
+        if let Some(f) = &mut self.friction {
+            f.restore(&state, f.bodies());
+        }
+        self.state = state;
+    }
+
+    /// The friction surfaces' event indicators [stop_m, breakaway_m, stop_L, breakaway_L]
+    /// (docs/model.md §12); 1 without friction.
+    pub fn friction_indicators(&self, inputs: &Inputs) -> [f64; 4] {
+        self.friction
+            .as_ref()
+            .map_or([1.0; 4], |f| f.indicators(self.plant(), &self.state, inputs))
+    }
+
+    /// Model Exchange's Event Mode: each body's friction mode by the law at the state in force
+    /// (docs/model.md §12). Returns whether a state changed (a body that sticks is set at rest).
+    pub fn settle_friction(&mut self, inputs: &Inputs) -> bool {
+        let plant = self.stepper.plant();
+        let Some(f) = &mut self.friction else {
+            return false;
+        };
+        match f.settle(plant, &self.state, inputs) {
+            Some(state) => {
+                self.state = state;
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Body `j`'s `sliding` output (0 the motor, 1 the load; docs/model.md §12).
     pub fn sliding(&self, j: usize) -> i32 {
         match &self.friction {
@@ -222,8 +255,8 @@ impl Simulation {
                 let [a, b, c, d] = plant.rates(state, inputs.tau_m, inputs.tau_l);
                 [a, b, c, d, plant.tension_rate(state, inputs.span)]
             }
-            // Model Exchange, where the importer sets states, serves no friction: `state` is
-            // the chain's.
+            // In the held friction modes (docs/model.md §12); `state` is the chain's, which
+            // every state set reaches (`set_state`, `set_continuous`).
             Some(f) => f.rates(inputs),
         };
         // θ' = ω is finite with the state; the rest are checked in one branch.

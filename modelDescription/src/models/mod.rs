@@ -317,9 +317,11 @@ fn damper_variables(transmission: &Transmission) -> [Var; 6] {
 
 /// Bearing friction with stiction on the motor and on the load (docs/model.md §12), after the
 /// damper in every plant: the sliding torques `tau_c_m`, `tau_c_L` (value references 48, 49),
-/// breakaway over sliding `peak_m`, `peak_L` (50, 51), and the Integer outputs `sliding_m`,
-/// `sliding_L` (52, 53). With both `tau_c` 0 (the default) the plant has no friction modes.
-fn friction_variables() -> [Var; 6] {
+/// breakaway over sliding `peak_m`, `peak_L` (50, 51), the Integer outputs `sliding_m`,
+/// `sliding_L` (52, 53), and the event indicators of the friction modes (54–57; docs/model.md
+/// §6, §12), which read 1 where the body has no such surface. With both `tau_c` 0 (the default)
+/// the plant has no friction modes.
+fn friction_variables() -> [Var; 10] {
     let sliding = |name, symbol, vr, body| {
         var(
             name,
@@ -388,6 +390,38 @@ fn friction_variables() -> [Var; 6] {
             "SlidingL",
             53,
             "Friction mode of the load at the communication point: +1 sliding forward, 0 stuck, -1 sliding backward (without friction the sign of omega_L)",
+        ),
+        continuous_local(
+            "stop_m",
+            "StopM",
+            54,
+            "rad/s",
+            "AngularVelocity",
+            "Event indicator omega_m while the motor slides with friction: it stops where this crosses 0; 1 stuck or without friction",
+        ),
+        continuous_local(
+            "breakaway_m",
+            "BreakawayM",
+            55,
+            "N.m",
+            "Torque",
+            "Event indicator peak_m*tau_c_m - |tau_h| while the motor is stuck (tau_h: every other torque on it, tau_m - r_m*psi): it breaks away where this crosses 0; 1 sliding or without friction",
+        ),
+        continuous_local(
+            "stop_L",
+            "StopL",
+            56,
+            "rad/s",
+            "AngularVelocity",
+            "Event indicator omega_L while the load slides with friction: it stops where this crosses 0; 1 stuck or without friction",
+        ),
+        continuous_local(
+            "breakaway_L",
+            "BreakawayL",
+            57,
+            "N.m",
+            "Torque",
+            "Event indicator peak_L*tau_c_L - |tau_h| while the load is stuck (tau_h: every other torque on it, tau_L + r_L*psi, minus R_w*T on a web line): it breaks away where this crosses 0; 1 sliding or without friction",
         ),
     ]
 }

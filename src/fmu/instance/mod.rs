@@ -437,13 +437,6 @@ impl Instance {
             Some(sim) => sim,
             None => Simulation::build(self.model, &self.values)?,
         };
-        if self.flavour.interface == Interface::ModelExchange && sim.friction.is_some() {
-            return Err(FmuError::InvalidArgument(
-                "Coulomb friction (tau_c_m or tau_c_L > 0) is served in Co-Simulation only: in Model Exchange \
-                 tau_c_m and tau_c_L must stay 0 (docs/model.md §12)"
-                    .into(),
-            ));
-        }
         // Every output, the state derivatives included, must be finite from here on.
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         sim.rates(&sim.state, &inputs, format_args!("the initial accelerations overflow"))?;

@@ -1,16 +1,20 @@
 //! The Model Exchange calls (FMI 2.0.4 §3.2): the importer's solver sets time and the
 //! continuous states z = [θ_m, ω_m, θ_L, ω_L] (and T on a web line) and reads the vector field,
 //! the event indicators [u − g, u + g, K (u − g) + D u′, K (u + g) + D u′, D u′ − K (u − g),
-//! D u′ − K (u + g)], the states' nominal values and the exact Jacobian of the mode in force
-//! (docs/model.md §6). There are no discrete states and no time events: modes follow u and u′.
+//! D u′ − K (u + g)] and those of the bodies' friction [stop_m, breakaway_m, stop_L,
+//! breakaway_L], the states' nominal values and the exact Jacobian of the mode in force
+//! (docs/model.md §6, §12). The contact modes follow u and u′; with Coulomb friction each body's
+//! mode (sliding or stuck) is a discrete state, changed in Event Mode by the law of stiction.
+//! There are no time events.
 
 use super::Instance;
+use crate::fmu::adapter::EVENT_INDICATORS;
 use crate::fmu::adapter::{self, Calculated, Source, StateEntry, StateVector, MAX_INPUTS, MAX_STATES};
 use crate::fmu::error::{FmuError, Status};
+use crate::fmu::friction;
 use crate::fmu::state_machine::{Function, Interface, Phase, Standard};
 use crate::fmu::variables::VarType;
 use crate::physics::finite;
-use crate::physics::vector_field::EVENT_INDICATORS;
 
 /// The answer of fmi2NewDiscreteStates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,19 +94,29 @@ impl Instance {
         self.model.states
     }
 
-    /// The number of event indicators: u ∓ g and the damped force's and the cap's surfaces
-    /// (docs/model.md §6).
+    /// The number of event indicators: u ∓ g, the damped force's and the cap's surfaces
+    /// (docs/model.md §6), and the bodies' friction surfaces (§12).
     pub(crate) fn event_indicator_count(&self) -> usize {
         EVENT_INDICATORS
     }
 
-    /// Nothing is discrete: no iteration, no time event, states unchanged.
+    /// The contact modes follow the state; in Model Exchange each body with friction takes its
+    /// mode by the law of stiction here, and one that sticks is set at rest (its speed, a
+    /// continuous state, changed: valuesOfContinuousStatesChanged). One pass settles the law: no
+    /// iteration, no time event.
     pub(crate) fn new_discrete_states_body(&mut self) -> Result<EventInfo, FmuError> {
+        let mut values_changed = false;
+        if self.flavour.interface == Interface::ModelExchange {
+            if let Some(sim) = self.life.sim_mut() {
+                let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
+                values_changed = sim.settle_friction(&inputs);
+            }
+        }
         Ok(EventInfo {
             new_discrete_states_needed: false,
             terminate_simulation: false,
             nominals_changed: false,
-            values_changed: false,
+            values_changed,
             next_event_time: None,
         })
     }
@@ -168,7 +182,7 @@ impl Instance {
         let sim = self.life.running()?;
         let state = adapter::state_of(sim.plant(), &z);
         sim.check_state(&state, format_args!("the continuous states overflow"))?;
-        sim.state = state;
+        sim.set_continuous(state);
         Ok(Status::Ok)
     }
 
@@ -216,8 +230,14 @@ impl Instance {
     }
 
     pub(crate) fn get_event_indicators_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        let (values, slopes) = (self.values, self.input_slopes);
         let sim = self.physics()?;
-        let indicators = sim.plant().event_indicators(&sim.state);
+        let contact = sim.plant().event_indicators(&sim.state);
+        let friction = sim.friction_indicators(&adapter::inputs(sim.plant(), &values, &slopes));
+        let mut indicators = [0.0; EVENT_INDICATORS];
+        let (head, tail) = indicators.split_at_mut(contact.len());
+        head.copy_from_slice(&contact);
+        tail.copy_from_slice(&friction);
         Self::fill(out, "event indicators", &indicators)
     }
 
@@ -294,9 +314,24 @@ impl Instance {
                 ))
             })?);
         }
+        let (values, slopes) = (self.values, self.input_slopes);
         let sim = self.physics()?;
         let plant = sim.plant();
-        let (jz, jinputs) = plant.jacobian(&sim.state);
+        let (mut jz, mut jinputs) = plant.jacobian(&sim.state);
+        // A stuck body does not accelerate (docs/model.md §12): its row is 0.
+        if let Some(f) = &sim.friction {
+            for j in 0..2 {
+                if f.stuck(j) {
+                    let row = friction::speed_index(j);
+                    jz[row] = [0.0; MAX_STATES];
+                    jinputs[row] = [0.0; 3];
+                }
+            }
+        }
+        let friction_rates = sim.friction.as_ref().map_or([0.0; 4], |f| {
+            let inputs = adapter::inputs(plant, &values, &slopes);
+            f.indicator_rates(plant, &sim.state, &inputs, &dz, [dinput[0], dinput[1]])
+        });
         // The span's forcing w is linear in v_in and T_in.
         let dw = plant.web().map_or(0.0, |w| w.forcing(dinput[2], dinput[3]));
         let dforcing = [dinput[0], dinput[1], dw];
@@ -316,7 +351,10 @@ impl Instance {
                 }
                 Unknown::State(entry) => dz[entry.index()],
                 Unknown::Psi => psi_rate(&dz),
-                Unknown::Indicator(i) => indicator_rates[i],
+                Unknown::Indicator(i) => match indicator_rates.get(i) {
+                    Some(rate) => *rate,
+                    None => friction_rates[i - indicator_rates.len()],
+                },
                 Unknown::TimeOnly => 0.0,
             };
             if !value.is_finite() {
@@ -358,7 +396,11 @@ impl Unknown {
                 | Calculated::ForceUpper
                 | Calculated::ForceLower
                 | Calculated::CapUpper
-                | Calculated::CapLower => quantity.indicator().map(Unknown::Indicator),
+                | Calculated::CapLower
+                | Calculated::StopM
+                | Calculated::BreakawayM
+                | Calculated::StopL
+                | Calculated::BreakawayL => quantity.indicator().map(Unknown::Indicator),
                 Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
                 Calculated::BoundSup | Calculated::BoundTSup => None,
             },

@@ -69,6 +69,17 @@ impl Instance {
         }
     }
 
+    /// The physics [`Instance::physics`] has built (after a successful call of it).
+    fn built(&self) -> &Simulation {
+        match &self.life {
+            Lifecycle::Running { sim, .. } => sim,
+            Lifecycle::Setup { preview: Some(sim), .. } => sim,
+            Lifecycle::Setup { preview: None, .. } | Lifecycle::Sampling { .. } => {
+                unreachable!("Instance::physics builds the simulation or refuses")
+            }
+        }
+    }
+
     /// The bounds at the instance's time (docs/model.md §4: measured from the start time), for
     /// reading: in Model Exchange at the time the solver set, in Co-Simulation caught up with
     /// the steps taken since they were last read.
@@ -102,11 +113,16 @@ impl Instance {
                 Some(sim) => entry.of(&sim.state),
                 None => self.values[v.symbol.index()],
             },
-            Source::Calculated(quantity @ (Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT)) => {
-                self.bound_to_time()?;
-                quantity.of(self.physics()?)
+            Source::Calculated(quantity) => {
+                if matches!(
+                    quantity,
+                    Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT
+                ) {
+                    self.bound_to_time()?;
+                }
+                self.physics()?;
+                quantity.of(self.built(), &self.values, &self.input_slopes)
             }
-            Source::Calculated(quantity) => quantity.of(self.physics()?),
             Source::Derivative(entry) => self.rates()?[entry.index()],
             Source::Contact | Source::Sliding(_) => return Err(Self::wrong_type(v, "Real")),
         })
@@ -346,10 +362,15 @@ impl Instance {
             }
         }
         match (&mut self.life, state) {
-            (Lifecycle::Running { sim, .. }, Some(state)) => {
-                let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
-                sim.set_state(state, &inputs)
-            }
+            // Model Exchange keeps each body's friction mode, a discrete state, until Event Mode;
+            // Co-Simulation applies the law to the state set, as at a step's start.
+            (Lifecycle::Running { sim, .. }, Some(state)) => match self.flavour.interface {
+                Interface::ModelExchange => sim.set_continuous(state),
+                Interface::CoSimulation => {
+                    let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
+                    sim.set_state(state, &inputs)
+                }
+            },
             (Lifecycle::Running { .. }, None) | (Lifecycle::Sampling { .. }, _) => {}
             (Lifecycle::Setup { preview, .. }, _) => *preview = None,
         }

@@ -2,7 +2,8 @@
 //! written here: a motor that coasts to a stop inside the gap (FMI 3.0 returns early at the
 //! stop), one that breaks away under a torque ramp (the instant read from the logged switch);
 //! FMU states that continue bit for bit from a stuck body; the bounds +∞ with the reason
-//! logged; Model Exchange refused with the reason.
+//! logged; Model Exchange under an importer written here (the stop and the breakaway as events,
+//! the stuck body held), and its Jacobian in the held modes against central differences.
 
 use backlash_fmu::fmu::{Collected, FmuError, Instance, Interface, LogCategory, ModelInfo, MODELS};
 
@@ -188,17 +189,6 @@ fn with_friction_the_bounds_are_infinite_and_the_reason_is_logged() {
     assert!(said, "{:?}", log.0.borrow());
 }
 
-#[test]
-fn model_exchange_refuses_friction_with_the_reason() {
-    let log = Collected::default();
-    let err = initialized(Interface::ModelExchange, &COAST, &log)
-        .err()
-        .expect("refused");
-    assert!(err.to_string().contains("Co-Simulation only"), "{err}");
-    // Without friction Model Exchange initializes as before.
-    assert!(initialized(Interface::ModelExchange, &[("tau_c_m", 0.0)], &Collected::default()).is_ok());
-}
-
 /// FMI 3.0 with early return stops at the stop of the coasting motor, at the closed form's t*.
 #[cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64")))]
 #[test]
@@ -228,4 +218,197 @@ fn fmi3_returns_early_at_the_stop() {
     }
     assert_eq!(stops.len(), 1, "{stops:?}");
     assert!((stops[0] - t_stop).abs() <= 1e-12 * t_stop, "{} vs {t_stop}", stops[0]);
+}
+
+/// A Model Exchange importer written here: classical Runge–Kutta steps of `h`, every event
+/// indicator watched for a sign change, the crossing bisected to 1e-13 s, then Event Mode (the
+/// law of stiction applied by fmi2NewDiscreteStates) and on. `tau_m(t)` is set at every
+/// evaluation. Returns the event times.
+fn model_exchange_run(inst: &mut Instance, tau_m: &dyn Fn(f64) -> f64, h: f64, end: f64) -> Vec<f64> {
+    let n = 4;
+    let vr = inst.model().vr("tau_m");
+    let rates = |inst: &mut Instance, t: f64, x: &[f64]| {
+        inst.set_time(t).unwrap();
+        inst.set_real(&[vr], &[tau_m(t)]).unwrap();
+        inst.set_continuous_states(x).unwrap();
+        let mut dx = vec![0.0; n];
+        inst.get_derivatives(&mut dx).unwrap();
+        dx
+    };
+    let rk4 = |inst: &mut Instance, t: f64, x: &[f64], h: f64| {
+        let k1 = rates(inst, t, x);
+        let at = |k: &[f64], c: f64| -> Vec<f64> { x.iter().zip(k).map(|(a, b)| a + c * b).collect() };
+        let k2 = rates(inst, t + h / 2.0, &at(&k1, h / 2.0));
+        let k3 = rates(inst, t + h / 2.0, &at(&k2, h / 2.0));
+        let k4 = rates(inst, t + h, &at(&k3, h));
+        (0..n)
+            .map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+            .collect::<Vec<f64>>()
+    };
+    let indicators = |inst: &mut Instance, t: f64, x: &[f64]| {
+        rates(inst, t, x);
+        let mut g = vec![0.0; 10];
+        inst.get_event_indicators(&mut g).unwrap();
+        g
+    };
+    inst.new_discrete_states().unwrap();
+    inst.enter_continuous_time_mode().unwrap();
+    let mut x = vec![0.0; n];
+    inst.get_continuous_states(&mut x).unwrap();
+    let (mut t, mut events) = (0.0, Vec::new());
+    while t < end - 1e-12 {
+        let before = indicators(inst, t, &x);
+        let step = h.min(end - t);
+        let next = rk4(inst, t, &x, step);
+        let crossed = |g: &[f64]| before.iter().zip(g).any(|(a, b)| a * b < 0.0);
+        if !crossed(&indicators(inst, t + step, &next)) {
+            (t, x) = (t + step, next);
+            inst.completed_integrator_step().unwrap();
+            continue;
+        }
+        let (mut lo, mut hi) = (0.0, step);
+        while hi - lo > 1e-13 {
+            let mid = (lo + hi) / 2.0;
+            let at = rk4(inst, t, &x, mid);
+            match crossed(&indicators(inst, t + mid, &at)) {
+                true => hi = mid,
+                false => lo = mid,
+            }
+        }
+        x = rk4(inst, t, &x, hi);
+        t += hi;
+        rates(inst, t, &x);
+        inst.enter_event_mode().unwrap();
+        if inst.new_discrete_states().unwrap().values_changed {
+            inst.get_continuous_states(&mut x).unwrap();
+        }
+        inst.enter_continuous_time_mode().unwrap();
+        events.push(t);
+    }
+    rates(inst, t, &x);
+    events
+}
+
+#[test]
+fn model_exchange_sees_the_stop_and_holds_the_stuck_motor() {
+    let log = Collected::default();
+    let mut inst = initialized(Interface::ModelExchange, &COAST, &log).unwrap();
+    let events = model_exchange_run(&mut inst, &|_| 0.0, 1e-3, 1.5);
+    let (t_stop, theta_stop) = coast_stop(2.28, 0.05, 0.2, 0.5);
+    // One event, the stop, within the bisection's 1e-13 s and the Runge–Kutta error (h⁴ times
+    // (b/J)⁴, far below it).
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert!((events[0] - t_stop).abs() <= 1e-11, "{} vs {t_stop}", events[0]);
+    let [theta_m, omega_m] = get(&mut inst, &["theta_m", "omega_m"])[..] else {
+        unreachable!()
+    };
+    assert_eq!(omega_m, 0.0, "set at rest in Event Mode and held there");
+    // θ* within the speed at the located instant times the bisection's bracket.
+    assert!((theta_m - theta_stop).abs() <= 1e-11, "{theta_m} vs {theta_stop}");
+    assert_eq!(sliding(&mut inst), [0, 0]);
+}
+
+#[test]
+fn model_exchange_sees_the_breakaway_under_a_ramp() {
+    let log = Collected::default();
+    let (tau_c, peak, rate, b, j) = (0.2, 1.5, 0.5, 0.05, 2.28);
+    let values = [("Delta", 1.0), ("tau_c_m", tau_c), ("peak_m", peak)];
+    let mut inst = initialized(Interface::ModelExchange, &values, &log).unwrap();
+    let events = model_exchange_run(&mut inst, &|t| rate * t, 1e-3, 0.8);
+    let t_b = peak * tau_c / rate;
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert!((events[0] - t_b).abs() <= 1e-11, "{} vs {t_b}", events[0]);
+    assert_eq!(sliding(&mut inst)[0], 1);
+    // J ω′ = r t − b ω − τ_c from ω(t_b) = 0: ω = A t + B − (A t_b + B) e^{−b (t − t_b)/J} with
+    // A = r/b, B = −(τ_c + J r/b)/b.
+    let (a, bb) = (rate / b, -(tau_c + j * rate / b) / b);
+    let t = 0.8;
+    let expected = a * t + bb - (a * t_b + bb) * (-(b / j) * (t - t_b)).exp();
+    let omega = get(&mut inst, &["omega_m"])[0];
+    // Runge–Kutta's error over 200 steps of 1 ms and the event's location: far below 1e-10 of
+    // a speed of 0.009 rad/s; the closed form cancels A t + B against its exponential term.
+    assert!((omega - expected).abs() <= 1e-10, "{omega} vs {expected}");
+}
+
+/// Model Exchange's directional derivatives in the held friction modes (the motor sliding, the
+/// load stuck; then both stuck) against central differences of the derivatives and the event
+/// indicators, the modes held while the states move (they change only in Event Mode).
+#[test]
+fn the_jacobian_holds_in_the_friction_modes() {
+    let values = [
+        ("Delta", 1e-3),
+        ("theta_m", 2e-3),
+        ("omega_m", 0.3),
+        ("tau_c_m", 0.5),
+        ("tau_c_L", 0.4),
+        ("peak_L", 1.3),
+        ("tau_m", 0.7),
+    ];
+    let mut inst = initialized(Interface::ModelExchange, &values, &Collected::default()).unwrap();
+    inst.new_discrete_states().unwrap();
+    inst.enter_continuous_time_mode().unwrap();
+    assert_eq!(
+        sliding(&mut inst),
+        [1, 0],
+        "the motor slides, the load at rest sticks (|tau_h| = 0.2 < 0.52)"
+    );
+    let knowns = ["theta_m", "omega_m", "theta_L", "omega_L", "tau_m", "tau_L"];
+    let unknowns = [
+        "der(omega_m)",
+        "der(omega_L)",
+        "stop_m",
+        "breakaway_m",
+        "stop_L",
+        "breakaway_L",
+    ];
+    let kv: Vec<u32> = knowns.iter().map(|n| inst.model().vr(n)).collect();
+    let uv: Vec<u32> = unknowns.iter().map(|n| inst.model().vr(n)).collect();
+    let mut x = vec![0.0; 4];
+    inst.get_continuous_states(&mut x).unwrap();
+    let base_inputs = get(&mut inst, &["tau_m", "tau_L"]);
+    let read = |inst: &mut Instance, x: &[f64], inputs: &[f64]| {
+        inst.set_continuous_states(x).unwrap();
+        set(inst, &[("tau_m", inputs[0]), ("tau_L", inputs[1])]);
+        get(inst, &unknowns)
+    };
+    for (k, name) in knowns.iter().enumerate() {
+        let mut seed = vec![0.0; knowns.len()];
+        seed[k] = 1.0;
+        let mut exact = vec![0.0; unknowns.len()];
+        inst.set_continuous_states(&x).unwrap();
+        set(&mut inst, &[("tau_m", base_inputs[0]), ("tau_L", base_inputs[1])]);
+        inst.get_directional_derivative(&uv, &kv, &seed, &mut exact).unwrap();
+        // Every unknown is affine in the knowns inside the modes held: a central difference of
+        // step e is exact but for round-off, about 1e-16 of the values over 2e (5e-10 of them
+        // for e = 1e-7); 1e-8 leaves a margin of 20.
+        let e = 1e-7;
+        let moved = |sign: f64| {
+            let (mut xs, mut us) = (x.clone(), base_inputs.clone());
+            match k {
+                0..=3 => xs[k] += sign * e,
+                _ => us[k - 4] += sign * e,
+            }
+            (xs, us)
+        };
+        let (xp, up) = moved(1.0);
+        let (xm, um) = moved(-1.0);
+        let plus = read(&mut inst, &xp, &up);
+        let minus = read(&mut inst, &xm, &um);
+        for (i, unknown) in unknowns.iter().enumerate() {
+            let fd = (plus[i] - minus[i]) / (2.0 * e);
+            let scale = plus[i].abs().max(minus[i].abs()).max(1.0);
+            assert!(
+                (fd - exact[i]).abs() <= 1e-8 * scale,
+                "d{unknown}/d{name}: exact {} vs difference {fd}",
+                exact[i]
+            );
+        }
+        inst.set_continuous_states(&x).unwrap();
+    }
+    // The stuck load's acceleration row is 0; the sliding motor's stop indicator is its speed.
+    let mut exact = vec![0.0; 2];
+    let rows = [inst.model().vr("der(omega_L)"), inst.model().vr("stop_m")];
+    inst.get_directional_derivative(&rows, &kv, &[1.0, 1.0, 1.0, 1.0, 1.0, 1.0], &mut exact)
+        .unwrap();
+    assert_eq!(exact, [0.0, 1.0]);
 }
