@@ -428,7 +428,7 @@ const DAMPING: [(&str, &str, &str); 3] = [
 ];
 
 #[test]
-fn the_descriptions_list_the_damper_contact_law_and_six_event_indicators() {
+fn the_descriptions_list_the_damper_contact_law_and_ten_event_indicators() {
     use crate::fmu::variables::{Causality, Initial, Range, VarType, Variability};
     for (model, (damping, unit, quantity)) in MODELS.iter().zip(DAMPING) {
         let id = model.identifier;
@@ -487,7 +487,7 @@ fn the_descriptions_list_the_damper_contact_law_and_six_event_indicators() {
         let doc = roxmltree::Document::parse(&text2).unwrap();
         assert_eq!(
             doc.root_element().attribute("numberOfEventIndicators"),
-            Some("6"),
+            Some("10"),
             "{id}"
         );
         let scalar = |name: &str| {
@@ -530,7 +530,11 @@ fn the_descriptions_list_the_damper_contact_law_and_six_event_indicators() {
             .filter(|n| n.has_tag_name("EventIndicator"))
             .map(|n| n.attribute("valueReference").unwrap())
             .collect();
-        assert_eq!(indicators, ["28", "29", "44", "45", "46", "47"], "{id}");
+        assert_eq!(
+            indicators,
+            ["28", "29", "44", "45", "46", "47", "54", "55", "56", "57"],
+            "{id}"
+        );
     }
 }
 
@@ -739,7 +743,7 @@ fn the_damper_indicators_and_their_jacobian_rows() {
             cap(d * du - k * (u - g)),
             cap(d * du - k * (u + g)),
         ];
-        let mut indicators = [0.0; 6];
+        let mut indicators = [0.0; 10];
         inst.get_event_indicators(&mut indicators).unwrap();
         let names = [
             "u_minus_g",
@@ -782,10 +786,11 @@ fn the_damper_indicators_and_their_jacobian_rows() {
             );
         }
     }
-    // Without a damper the four new indicators are 1 and their rows 0.
+    // Without a damper the four damper indicators are 1 and their rows 0, and so are the four
+    // of friction without friction (docs/model.md §12).
     let mut inst = model_exchange(0);
     inst.enter_continuous_time_mode().unwrap();
-    let mut indicators = [0.0; 6];
+    let mut indicators = [0.0; 10];
     inst.get_event_indicators(&mut indicators).unwrap();
-    assert_eq!(indicators[2..], [1.0; 4]);
+    assert_eq!(indicators[2..], [1.0; 8]);
 }

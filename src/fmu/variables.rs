@@ -143,8 +143,8 @@ mod tests {
         assert!(model_by_guid("").is_none());
     }
 
-    /// Each description declares as many event indicators as the physics computes, in its
-    /// order.
+    /// Each description declares the event indicators the instance computes, in its order: the
+    /// physics' contact surfaces, then the friction surfaces.
     #[test]
     fn every_model_declares_the_physics_event_indicators() {
         use crate::fmu::adapter::{Calculated, Source};
@@ -157,9 +157,13 @@ mod tests {
                     _ => None,
                 })
                 .collect();
-            let physics: Vec<usize> = (0..crate::physics::vector_field::EVENT_INDICATORS).collect();
-            assert_eq!(declared, physics, "{}", m.identifier);
-            assert_eq!(Calculated::INDICATORS.len(), physics.len());
+            let all: Vec<usize> = (0..crate::fmu::adapter::EVENT_INDICATORS).collect();
+            assert_eq!(declared, all, "{}", m.identifier);
+            assert_eq!(Calculated::INDICATORS.len(), all.len());
+            assert_eq!(
+                Calculated::INDICATORS[crate::physics::vector_field::EVENT_INDICATORS],
+                Calculated::StopM
+            );
         }
     }
 
