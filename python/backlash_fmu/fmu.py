@@ -238,6 +238,10 @@ class Instance:
         """The Integer (FMI 3.0: Int32) output `contact`."""
         return self._get_int([self.vr["contact"]])[0]
 
+    def integers(self, *names: str) -> list[int]:
+        """Integer (FMI 3.0: Int32) values by name, in one call (`contact`, `sliding_m`, ...)."""
+        return self._get_int(self.refs(names))
+
     def set_inputs(self, **inputs: float) -> None:
         """Inputs by name (tau_m, tau_L; a web line's v_in, T_in), in one call."""
         self.set(inputs)

@@ -235,3 +235,38 @@ def test_the_identification_step_recovers_the_rig_and_answers_the_accuracy(demo)
     header = (out / "identify_run.csv").read_text().splitlines()[0]
     assert header == "time,tau_m,omega_m,omega_L"
     assert "accuracy ε = 0.02 m/s" in stdout
+
+
+def test_the_friction_step_shows_the_load_stuck_at_each_reversal_until_its_breakaway(demo):
+    """backlash_fmu.demo.friction_reversal: with bearing friction the load sticks at each reversal
+    of the speed reference, and breaks away where the shaft's torque k (|u| - Delta) reaches
+    peak_L tau_c_L (docs/model.md §12; Delta and k read here from the archive's model
+    description, the friction the demo sets from its module): between the last stuck sample and
+    the first sliding one, within the shaft's wind-up over one 1 ms step; the frictionless run
+    beside it never reads the load at rest for long."""
+    out, stdout = demo
+    import archives
+
+    from backlash_fmu.demo.friction_reversal import FRICTION, H, PERIOD
+
+    start = {name: float(v.start) for name, v in archives.require("BacklashShaft").variables.items()}
+    delta, k = start["Delta"], start["k"]
+    breakaway = FRICTION["peak_L"] * FRICTION["tau_c_L"]
+    with (out / "friction_reversal.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    sliding = np.array([int(r["sliding_L"]) for r in rows])
+    lost = np.abs(np.array([float(r["lost_motion"]) for r in rows]))
+    omega_m = np.abs(np.array([float(r["omega_m"]) for r in rows]))
+    torque = k * np.maximum(lost - delta, 0.0)
+    ends = [i for i in range(1, len(rows)) if sliding[i - 1] == 0 and sliding[i] != 0]
+    assert len(ends) >= 2, "the load sticks at the start and at the reversal"
+    for i in ends:
+        # The wind-up over one step: k times the motor's travel in it (the stuck load is still).
+        slack = k * omega_m[i] * H * 1.01
+        assert torque[i - 1] <= breakaway + 1e-12 and torque[i] >= breakaway - slack, (i, torque[i - 1], torque[i])
+    # From the first reversal on, the load rests only with friction (without, it is at rest only
+    # at the start, until the motor first takes up the gap).
+    later = np.array([float(r["time"]) for r in rows]) >= PERIOD / 2
+    frictionless = np.array([float(r["omega_L_frictionless"]) for r in rows])
+    assert np.sum(sliding[later] == 0) > 100 and np.sum(frictionless[later] == 0.0) == 0
+    assert "load stuck:" in stdout and (out / "friction_reversal.png").stat().st_size > 10_000

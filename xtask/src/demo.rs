@@ -12,7 +12,10 @@
 //! - runs twin web lines (Δ and Δ = 0) on BacklashWeb.fmu under the speed and tension PI loops:
 //!   results/web_line.csv (T^b, T^0, |ΔT| against bound_T; ω_L^b, ω_L^0, |Δω_L| against bound)
 //!   and results/web_line.png, and reads design_web.json's answer back through the FMU's
-//!   bound_T_sup.
+//!   bound_T_sup;
+//! - identifies the paper's rig from a noisy BacklashShaft run: results/identify*.{csv,json};
+//! - runs a low-speed reversal on BacklashShaft with bearing friction with stiction and without,
+//!   under the PI speed loop: results/friction_reversal.csv and results/friction_reversal.png.
 //!
 //! The demo runs on the installed package's own archives (built from this tree by the install):
 //! `BACKLASH_FMU_DIR` is removed from its environment.
@@ -31,8 +34,10 @@ gaps read as Delta = gap/2 and Delta = gap, with a step and a reversing referenc
 of max deviation against bound_paper and bound; answers the design question for
 eps = 0.02 m/s, and the web-tension question for a film line on BacklashBelt's drive for
 eps_T = 20 N. Then runs twin BacklashWeb.fmu web lines (Delta and Delta = 0) under speed and
-tension PI loops closed through fmpy and compares |T^b - T^0| with bound_T. Writes
-results/*.csv, results/*.png, results/design.json and results/design_web.json.
+tension PI loops closed through fmpy and compares |T^b - T^0| with bound_T; identifies the
+paper's rig from a noisy run; runs a low-speed reversal with bearing friction beside the same
+run without. Writes results/*.csv, results/*.png, results/design.json and
+results/design_web.json.
 
 The experiments are the package backlash_fmu's (python -m backlash_fmu.demo), installed into
 .venv first.

@@ -1,6 +1,7 @@
 """The demonstration: the paper's closed-loop experiments (Figs. 11-13) reproduced with
 BacklashShaft.fmu and its open design question answered, then a web line on BacklashWeb.fmu
-against its tension bound.
+against its tension bound, the rig identified from a noisy run, and a low-speed reversal with
+bearing friction.
 
     python -m backlash_fmu.demo [--out DIR] [--short]
 
@@ -25,6 +26,9 @@ In order (`main`):
    `backlash_fmu.identify` (Delta, k, J_L, b_L, u0 with 95% intervals, beside the true values)
    and the accuracy question answered by `backlash identify --accuracy`: DIR/identify_run.csv,
    DIR/identify.csv, DIR/identify.json.
+6. `friction_reversal.run`: a low-speed reversal on the paper's rig under the PI speed loop, with
+   bearing friction with stiction (docs/model.md §12) and without: motor and load speeds, the
+   sliding modes, the lost motion: DIR/friction_reversal.csv, DIR/friction_reversal.png.
 
 DIR defaults to results; `--short` (or CI=true in the environment) shortens the horizons. The
 archives are those of $BACKLASH_FMU_DIR when it is set, else the package's own
@@ -169,6 +173,12 @@ def main(argv: list[str] | None = None) -> int:
 
     _step("identification: the paper's rig from a noisy run, and the accuracy question")
     status = identify_rig.run(args.out, short)
+    if status != 0:
+        return status
+    from . import friction_reversal
+
+    _step("bearing friction: a low-speed reversal on the paper's rig, with stiction and without")
+    status = friction_reversal.run(answer, args.out, short)
     if status != 0:
         return status
     print(f"\ndemo finished in {time.perf_counter() - started:.1f} s")
