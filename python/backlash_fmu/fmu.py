@@ -30,10 +30,12 @@ from fmpy.fmi1 import FMICallException
 # The drive train's continuous states in their order (a web line has its span's tension T as a
 # fifth); also the outputs that carry them.
 STATES = ("theta_m", "omega_m", "theta_L", "omega_L")
-# Its six event indicators (docs/model.md §6): u - g, u + g, then the damped force's surfaces
-# K*(u - g) + D*u' and K*(u + g) + D*u', and the cap's D*u' - K*(u - g) and D*u' - K*(u + g) (each
-# 1 where the plant has no such surface: without a damper, or the cap's with contact_law = 2).
-EVENT_INDICATORS = 6
+# Its ten event indicators (docs/model.md §6, §12): u - g, u + g, then the damped force's surfaces
+# K*(u - g) + D*u' and K*(u + g) + D*u', and the cap's D*u' - K*(u - g) and D*u' - K*(u + g), then
+# bearing friction's stop_m, breakaway_m, stop_L, breakaway_L (each 1 where the plant has no such
+# surface: without a damper, the cap's with contact_law = 2, a body without friction or in the
+# other mode). An instance reads the count from its description (ModelExchange.nz).
+EVENT_INDICATORS = 10
 # The status every refusal is answered with: fmi2Error and fmi3Error are both 3.
 ERROR = 3
 
@@ -358,7 +360,8 @@ class ModelExchange(Instance):
         self.nx = len(archive.md.derivatives)
         self._x = (ctypes.c_double * self.nx)()
         self._dx = (ctypes.c_double * self.nx)()
-        self._z = (ctypes.c_double * EVENT_INDICATORS)()
+        self.nz = archive.md.numberOfEventIndicators
+        self._z = (ctypes.c_double * self.nz)()
         self._u = (ctypes.c_double * 2)()
         self._torques = (ctypes.c_uint * 2)(self.vr["tau_m"], self.vr["tau_L"])
         self.x_view = np.ctypeslib.as_array(self._x)
@@ -404,9 +407,10 @@ class ModelExchange(Instance):
         return np.array(self._dx[: len(STATES)])
 
     def indicators(self, t: float, x: Any) -> np.ndarray:
-        """The event indicators at (t, x[:4]): u - g, u + g and the damper's four (EVENT_INDICATORS)."""
+        """The event indicators at (t, x[:4]): u - g, u + g, the damper's four and friction's four
+        (EVENT_INDICATORS)."""
         self.set_state(t, x)
-        self._get_indicators(self.c, self._z, EVENT_INDICATORS)
+        self._get_indicators(self.c, self._z, self.nz)
         return np.array(self._z)
 
     def nominals(self) -> np.ndarray:

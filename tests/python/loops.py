@@ -100,8 +100,9 @@ class PythonPlant:
         )
 
     def indicators(self, t, x):
-        """The FMU's six event indicators (docs/model.md §6) of this plant without a damper: u - g,
-        u + g, and the damper's four surfaces, which it does not have, at 1."""
+        """The FMU's ten event indicators (docs/model.md §6, §12) of this plant without a damper and
+        without friction: u - g, u + g, and the damper's and friction's eight surfaces, which it
+        does not have, at 1."""
         u = self.p.r_m * x[0] - self.p.r_L * x[2]
         return np.array([u - self.p.g, u + self.p.g, *[1.0] * (NZ - 2)])
 

@@ -36,13 +36,18 @@ RIGS = {model: (_merged(*rig["parameters"]), _merged(rig["gains"])) for model, r
 
 # The web span's parameters and the tension loop's gains: not part of the drive train.
 WEB_ONLY = ("R_w", "L_w", "EA", "v_ref", "Kp_T", "Ki_T")
+# Bearing friction (docs/model.md §12), which the plant of §1 does not have.
+FRICTION = ("tau_c_m", "tau_c_L", "peak_m", "peak_L")
 
 
 def plant_of(model: str, params: dict) -> Plant:
     """The generic plant (docs/model.md §1 table) for an FMU's parameter values, in the form its
     parameters name (docs/model.md §4): a shaft's stiffness k or a belt's K_b; a web line's drive
-    train alone (its web decoupled, WEB_DECOUPLED)."""
-    p = {k: v for k, v in params.items() if k not in ("Kp", "Ki", *WEB_ONLY)}
+    train alone (its web decoupled, WEB_DECOUPLED). Without bearing friction: a tau_c above 0
+    is refused (reference_friction.py solves that plant)."""
+    if any(params.get(name, 0.0) != 0.0 for name in ("tau_c_m", "tau_c_L")):
+        raise ValueError(f"{model}: bearing friction (tau_c > 0) is not the plant of docs/model.md §1")
+    p = {k: v for k, v in params.items() if k not in ("Kp", "Ki", *WEB_ONLY, *FRICTION)}
     if "k" in p:
         return Plant.shaft(**p)
     if "K_b" in p:

@@ -144,6 +144,10 @@ def test_states_derivatives_and_event_indicators(model):
         ("force_lower", 45),
         ("cap_upper", 46),
         ("cap_lower", 47),
+        ("stop_m", 54),
+        ("breakaway_m", 55),
+        ("stop_L", 56),
+        ("breakaway_L", 57),
     ]
     assert md2.numberOfEventIndicators == len(indicators)
     assert [u.variable.name for u in md3.outputs] == [u.variable.name for u in md2.outputs]

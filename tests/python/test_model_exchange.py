@@ -191,7 +191,7 @@ def test_model_description_declares_model_exchange(fmu):
     assert me is not None and md.coSimulation is not None, "both interfaces in one archive"
     assert me.modelIdentifier == fmu.path.stem  # the model it was asked for (fmu_path)
     assert me.providesDirectionalDerivative and me.canGetAndSetFMUstate and me.canSerializeFMUstate
-    assert md.numberOfEventIndicators == EVENT_INDICATORS == 6
+    assert md.numberOfEventIndicators == EVENT_INDICATORS == 10
     derivatives = [d.variable for d in md.derivatives]  # <ModelStructure><Derivatives>, in order
     # The web line's span tension T is its fifth state (docs/model.md §8).
     web = fmu.model == "BacklashWeb"
@@ -521,7 +521,7 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
         cases[f"time {bad}"] = (lambda inst, bad=bad: inst.fmu.setTime(bad), ("time",))
         cases[f"tau_m {bad}"] = (lambda inst, bad=bad: inst.set_torques(bad, 0.0), ("tau_m",))
         cases[f"tau_L {bad}"] = (lambda inst, bad=bad: inst.set_torques(0.0, bad), ("tau_L",))
-    buffer = (ctypes.c_double * 8)(*([0.1] * 8))
+    buffer = (ctypes.c_double * 16)(*([0.1] * 16))
     for n in (nx - 1, nx + 1, 0):
         lengths = (str(n), str(nx))
         cases[f"set states n={n}"] = (lambda inst, n=n: inst.fmu.fmi2SetContinuousStates(inst.c, buffer, n), lengths)
@@ -531,7 +531,7 @@ def test_bad_states_times_and_inputs_are_refused(fmu):
             lambda inst, n=n: inst.fmu.fmi2GetNominalsOfContinuousStates(inst.c, buffer, n),
             lengths,
         )
-    for n in (2, 7, 0):
+    for n in (2, EVENT_INDICATORS + 1, 0):
         cases[f"indicators n={n}"] = (
             lambda inst, n=n: inst.fmu.fmi2GetEventIndicators(inst.c, buffer, n),
             (str(n), str(EVENT_INDICATORS)),
