@@ -1,17 +1,8 @@
 //! The `backlash` binary as a user runs it: its exit status, and what it writes where.
 
-use std::process::{Command, Output};
+mod common;
 
-fn backlash(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_backlash"))
-        .args(args)
-        .output()
-        .expect("the backlash binary runs")
-}
-
-fn text(bytes: &[u8]) -> &str {
-    std::str::from_utf8(bytes).expect("UTF-8 output")
-}
+use common::{backlash, text};
 
 #[test]
 fn bad_input_gives_one_error_line_and_status_2() {

@@ -2,20 +2,11 @@
 //! simulated here by the physics crate's exact stepper (not the identification's model), and
 //! identify's answer, which must contain the truth in its 95% intervals; bad data refused.
 
+mod common;
+
 use backlash_physics::{Inputs, Plant, PlantParams, PlantState, Stepper};
+use common::{backlash, text};
 use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn backlash(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_backlash"))
-        .args(args)
-        .output()
-        .expect("the backlash binary runs")
-}
-
-fn text(bytes: &[u8]) -> &str {
-    std::str::from_utf8(bytes).expect("UTF-8 output")
-}
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("backlash-identify-{}", std::process::id()));

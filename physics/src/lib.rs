@@ -17,6 +17,7 @@ pub mod bound;
 pub mod chain;
 pub mod closed_loop;
 pub mod controller;
+mod damper;
 pub mod kernel;
 pub mod linear;
 pub mod mode;

@@ -10,8 +10,6 @@ use thiserror::Error;
 
 mod damped;
 
-pub(crate) use damped::variation;
-
 /// Inputs over one step: values at the step start and their slopes over the step.
 /// Slopes are 0 for a zero-order hold (FMI 2 CS default); non-zero for first-order hold.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -240,7 +238,7 @@ struct StepCache<const N: usize, const KO: usize> {
 pub struct Exact<const N: usize, const KO: usize> {
     plant: Plant,
     /// D of the compliant member: 0 for the paper's plant, whose three modes switch on u = ±g
-    /// alone; > 0 adds the slack and (law 1) capped modes and their surfaces (`DampedSurface`).
+    /// alone; > 0 adds the slack and (law 1) capped modes and their surfaces (`damper.rs`).
     damping: f64,
     /// Law 1 (`ElastoBacklash`) with a damper: the cap's surfaces too.
     law1: bool,

@@ -1,6 +1,8 @@
 //! The chain of stages (physics/src/chain) against the single-gap stepper, an independent
 //! integrator of docs/model.md §10, a closed form, a graze and its refusals.
 
+mod common;
+
 use backlash_physics::chain::{
     Body, Chain, ChainError, ChainEvent, ChainMode, ChainParams, ChainState, ChainStepper, Motion, Part, Stage,
     StageSwitch, TwoStageStepper,
@@ -395,35 +397,22 @@ impl Drive {
         let mut states = Vec::new();
         let mut switches = vec![Vec::new(); stages];
         let inside = |z: &[f64], modes: &[ContactMode]| self.margins(z, modes).iter().all(|&m| m >= 0.0);
-        let dt = h / substeps as f64;
         for (k, input) in inputs.iter().enumerate() {
             let t0 = k as f64 * h;
             let tau = |t: f64| input.tau_m + input.dtau_m * (t - t0);
             let mut done = 0.0;
-            for sub in 0..substeps {
-                let target = if sub + 1 == substeps { h } else { (sub + 1) as f64 * dt };
+            for target in common::substep_ends(h, substeps) {
                 while done < target {
-                    let step = target - done;
-                    let trial = self.rk4(&z, &modes, t0 + done, step, &tau, input.tau_l);
-                    if inside(&trial, &modes) {
-                        z = trial;
+                    let (next, cut) = common::rk4_to_first_exit(
+                        target - done,
+                        |len| self.rk4(&z, &modes, t0 + done, len, &tau, input.tau_l),
+                        |z, _| inside(z, &modes),
+                    );
+                    z = next;
+                    let Some(hi) = cut else {
                         done = target;
                         continue;
-                    }
-                    // Bisection for the first instant a margin goes negative.
-                    let (mut lo, mut hi) = (0.0, step);
-                    loop {
-                        let mid = lo + 0.5 * (hi - lo);
-                        if mid <= lo || mid >= hi {
-                            break;
-                        }
-                        if inside(&self.rk4(&z, &modes, t0 + done, mid, &tau, input.tau_l), &modes) {
-                            lo = mid;
-                        } else {
-                            hi = mid;
-                        }
-                    }
-                    z = self.rk4(&z, &modes, t0 + done, hi, &tau, input.tau_l);
+                    };
                     done += hi;
                     let (margins, u) = (self.margins(&z, &modes), self.coordinates(&z));
                     for j in 0..stages {

@@ -2,6 +2,8 @@
 //! docs/model.md §10): closed forms of a body that stops, breaks away and reverses, and a two-stage
 //! gearbox with friction on every body against a hybrid integrator written here from the law.
 
+mod common;
+
 use backlash_physics::chain::{
     Body, BodyMode, BodySwitch, Chain, ChainEvent, ChainParams, ChainState, ChainStepper, Coulomb, Motion, Stage,
     TwoStageStepper,
@@ -30,6 +32,18 @@ fn lone_motor(j: f64, tau_c: f64, peak: f64) -> Chain<1> {
         web: None,
     })
     .unwrap()
+}
+
+/// The lone motor of `chain` at θ = 0 sliding at `omega0`, the load at rest.
+fn sliding(chain: &Chain<1>, omega0: f64) -> ChainState<1> {
+    ChainState::new(
+        chain,
+        Motion {
+            theta: 0.0,
+            omega: omega0,
+        },
+        [Motion::default()],
+    )
 }
 
 /// Steps of `h` from `state` over `steps` steps under `inputs(t)`, collecting the body switches
@@ -64,14 +78,7 @@ fn run(
 fn a_sliding_body_stops_where_the_closed_form_says_and_sticks() {
     let (j, tau_c, omega0) = (0.5, 2.0, 3.0);
     let chain = lone_motor(j, tau_c, 1.5);
-    let start = ChainState::new(
-        &chain,
-        Motion {
-            theta: 0.0,
-            omega: omega0,
-        },
-        [Motion::default()],
-    );
+    let start = sliding(&chain, omega0);
     assert_eq!(start.mode.body(0), BodyMode::Forward);
     let mut switches = Vec::new();
     let h = 1e-3;
@@ -142,14 +149,7 @@ fn a_stuck_body_breaks_away_at_peak_times_tau_c() {
 fn a_body_pushed_past_its_breakaway_reverses_without_sticking() {
     let (j, tau_c, omega0, tau) = (0.5, 2.0, 3.0, -5.0);
     let chain = lone_motor(j, tau_c, 1.5);
-    let start = ChainState::new(
-        &chain,
-        Motion {
-            theta: 0.0,
-            omega: omega0,
-        },
-        [Motion::default()],
-    );
+    let start = sliding(&chain, omega0);
     let mut switches = Vec::new();
     let h = 1e-3;
     let states = run(chain, start, h, 1000, &|_| Inputs::held(tau, 0.0), &mut switches);
@@ -347,7 +347,6 @@ impl Reference {
         let mut st = [ContactMode::Free; 2];
         let mut bo = [BodyMode::Stuck; 3];
         let (mut states, mut switches) = (Vec::new(), Vec::new());
-        let dt = h / substeps as f64;
         for k in 0..steps {
             let t0 = k as f64 * h;
             // The law at rest with the step's input (as the stepper applies it at a step's start).
@@ -358,30 +357,21 @@ impl Reference {
                 }
             }
             let mut done = 0.0;
-            for sub in 0..substeps {
-                let target = if sub + 1 == substeps { h } else { (sub + 1) as f64 * dt };
+            for target in common::substep_ends(h, substeps) {
                 while done < target {
-                    let step = target - done;
-                    let inside = |z: &[f64; 6], at: f64| self.margins(z, &st, &bo, tau(at)).iter().all(|&m| m >= 0.0);
-                    let trial = self.rk4(&z, &st, &bo, tau, t0 + done, step);
-                    if inside(&trial, t0 + done + step) {
-                        z = trial;
+                    let (next, cut) = common::rk4_to_first_exit(
+                        target - done,
+                        |len| self.rk4(&z, &st, &bo, tau, t0 + done, len),
+                        |z, len| {
+                            let at = t0 + done + len;
+                            self.margins(z, &st, &bo, tau(at)).iter().all(|&m| m >= 0.0)
+                        },
+                    );
+                    z = next;
+                    let Some(hi) = cut else {
                         done = target;
                         continue;
-                    }
-                    let (mut lo, mut hi) = (0.0, step);
-                    loop {
-                        let mid = lo + 0.5 * (hi - lo);
-                        if mid <= lo || mid >= hi {
-                            break;
-                        }
-                        if inside(&self.rk4(&z, &st, &bo, tau, t0 + done, mid), t0 + done + mid) {
-                            lo = mid;
-                        } else {
-                            hi = mid;
-                        }
-                    }
-                    z = self.rk4(&z, &st, &bo, tau, t0 + done, hi);
+                    };
                     done += hi;
                     let at = t0 + done;
                     let margins = self.margins(&z, &st, &bo, tau(at));

@@ -155,6 +155,59 @@ fn measured(params: &PlantParams, u0: f64, tau: &[f64], h: f64, noise: f64, outp
     cols
 }
 
+/// identify's answer for the shaft from a run of `truth` from u(0) = `u0` under `tau` (steps of
+/// `h`), the `outputs` measured with noise of `noise` of their spread; `fit`: the parameters
+/// fitted (None: the default set), the others at the rig's defaults.
+fn shaft_answer(
+    truth: &PlantParams,
+    u0: f64,
+    tau: &[f64],
+    h: f64,
+    noise: f64,
+    outputs: &[usize],
+    fit: Option<&[String]>,
+) -> Answer {
+    let cols = measured(truth, u0, tau, h, noise, outputs);
+    let request = build(Form::Shaft, &[], fit, Vocabulary::Arguments).unwrap();
+    identify(&request, &cols).unwrap()
+}
+
+/// Asserts that every estimate of `answer` is identifiable and its 95% interval holds the truth
+/// (`truth_of` the estimate's index), or with `close` (noise-free data, whose interval is the
+/// round-off's) that it lies within that fraction of the truth.
+fn assert_recovered(answer: &Answer, truth_of: impl Fn(usize) -> f64, close: Option<f64>) {
+    for e in &answer.estimates {
+        let truth = truth_of(e.name);
+        let (lo, hi) = e.ci95.unwrap_or((f64::NAN, f64::NAN));
+        let near = close.is_some_and(|c| (e.value - truth).abs() <= c * truth.abs());
+        assert!(
+            e.identifiable && (near || (lo <= truth && truth <= hi)),
+            "{e:?} {:?}",
+            answer.messages
+        );
+    }
+}
+
+/// The estimate of Δ in `answer`.
+fn delta_of(answer: &Answer) -> &Estimate {
+    answer.estimates.iter().find(|e| e.name == DELTA_INDEX).unwrap()
+}
+
+/// Asserts that `answer` leaves Δ undetermined, without an interval, and says so.
+fn assert_gap_undetermined(answer: &Answer) {
+    let delta = delta_of(answer);
+    assert!(
+        !delta.identifiable && delta.ci95.is_none(),
+        "{delta:?} {:?}",
+        answer.messages
+    );
+    assert!(
+        answer.messages.iter().any(|m| m.contains("Delta")),
+        "{:?}",
+        answer.messages
+    );
+}
+
 #[test]
 fn a_round_trip_recovers_the_truth_within_the_interval() {
     // (Δ, u0): the second pair once led the start to a side minimum of the cost.
@@ -162,10 +215,8 @@ fn a_round_trip_recovers_the_truth_within_the_interval() {
         let truth = PlantParams::paper_rig(delta);
         let h = 1e-3;
         let tau = torque(&PlantParams::paper_rig(0.775e-3), 10.0, h);
-        let cols = measured(&truth, u0, &tau, h, 1e-3, &[0, 2]);
         // Start from the rig's defaults: Δ 0.775e-3, k 200, J_L 2.55, b_L 0.05.
-        let request = build(Form::Shaft, &[], None, Vocabulary::Arguments).unwrap();
-        let answer = identify(&request, &cols).unwrap();
+        let answer = shaft_answer(&truth, u0, &tau, h, 1e-3, &[0, 2], None);
         let truth_of = |i: usize| match i {
             DELTA_INDEX => delta,
             K_INDEX => 200.0,
@@ -173,13 +224,7 @@ fn a_round_trip_recovers_the_truth_within_the_interval() {
             3 => 0.05,
             _ => u0,
         };
-        for e in &answer.estimates {
-            let (lo, hi) = e.ci95.unwrap();
-            assert!(
-                e.identifiable && lo <= truth_of(e.name) && truth_of(e.name) <= hi,
-                "{e:?}"
-            );
-        }
+        assert_recovered(&answer, truth_of, None);
     }
 }
 
@@ -188,16 +233,20 @@ fn a_run_that_never_reverses_leaves_the_gap_undetermined() {
     let truth = PlantParams::paper_rig(1e-3);
     let h = 1e-3;
     let tau = vec![0.5; 3000];
-    let cols = measured(&truth, -0.5e-3, &tau, h, 1e-4, &[0, 2]);
-    let request = build(Form::Shaft, &[], None, Vocabulary::Arguments).unwrap();
-    let answer = identify(&request, &cols).unwrap();
-    let delta = answer.estimates.iter().find(|e| e.name == DELTA_INDEX).unwrap();
-    assert!(!delta.identifiable && delta.ci95.is_none());
-    assert!(
-        answer.messages.iter().any(|m| m.contains("Delta")),
-        "{:?}",
-        answer.messages
-    );
+    let answer = shaft_answer(&truth, -0.5e-3, &tau, h, 1e-4, &[0, 2], None);
+    assert_gap_undetermined(&answer);
+}
+
+/// The belt's truth in its round trips by estimate index: Δ 8e-5, K_b 2e5, J_L 5e-3, b_L 1e-3,
+/// and u(0) = `u0`.
+fn belt_truth(u0: f64) -> impl Fn(usize) -> f64 {
+    move |i| match i {
+        DELTA_INDEX => 8e-5,
+        K_INDEX => 2e5,
+        1 => 5e-3,
+        3 => 1e-3,
+        _ => u0,
+    }
 }
 
 #[test]
@@ -210,21 +259,7 @@ fn the_belt_round_trip_recovers_the_truth_within_the_interval() {
     // Start from BacklashBelt's defaults: Δ = 5e-5.
     let request = build(Form::Belt, &[], None, Vocabulary::Arguments).unwrap();
     let answer = identify(&request, &cols).unwrap();
-    let truth_of = |i: usize| match i {
-        DELTA_INDEX => 8e-5,
-        K_INDEX => 2e5,
-        1 => 5e-3,
-        3 => 1e-3,
-        _ => -0.3 * g,
-    };
-    for e in &answer.estimates {
-        let (lo, hi) = e.ci95.unwrap_or((f64::NAN, f64::NAN));
-        assert!(
-            e.identifiable && lo <= truth_of(e.name) && truth_of(e.name) <= hi,
-            "{e:?} {:?}",
-            answer.messages
-        );
-    }
+    assert_recovered(&answer, belt_truth(-0.3 * g), None);
 }
 
 #[test]
@@ -284,23 +319,8 @@ fn the_web_round_trip_recovers_the_truth_within_the_interval() {
         ("T".into(), tt),
     ];
     let answer = identify(&request, &cols).unwrap();
-    let truth_of = |i: usize| match i {
-        DELTA_INDEX => 8e-5,
-        K_INDEX => 2e5,
-        1 => 5e-3,
-        3 => 1e-3,
-        _ => u0,
-    };
-    for e in &answer.estimates {
-        let (lo, hi) = e.ci95.unwrap_or((f64::NAN, f64::NAN));
-        // Noise-free data: the interval is the round-off's; the estimate within 1e-6 of the truth.
-        let close = (e.value - truth_of(e.name)).abs() <= 1e-6 * truth_of(e.name).abs();
-        assert!(
-            e.identifiable && (close || (lo <= truth_of(e.name) && truth_of(e.name) <= hi)),
-            "{e:?} {:?}",
-            answer.messages
-        );
-    }
+    // Noise-free data: the interval is the round-off's; the estimate within 1e-6 of the truth.
+    assert_recovered(&answer, belt_truth(u0), Some(1e-6));
 }
 
 #[test]
@@ -310,11 +330,9 @@ fn a_gap_near_zero_gets_the_profile_interval() {
     let truth = PlantParams::paper_rig(2e-6);
     let h = 1e-3;
     let tau = torque(&PlantParams::paper_rig(0.775e-3), 10.0, h);
-    let cols = measured(&truth, 0.0, &tau, h, 1e-3, &[0, 2]);
     let fit = ["Delta", "k", "u0"].map(String::from);
-    let request = build(Form::Shaft, &[], Some(&fit), Vocabulary::Arguments).unwrap();
-    let answer = identify(&request, &cols).unwrap();
-    let delta = answer.estimates.iter().find(|e| e.name == DELTA_INDEX).unwrap();
+    let answer = shaft_answer(&truth, 0.0, &tau, h, 1e-3, &[0, 2], Some(&fit));
+    let delta = delta_of(&answer);
     assert!(
         answer.messages.iter().any(|m| m.contains("profile")),
         "{:?}",
@@ -352,20 +370,8 @@ fn a_run_pushed_one_way_at_once_leaves_the_gap_undetermined() {
     let truth = PlantParams::paper_rig(2e-3);
     let h = 1e-3;
     let tau = vec![2.0; 5000];
-    let cols = measured(&truth, 0.0, &tau, h, 1e-3, &[1, 3]);
-    let request = build(Form::Shaft, &[], None, Vocabulary::Arguments).unwrap();
-    let answer = identify(&request, &cols).unwrap();
-    let delta = answer.estimates.iter().find(|e| e.name == DELTA_INDEX).unwrap();
-    assert!(
-        !delta.identifiable && delta.ci95.is_none(),
-        "{delta:?} {:?}",
-        answer.messages
-    );
-    assert!(
-        answer.messages.iter().any(|m| m.contains("Delta")),
-        "{:?}",
-        answer.messages
-    );
+    let answer = shaft_answer(&truth, 0.0, &tau, h, 1e-3, &[1, 3], None);
+    assert_gap_undetermined(&answer);
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! The chain's parameters and their validation: bodies (J, b) joined by stages (a, c, K, g)
 //! (docs/model.md §1 for one stage, docs/model.md §10 for several).
 
+use crate::damper::DampedMember;
 use crate::params::{ContactLaw, Damping, Plant, WebSpan, SCALE_LIMIT};
 use std::fmt;
 use thiserror::Error;
@@ -75,6 +76,17 @@ impl Stage {
     /// Law 1 (`ElastoBacklash`) with a damper: the capped modes exist.
     pub fn capped(&self) -> bool {
         self.damper.d > 0.0 && self.damper.law == ContactLaw::ElastoBacklash
+    }
+
+    /// The stage's damper as its surfaces see it (crate::damper), for a stage with one.
+    #[inline(always)]
+    pub(crate) fn damped_member(&self) -> DampedMember {
+        DampedMember {
+            k: self.k,
+            d: self.d(),
+            g: self.g,
+            law1: self.capped(),
+        }
     }
 }
 

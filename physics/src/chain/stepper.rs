@@ -4,12 +4,13 @@
 //! enter their new modes together.
 
 use super::linear::{mode_matrix, Layout, Rows, PIECE_RATE};
-use super::params::{Chain, Stage};
+use super::params::Chain;
 use super::state::{BodyMode, ChainMode, ChainState};
+use crate::damper::variation;
 use crate::kernel::KernelColumn;
 use crate::mode::ContactMode;
 use crate::roots::{self, Side, SignalRows};
-use crate::stepper::{variation, Inputs, StepError, MAX_PIECES};
+use crate::stepper::{Inputs, StepError, MAX_PIECES};
 use crate::taylor::{exp_series, Sparse, TaylorModel};
 use nalgebra::{SMatrix, SVector};
 
@@ -716,7 +717,8 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
                     });
             }
             let (d2, c3) = certificate(i);
-            surfaces_clear(stage, &damped_exits(stage, mode.stages[i]), u, du, d2, c3, span)
+            let member = stage.damped_member();
+            member.clear(&member.exits(mode.stages[i]), u, du, d2, c3, span)
         })
     }
 
@@ -772,26 +774,26 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             let u = y[Layout::<S>::u(i)];
             if stage.d() > 0.0 {
                 let (du, d2, c3) = (y[Layout::<S>::v(i)], rows.derivative(2, y), rows.third_bound(y, span));
-                for exit in damped_exits(stage, mode.stages[i]).into_iter().flatten() {
+                let member = stage.damped_member();
+                for exit in member.exits(mode.stages[i]).into_iter().flatten() {
                     let (surface, sign, to) = exit;
-                    if surfaces_clear(stage, &[Some(exit), None], u, du, d2, c3, span) {
+                    if member.clear(&[Some(exit), None], u, du, d2, c3, span) {
                         continue;
                     }
-                    let (c, tol) = damped_signal::<S, N>(stage, i, surface, y);
+                    // The surface's row on stage i's u, v and the constant 1.
+                    let ([on_u, on_v, on_one], tol) = member.signal(surface, u, du);
+                    let mut c = SVector::<f64, N>::zeros();
+                    c[Layout::<S>::u(i)] = on_u;
+                    c[Layout::<S>::v(i)] = on_v;
+                    c[Layout::<S>::ONE] = on_one;
                     let p = model.signal(&c);
                     let limit = span.min(best + same_instant);
                     let side = Side { offset: 0.0, sign, tol };
                     if let Ok(Some(offset)) = roots::first_exit(&p, side, limit, budget) {
                         if slot.is_none_or(|c| offset < c.offset) {
-                            *slot = Some(damped_crossing::<S, N>(
-                                stage,
-                                i,
-                                surface,
-                                mode.stages[i],
-                                to,
-                                offset,
-                                model,
-                            ));
+                            let (u, du) =
+                                member.crossing(surface, mode.stages[i], to, || model.at(offset)[Layout::<S>::u(i)]);
+                            *slot = Some(Crossing { offset, to, u, du });
                         }
                         best = best.min(offset);
                     }
@@ -948,150 +950,6 @@ fn sides(mode: ContactMode, g: f64, tol: f64) -> [Option<(Side, ContactMode, f64
         ContactMode::Negative => [Some((side(-g, -1.0), ContactMode::Free, -g)), None],
         _ => unreachable!("a stage without a damper is never slack or capped"),
     }
-}
-
-/// A switching surface of a stage with a damper (docs/model.md §2, "With a damper"), on the
-/// flank `side` (±1).
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum DampedSurface {
-    /// u = side·g.
-    Gap(f64),
-    /// τ_c + τ_d = K (u − side·g) + D u′ = 0: the force reaches 0 past the flank.
-    Force(f64),
-    /// τ_d − τ_c = D u′ − K (u − side·g) = 0: law 1's cap begins or ends.
-    Cap(f64),
-}
-
-/// The surfaces that end `mode` of a stage with a damper, each with the sign that keeps the
-/// state in the mode (sign · signal ≥ 0) and the mode entered across it: the single-gap
-/// stepper's table (stepper/damped.rs) per stage.
-#[inline(always)]
-fn damped_exits(stage: &Stage, mode: ContactMode) -> [Option<(DampedSurface, f64, ContactMode)>; 2] {
-    use ContactMode::*;
-    use DampedSurface::*;
-    let law1 = stage.capped();
-    let gap = stage.g > 0.0;
-    // The mode a contact on flank `side` begins in: the damper pushes at once (law 2), or its
-    // force is capped by the spring's, 0 at the flank (law 1).
-    let entry = |side: f64| match (side > 0.0, law1) {
-        (true, false) => Positive,
-        (true, true) => CappedPositive,
-        (false, false) => Negative,
-        (false, true) => CappedNegative,
-    };
-    // Leaving a slack flank towards the other side: into the gap, or without one straight onto
-    // the other flank.
-    let past = |side: f64| if gap { Free } else { entry(-side) };
-    match mode {
-        Free => [Some((Gap(1.0), -1.0, entry(1.0))), Some((Gap(-1.0), 1.0, entry(-1.0)))],
-        Positive => [
-            Some((Force(1.0), 1.0, SlackPositive)),
-            law1.then_some((Cap(1.0), -1.0, CappedPositive)),
-        ],
-        Negative => [
-            Some((Force(-1.0), -1.0, SlackNegative)),
-            law1.then_some((Cap(-1.0), 1.0, CappedNegative)),
-        ],
-        SlackPositive => [Some((Gap(1.0), 1.0, past(1.0))), Some((Force(1.0), -1.0, Positive))],
-        SlackNegative => [Some((Gap(-1.0), -1.0, past(-1.0))), Some((Force(-1.0), 1.0, Negative))],
-        CappedPositive => [Some((Cap(1.0), 1.0, Positive)), None],
-        CappedNegative => [Some((Cap(-1.0), -1.0, Negative)), None],
-    }
-}
-
-/// The spring's sign in a surface's signal: +K for the force, −K for law 1's cap.
-fn spring_of(stage: &Stage, surface: DampedSurface) -> f64 {
-    match surface {
-        DampedSurface::Cap(_) => -stage.k,
-        _ => stage.k,
-    }
-}
-
-/// True when none of `surfaces` can be reached within `span` from u, u′, u″ with |u‴| ≤ c3:
-/// u = ±g by the cubic test, the force's surfaces (whose third derivative involves u⁗) by the
-/// quadratic lower bound s₀ + s₁σ − C σ²/2 with C ≥ sup |K u″ + D u‴| ≤ K (|u″| + span c3) + D c3.
-#[inline(always)]
-fn surfaces_clear(
-    stage: &Stage,
-    surfaces: &[Option<(DampedSurface, f64, ContactMode)>; 2],
-    u: f64,
-    du: f64,
-    d2: f64,
-    c3: f64,
-    span: f64,
-) -> bool {
-    let (k, d, g) = (stage.k, stage.d(), stage.g);
-    surfaces.iter().flatten().all(|&(surface, sign, _)| match surface {
-        DampedSurface::Gap(side) => {
-            let tol = floor(u, g);
-            roots::cubic_clear(sign * (u - side * g), sign * du, sign * d2, c3, span, tol)
-        }
-        DampedSurface::Force(side) | DampedSurface::Cap(side) => {
-            let spring = spring_of(stage, surface);
-            let s0 = spring * (u - side * g) + d * du;
-            let s1 = spring * du + d * d2;
-            let curvature = k * (d2.abs() + span * c3) + d * c3;
-            let tol = 8.0 * f64::EPSILON * (k * (u.abs() + g) + d * du.abs());
-            roots::cubic_clear(sign * s0, sign * s1, -curvature, 0.0, span, tol)
-        }
-    })
-}
-
-/// Stage i's surface as a row on the augmented state, and its round-off floor at `y`.
-fn damped_signal<const S: usize, const N: usize>(
-    stage: &Stage,
-    i: usize,
-    surface: DampedSurface,
-    y: &SVector<f64, N>,
-) -> (SVector<f64, N>, f64) {
-    let (k, d, g) = (stage.k, stage.d(), stage.g);
-    let (u, v) = (y[Layout::<S>::u(i)], y[Layout::<S>::v(i)]);
-    let mut c = SVector::<f64, N>::zeros();
-    let tol = match surface {
-        DampedSurface::Gap(side) => {
-            c[Layout::<S>::u(i)] = 1.0;
-            c[Layout::<S>::ONE] = -side * g;
-            floor(u, g)
-        }
-        DampedSurface::Force(side) | DampedSurface::Cap(side) => {
-            let spring = spring_of(stage, surface);
-            c[Layout::<S>::u(i)] = spring;
-            c[Layout::<S>::v(i)] = d;
-            c[Layout::<S>::ONE] = -spring * side * g;
-            8.0 * f64::EPSILON * (k * (u.abs() + g) + d * v.abs())
-        }
-    };
-    (c, tol)
-}
-
-/// The crossing of stage i's `surface` at `offset` on `model`, from `from` into `to`: on
-/// u = ±g, u exactly there; on a surface of the force, u′ from u so that the state lies on it
-/// (τ_c + τ_d = 0: D u′ = −K (u ∓ g); τ_d = τ_c: D u′ = K (u ∓ g)).
-fn damped_crossing<const S: usize, const N: usize>(
-    stage: &Stage,
-    i: usize,
-    surface: DampedSurface,
-    from: ContactMode,
-    to: ContactMode,
-    offset: f64,
-    model: &TaylorModel<N>,
-) -> Crossing {
-    let (u, du) = match surface {
-        DampedSurface::Gap(side) => (Some(side * stage.g), None),
-        DampedSurface::Force(_) | DampedSurface::Cap(_) => {
-            let at = model.at(offset);
-            // The flank: one of the two modes is past it.
-            let side = if from.side() != 0.0 { from.side() } else { to.side() };
-            let stretch = stage.k * (at[Layout::<S>::u(i)] - side * stage.g);
-            let sign = if matches!(surface, DampedSurface::Force(_)) {
-                -1.0
-            } else {
-                1.0
-            };
-            (None, Some(sign * stretch / stage.d()))
-        }
-    };
-    Crossing { offset, to, u, du }
 }
 
 /// The augmented vector of `state` at time `t` into the step (angle increments zero), in the

@@ -1,9 +1,10 @@
 //! The stepper's part that only a damper in the compliant member needs (docs/model.md §2,
-//! "With a damper"): the surfaces of the force and of law 1's cap, their certificates and their
-//! location, and the variation V of u over the slack, capped and free phases that the bound
-//! takes (§3).
+//! "With a damper"): the surfaces of the force and of law 1's cap (defined once for a member in
+//! crate::damper, with the chain's stages), their certificates and their location on a piece,
+//! and the variation V of u over the slack, capped and free phases that the bound takes (§3).
 
 use super::{Exact, Exit};
+use crate::damper::{variation, DampedExit, DampedMember};
 use crate::linear::{self, AugVector};
 use crate::mode::ContactMode;
 use crate::roots::{self, Side};
@@ -36,66 +37,15 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         self.variation(mode, y, d2, c3, w, u_end)
     }
 
-    /// The surfaces that end `mode` of a damped plant, with the sign that keeps the state in it
-    /// (sign · signal ≥ 0) and the mode entered across each (docs/model.md §2, "With a damper").
-    pub(super) fn damped_exits(&self, mode: ContactMode) -> [Option<(DampedSurface, f64, ContactMode)>; 2] {
-        use ContactMode::*;
-        use DampedSurface::*;
-        let law1 = self.law1;
-        let gap = self.plant.half_gap() > 0.0;
-        // The mode a contact on flank `side` begins in: the damper pushes at once (law 2), or
-        // its force is capped by the spring's, 0 at the flank (law 1).
-        let entry = |side: f64| match (side > 0.0, law1) {
-            (true, false) => Positive,
-            (true, true) => CappedPositive,
-            (false, false) => Negative,
-            (false, true) => CappedNegative,
-        };
-        // Leaving a slack flank towards the other side: into the gap, or without one straight
-        // onto the other flank.
-        let past = |side: f64| if gap { Free } else { entry(-side) };
-        match mode {
-            Free => [Some((Gap(1.0), -1.0, entry(1.0))), Some((Gap(-1.0), 1.0, entry(-1.0)))],
-            Positive => [
-                Some((Force(1.0), 1.0, SlackPositive)),
-                law1.then_some((Cap(1.0), -1.0, CappedPositive)),
-            ],
-            Negative => [
-                Some((Force(-1.0), -1.0, SlackNegative)),
-                law1.then_some((Cap(-1.0), 1.0, CappedNegative)),
-            ],
-            SlackPositive => [Some((Gap(1.0), 1.0, past(1.0))), Some((Force(1.0), -1.0, Positive))],
-            SlackNegative => [Some((Gap(-1.0), -1.0, past(-1.0))), Some((Force(-1.0), 1.0, Negative))],
-            CappedPositive => [Some((Cap(1.0), 1.0, Positive)), None],
-            CappedNegative => [Some((Cap(-1.0), -1.0, Negative)), None],
+    /// The member's damper as its surfaces see it (crate::damper).
+    #[inline(always)]
+    fn member(&self) -> DampedMember {
+        DampedMember {
+            k: self.plant.stiffness(),
+            d: self.damping,
+            g: self.plant.half_gap(),
+            law1: self.law1,
         }
-    }
-
-    /// A surface's signal as a row on the augmented state, and its round-off floor at `y`.
-    pub(super) fn damped_signal(&self, surface: DampedSurface, y: &AugVector<N>) -> (AugVector<N>, f64) {
-        let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
-        let mut c = AugVector::<N>::zeros();
-        let (u, v) = (y[linear::U], y[linear::V]);
-        let tol = match surface {
-            DampedSurface::Gap(side) => {
-                c[linear::U] = 1.0;
-                c[linear::ONE] = -side * g;
-                8.0 * f64::EPSILON * (u.abs() + g)
-            }
-            DampedSurface::Force(side) | DampedSurface::Cap(side) => {
-                // τ_c + τ_d = K (u ∓ g) + D u′, or τ_d − τ_c = D u′ − K (u ∓ g).
-                let spring = if matches!(surface, DampedSurface::Force(_)) {
-                    k
-                } else {
-                    -k
-                };
-                c[linear::U] = spring;
-                c[linear::V] = d;
-                c[linear::ONE] = -spring * side * g;
-                8.0 * f64::EPSILON * (k * (u.abs() + g) + d * v.abs())
-            }
-        };
-        (c, tol)
     }
 
     /// `clear` with a damper: every surface of `mode` certified out of reach within `span`.
@@ -143,33 +93,25 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         let rows = &self.modes[mode.index()].u_rows;
         let (d2, c3) = probe.unwrap_or_else(|| (rows.derivative(2, y), rows.third_bound(y, span)));
         let (u, du) = (y[linear::U], y[linear::V]);
-        let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
+        let member = self.member();
         let mut best: Option<Exit> = None;
         for (surface, sign, to) in self.damped_exits(mode).into_iter().flatten() {
             if self.clear_surfaces(&[Some((surface, sign, to)), None], u, du, d2, c3, span) {
                 continue;
             }
-            let (c, tol) = self.damped_signal(surface, y);
+            let ([on_u, on_v, on_one], tol) = member.signal(surface, u, du);
+            let mut c = AugVector::<N>::zeros();
+            c[linear::U] = on_u;
+            c[linear::V] = on_v;
+            c[linear::ONE] = on_one;
             let sparse = &self.modes[mode.index()].sparse;
             let p = model.get_or_expand(sparse, y, span).signal(&c);
             let limit = best.map_or(span, |b| b.offset);
             let side = Side { offset: 0.0, sign, tol };
             if let Ok(Some(offset)) = roots::first_exit(&p, side, limit, budget) {
-                let (u_at, du_at) = match surface {
-                    DampedSurface::Gap(side) => (Some(side * g), None),
-                    DampedSurface::Force(_) | DampedSurface::Cap(_) => {
-                        let at = model.get().expect("filled above").at(offset);
-                        let side = mode_side(mode, to);
-                        let stretch = k * (at[linear::U] - side * g);
-                        // τ_c + τ_d = 0: D u′ = −K (u ∓ g); τ_d = τ_c: D u′ = K (u ∓ g).
-                        let sign = if matches!(surface, DampedSurface::Force(_)) {
-                            -1.0
-                        } else {
-                            1.0
-                        };
-                        (None, Some(sign * stretch / d))
-                    }
-                };
+                let (u_at, du_at) = member.crossing(surface, mode, to, || {
+                    model.get().expect("filled above").at(offset)[linear::U]
+                });
                 best = Some(Exit {
                     offset,
                     to,
@@ -181,77 +123,17 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         best
     }
 
-    /// True when none of `surfaces` can be reached within `span` ([`Self::clear_damped`]).
-    pub(super) fn clear_surfaces(
-        &self,
-        surfaces: &[Option<(DampedSurface, f64, ContactMode)>; 2],
-        u: f64,
-        du: f64,
-        d2: f64,
-        c3: f64,
-        span: f64,
-    ) -> bool {
-        let (k, d, g) = (self.plant.stiffness(), self.damping, self.plant.half_gap());
-        surfaces.iter().flatten().all(|&(surface, sign, _)| match surface {
-            DampedSurface::Gap(side) => {
-                let tol = 8.0 * f64::EPSILON * (u.abs() + g);
-                roots::cubic_clear(sign * (u - side * g), sign * du, sign * d2, c3, span, tol)
-            }
-            DampedSurface::Force(side) | DampedSurface::Cap(side) => {
-                let spring = if matches!(surface, DampedSurface::Force(_)) {
-                    k
-                } else {
-                    -k
-                };
-                let s0 = spring * (u - side * g) + d * du;
-                let s1 = spring * du + d * d2;
-                let curvature = k * (d2.abs() + span * c3) + d * c3;
-                let tol = 8.0 * f64::EPSILON * (k * (u.abs() + g) + d * du.abs());
-                roots::cubic_clear(sign * s0, sign * s1, -curvature, 0.0, span, tol)
-            }
-        })
+    /// The surfaces that end `mode` ([`DampedMember::exits`]).
+    fn damped_exits(&self, mode: ContactMode) -> [Option<DampedExit>; 2] {
+        self.member().exits(mode)
     }
-}
 
-/// ∫|u′| over a piece of length `w` in `mode` that starts at u moving at u′ = `v` (u″ = `d2`
-/// there, |u‴| ≤ `c3` over the piece) and ends with u = `u_end`: 0 in ordinary contact. Slack and
-/// capped, u is monotone (u′ has the sign that opens the flank: slack, D u′ ≤ −K (u ∓ g); capped,
-/// D u′ ≥ K (u ∓ g) on the positive flank), so it is |Δu|; free, |Δu| where u′ provably keeps its
-/// sign (u′(σ) ≥ u′(0) + u″(0) σ − c3 σ²/2 for its sign), else the bound
-/// ∫ (|u′(0)| + |u″(0)| σ + c3 σ²/2) dσ. The growth of V (docs/model.md §2, "With a damper"), for
-/// one member or one stage of a chain.
-pub(crate) fn variation(mode: ContactMode, u: f64, v: f64, d2: f64, c3: f64, w: f64, u_end: f64) -> f64 {
-    match mode {
-        ContactMode::Positive | ContactMode::Negative => 0.0,
-        ContactMode::Free => {
-            let sign = if v != 0.0 { v.signum() } else { d2.signum() };
-            if v != 0.0 && roots::cubic_clear(sign * v, sign * d2, -c3, 0.0, w, 0.0) {
-                (u_end - u).abs()
-            } else {
-                w * (v.abs() + w * (0.5 * d2.abs() + w * c3 / 6.0))
-            }
-        }
-        _ => (u_end - u).abs(),
-    }
-}
-
-/// A switching surface of a damped plant (docs/model.md §2), on the flank `side` (±1).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) enum DampedSurface {
-    /// u = side·g.
-    Gap(f64),
-    /// τ_c + τ_d = K (u − side·g) + D u′ = 0: the force reaches 0 past the flank.
-    Force(f64),
-    /// τ_d − τ_c = D u′ − K (u − side·g) = 0: law 1's cap begins or ends.
-    Cap(f64),
-}
-
-/// The flank of a switch on a surface of the force between `from` and `to` (one of them is past
-/// it).
-fn mode_side(from: ContactMode, to: ContactMode) -> f64 {
-    if from.side() != 0.0 {
-        from.side()
-    } else {
-        to.side()
+    /// True when none of `surfaces` can be reached within `span` ([`DampedMember::clear`]).
+    /// Out of line: `clear_damped`'s common case returns before it, and inlined into the step it
+    /// made both the plain and the damped event-free steps 7 to 10% slower (`taskset -c 1 cargo
+    /// bench --bench physics -- damped`, its paired-damped-step line).
+    #[inline(never)]
+    fn clear_surfaces(&self, surfaces: &[Option<DampedExit>; 2], u: f64, du: f64, d2: f64, c3: f64, span: f64) -> bool {
+        self.member().clear(surfaces, u, du, d2, c3, span)
     }
 }
