@@ -294,6 +294,20 @@ static fmi2Component make_pressed(const char *name, int log_contacts) {
     return c;
 }
 
+/* The pressed schedule with bearing friction in both bearings (docs/model.md §12): both bodies
+ * slide forward from the first step on, with no friction switch (checked like the pressed one),
+ * so that the step is the chain's event-free step beside the frictionless one. */
+#define TAU_C_SLIDING 0.05
+static fmi2Component make_pressed_friction(const char *name, int log_contacts) {
+    const fmi2ValueReference vr[] = {VR_Kp, VR_Ki, VR_theta_m, VR_tau_c_m, VR_tau_c_L};
+    const fmi2Real value[] = {KP, KI, DELTA_DEFAULT + 0.0055, TAU_C_SLIDING, TAU_C_SLIDING};
+    fmi2Component c = make(name, vr, value, 5, log_contacts);
+    const fmi2ValueReference in[] = {VR_tau_m, VR_tau_L};
+    const fmi2Real tau[] = {TAU_PRESS, 0.0};
+    check(api.set_real(c, in, 2, tau), "fmi2SetReal(inputs)");
+    return c;
+}
+
 /* Switching schedule: the motor swings inside the gap with a speed that alternates between -V
  * and +V at every communication point (held torque +-A with A h = 2 V J_m), so that within each
  * step u reaches past +g or -g by ~V h/4 - g and comes back: a contact made and lost in every
@@ -423,6 +437,7 @@ enum {
     COPY,
     SET_GET,
     STEP,
+    STEP_FRICTION,
     SET_STEP,
     PATTERN,
     ALL_OUTPUTS,
@@ -441,6 +456,7 @@ enum {
 };
 static const char *const block_key[BLOCKS] = {
     "matvec_4x4",     "copy_set2_step_get1", "ours_set2_get1",         "ours_step_event_free",
+    "ours_step_event_free_friction",
     "ours_set2_step", "ours_set2_step_get1", "ours_set2_step_get_all", "ours_set2_step_switching",
     "me_get_derivatives", "me_get_event_indicators", "me_set_states_get_derivatives", "ours3_step_event_free",
     "belt_step_event_free", "web_step_event_free", "belt_step_from_start", "web_step_from_start",
@@ -507,6 +523,18 @@ static void suite(int batches, long steps) {
         printf("@ pressed_final_contact %d\n", (int)contact);
         release(c);
     }
+    /* The same with friction: no contact or friction switch either. */
+    {
+        fmi2Component c = make_pressed_friction("check-pressed-friction", 1);
+        contact_messages = 0;
+        for (long k = 0; k < total; k++) check(api.do_step(c, k * H, H, fmi2True), "fmi2DoStep");
+        fmi2Integer sliding[2];
+        const fmi2ValueReference sliding_vr[] = {VR_sliding_m, VR_sliding_L};
+        check(api.get_integer(c, sliding_vr, 2, sliding), "fmi2GetInteger");
+        printf("@ pressed_friction_switches %ld %ld %d %d\n", contact_messages, total, (int)sliding[0],
+               (int)sliding[1]);
+        release(c);
+    }
     /* Switching: count the switches of the schedule in an untimed run with logging. */
     {
         fmi2Component c = make_swinging("check-swinging", 1);
@@ -548,6 +576,8 @@ static void suite(int batches, long steps) {
     double v = 0.5;
     long floor_items = steps * 20;
 
+    fmi2Component step_friction = make_pressed_friction("step-friction", 0);
+    long k_step_friction = 0;
     fmi2Component set_get = make_pressed("set-get", 0), step = make_pressed("step", 0),
                   set_step = make_pressed("set-step", 0), pattern = make_pressed("pattern", 0),
                   all = make_pressed("all-outputs", 0), swinging = make_swinging("swinging", 0);
@@ -581,6 +611,12 @@ static void suite(int batches, long steps) {
         t0 = tic();
         for (long i = 0; i < steps; i++, k_step++) check(api.do_step(step, k_step * H, H, fmi2True), "fmi2DoStep");
         toc(t0, steps, t[STEP], tw[STEP], b);
+
+        /* The event-free step with friction, right after the frictionless one. */
+        t0 = tic();
+        for (long i = 0; i < steps; i++, k_step_friction++)
+            check(api.do_step(step_friction, k_step_friction * H, H, fmi2True), "fmi2DoStep");
+        toc(t0, steps, t[STEP_FRICTION], tw[STEP_FRICTION], b);
 
         t0 = tic();
         for (long i = 0; i < steps; i++, k_set_step++) {
