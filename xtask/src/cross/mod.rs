@@ -73,6 +73,22 @@ const FMI3_OPEN_LOOP: Sampled = Sampled {
     ..OPEN_LOOP
 };
 
+/// The open loop with bearing friction in both bearings ([`FRICTION`]): the motor sticks and
+/// breaks away at the torque's reversals, the load besides (docs/model.md §12).
+const FRICTION_OPEN_LOOP: Sampled = Sampled {
+    label: "open loop with bearing friction",
+    ..OPEN_LOOP
+};
+/// The same through FMI 3.0, returning early at contact and friction switches.
+const FMI3_FRICTION_OPEN_LOOP: Sampled = Sampled {
+    label: "FMI 3.0 open loop with bearing friction",
+    ..FMI3_OPEN_LOOP
+};
+
+/// Bearing friction of the friction scenarios, set after the rig's parameters: against the open
+/// loop's ±3 N.m motor torque and its load torque of −0.5 N.m.
+const FRICTION: [(&str, f64); 4] = [("tau_c_m", 0.5), ("tau_c_L", 1.0), ("peak_m", 1.2), ("peak_L", 1.3)];
+
 /// The loop closed by BacklashController, the controller model of the same library: values passed
 /// after each step, as a co-simulation master passes them (docs/model.md §9).
 const CONTROLLER_LOOP: Sampled = Sampled {
@@ -177,6 +193,8 @@ pub fn test(built: &[Built]) -> Result<(), String> {
         scenario(&model, &hosts, &mut timer, &CLOSED_LOOP, &[])?;
         scenario(&model, &hosts, &mut timer, &OPEN_LOOP, &[])?;
         scenario(&model3, &hosts, &mut timer, &FMI3_OPEN_LOOP, &[])?;
+        scenario(&model.with_friction(), &hosts, &mut timer, &FRICTION_OPEN_LOOP, &[])?;
+        scenario(&model3.with_friction(), &hosts, &mut timer, &FMI3_FRICTION_OPEN_LOOP, &[])?;
         scenario(&model, &hosts, &mut timer, &CONTROLLER_LOOP, &controller_arguments(id)?)?;
         misuse(&model, &hosts, &mut timer)?;
         fmu_state(&model, &hosts, &mut timer)?;
@@ -209,6 +227,7 @@ impl Timer {
 /// One model as one standard's archive has it: the libraries (from the archive where the standard
 /// has a folder for the platform, else as built), the guid or instantiation token, and the value
 /// references of the host's variables.
+#[derive(Clone)]
 struct Model {
     id: &'static str,
     dir: PathBuf,
@@ -216,6 +235,8 @@ struct Model {
     token: String,
     variables: String,
     parameters: String,
+    /// [`FRICTION`] as `vr=bits,...`.
+    friction: String,
 }
 
 impl Model {
@@ -247,6 +268,7 @@ impl Model {
             libraries.push((platform, path));
         }
         let (token, variables, parameters) = host_arguments(id, standard, &xml).map_err(|e| format!("{id}: {e}"))?;
+        let friction = parameter_bits(&xml, &FRICTION).map_err(|e| format!("{id}: {e}"))?;
         Ok(Model {
             id,
             dir: dir.to_path_buf(),
@@ -254,7 +276,16 @@ impl Model {
             token,
             variables,
             parameters,
+            friction,
         })
+    }
+
+    /// The model with [`FRICTION`] set after its rig's parameters.
+    fn with_friction(&self) -> Model {
+        Model {
+            parameters: format!("{},{}", self.parameters, self.friction),
+            ..self.clone()
+        }
     }
 
     fn library(&self, platform: &Platform) -> Result<&Path, String> {
@@ -296,20 +327,13 @@ fn read_entry(archive: &Path, name: &str) -> Result<Vec<u8>, String> {
 fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
     let token = standard.token(&doc)?;
-    // A variable is a child of ModelVariables: FMI 2.0's ScalarVariable, FMI 3.0's Float64, Int32...
-    let value_reference = |name: &str| {
-        doc.descendants()
-            .find(|n| n.parent().is_some_and(|p| p.has_tag_name("ModelVariables")) && n.attribute("name") == Some(name))
-            .and_then(|n| n.attribute("valueReference"))
-            .ok_or_else(|| format!("modelDescription.xml has no variable {name}"))
-    };
     let mut variables = HOST_VARIABLES
         .iter()
-        .map(|name| value_reference(name).map(|vr| format!("{name}={vr}")))
+        .map(|name| value_reference(&doc, name).map(|vr| format!("{name}={vr}")))
         .collect::<Result<Vec<_>, _>>()?;
     let web: Vec<String> = WEB_VARIABLES
         .iter()
-        .filter_map(|name| value_reference(name).ok().map(|vr| format!("{name}={vr}")))
+        .filter_map(|name| value_reference(&doc, name).ok().map(|vr| format!("{name}={vr}")))
         .collect();
     if !web.is_empty() && web.len() != WEB_VARIABLES.len() {
         return Err(format!(
@@ -317,11 +341,28 @@ fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, S
         ));
     }
     variables.extend(web);
-    let parameters = rig(id)?
+    let parameters = parameter_bits(xml, &rig(id)?)?;
+    Ok((token.to_string(), variables.join(","), parameters))
+}
+
+/// The value reference of the variable `name` of a model description: a child of
+/// ModelVariables (FMI 2.0's ScalarVariable, FMI 3.0's Float64, Int32...).
+fn value_reference<'a>(doc: &'a roxmltree::Document, name: &str) -> Result<&'a str, String> {
+    doc.descendants()
+        .find(|n| n.parent().is_some_and(|p| p.has_tag_name("ModelVariables")) && n.attribute("name") == Some(name))
+        .and_then(|n| n.attribute("valueReference"))
+        .ok_or_else(|| format!("modelDescription.xml has no variable {name}"))
+}
+
+/// `values` as the host's `vr=bits,...` (each f64 as its hexadecimal IEEE-754 bits), by the
+/// value references of the model description `xml`.
+fn parameter_bits<S: AsRef<str>>(xml: &str, values: &[(S, f64)]) -> Result<String, String> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
+    let set = values
         .iter()
-        .map(|(name, value)| value_reference(name).map(|vr| format!("{vr}={:016x}", value.to_bits())))
+        .map(|(name, value)| value_reference(&doc, name.as_ref()).map(|vr| format!("{vr}={:016x}", value.to_bits())))
         .collect::<Result<Vec<_>, _>>()?;
-    Ok((token.to_string(), variables.join(","), parameters.join(",")))
+    Ok(set.join(","))
 }
 
 /// The controller scenario's arguments for the drive `id`: BacklashController's guid, the value
