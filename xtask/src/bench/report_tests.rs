@@ -20,6 +20,7 @@ use super::render;
 const COMMON: &str = "\
 @ pressed_switches 0 2020000
 @ pressed_final_contact 1
+@ pressed_friction_switches 0 2020000 1 1
 @ swinging_switches 4040000 2020000
 @ belt_pressed_switches 0 2020000 1 0.0001
 @ web_pressed_switches 0 2020000 1 0.0001
@@ -27,6 +28,7 @@ const COMMON: &str = "\
 @ copy_set2_step_get1 10.4 10.35 10.5 10.41 10.36 10.52
 @ ours_set2_get1 20.1 19.9 20.3 20.12 19.95 20.33
 @ ours_step_event_free 23.4 23.2 23.6 23.43 23.21 23.62
+@ ours_step_event_free_friction 27.1 26.9 27.4 27.12 26.91 27.43
 @ ours_set2_step 34.3 34.1 34.7 34.31 34.12 34.74
 @ ours_set2_step_get1 43.7 43.4 44.3 43.72 43.41 44.36
 @ ours_set2_step_get_all 78.4 78.1 79 78.45 78.13 79.02
