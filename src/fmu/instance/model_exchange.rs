@@ -230,10 +230,13 @@ impl Instance {
     }
 
     pub(crate) fn get_event_indicators_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
-        let (values, slopes) = (self.values, self.input_slopes);
-        let sim = self.physics()?;
+        self.physics()?;
+        let sim = self.built();
         let contact = sim.plant().event_indicators(&sim.state);
-        let friction = sim.friction_indicators(&adapter::inputs(sim.plant(), &values, &slopes));
+        let friction = match &sim.friction {
+            None => [1.0; 4],
+            Some(_) => sim.friction_indicators(&adapter::inputs(sim.plant(), &self.values, &self.input_slopes)),
+        };
         let mut indicators = [0.0; EVENT_INDICATORS];
         let (head, tail) = indicators.split_at_mut(contact.len());
         head.copy_from_slice(&contact);

@@ -70,7 +70,7 @@ impl Instance {
     }
 
     /// The physics [`Instance::physics`] has built (after a successful call of it).
-    fn built(&self) -> &Simulation {
+    pub(super) fn built(&self) -> &Simulation {
         match &self.life {
             Lifecycle::Running { sim, .. } => sim,
             Lifecycle::Setup { preview: Some(sim), .. } => sim,

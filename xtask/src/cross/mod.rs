@@ -194,7 +194,13 @@ pub fn test(built: &[Built]) -> Result<(), String> {
         scenario(&model, &hosts, &mut timer, &OPEN_LOOP, &[])?;
         scenario(&model3, &hosts, &mut timer, &FMI3_OPEN_LOOP, &[])?;
         scenario(&model.with_friction(), &hosts, &mut timer, &FRICTION_OPEN_LOOP, &[])?;
-        scenario(&model3.with_friction(), &hosts, &mut timer, &FMI3_FRICTION_OPEN_LOOP, &[])?;
+        scenario(
+            &model3.with_friction(),
+            &hosts,
+            &mut timer,
+            &FMI3_FRICTION_OPEN_LOOP,
+            &[],
+        )?;
         scenario(&model, &hosts, &mut timer, &CONTROLLER_LOOP, &controller_arguments(id)?)?;
         misuse(&model, &hosts, &mut timer)?;
         fmu_state(&model, &hosts, &mut timer)?;
