@@ -9,7 +9,8 @@ use super::adapter::Values;
 use super::error::FmuError;
 use super::variables::Symbol;
 use crate::physics::chain::{
-    BodyMode, ChainEvent, ChainMode, ChainParams, ChainState, Coulomb, Motion, OneStageStepper, OneStageWebStepper,
+    mode_of, BodyMode, ChainEvent, ChainMode, ChainParams, ChainState, Coulomb, Motion, OneStageStepper,
+    OneStageWebStepper,
 };
 use crate::physics::{Chain, Inputs, Plant, PlantState, StepError};
 
@@ -96,18 +97,10 @@ impl Friction {
     /// likewise).
     pub fn start(&mut self, plant_state: &PlantState, inputs: &Inputs) {
         each!(self, c => {
-            let mut state = chain_state(plant_state, ChainMode::new([plant_state.mode]));
-            for j in 0..2 {
-                let omega = state.body(j).omega;
-                let mode = if omega > 0.0 {
-                    BodyMode::Forward
-                } else if omega < 0.0 {
-                    BodyMode::Backward
-                } else {
-                    BodyMode::Stuck
-                };
-                state.mode.set_body(j, if c.stepper.chain().body(j).friction.tau_c > 0.0 { mode } else { BodyMode::Forward });
-            }
+            // Each body with friction by the sign of its speed, stuck at rest; then the law.
+            let s = plant_state;
+            let mode = mode_of(c.stepper.chain(), &[s.u], &[s.du], &[s.omega_m, s.omega_l]);
+            let mut state = chain_state(s, mode);
             c.stepper.apply_stiction(&mut state, inputs);
             c.state = state;
         })

@@ -315,6 +315,24 @@ fn damper_variables(transmission: &Transmission) -> [Var; 6] {
     ]
 }
 
+/// A discrete Integer output of −1, 0 or +1 (`contact`, `sliding_m`, `sliding_L`).
+fn sign_output(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Integer,
+        Causality::Output,
+        Variability::Discrete,
+        Initial::Calculated,
+        None,
+        Range::Integers { min: -1, max: 1 },
+        "",
+        "",
+        description,
+    )
+}
+
 /// Bearing friction with stiction on the motor and on the load (docs/model.md §12), after the
 /// damper in every plant: the sliding torques `tau_c_m`, `tau_c_L` (value references 48, 49),
 /// breakaway over sliding `peak_m`, `peak_L` (50, 51), the Integer outputs `sliding_m`,
@@ -322,22 +340,6 @@ fn damper_variables(transmission: &Transmission) -> [Var; 6] {
 /// §6, §12), which read 1 where the body has no such surface. With both `tau_c` 0 (the default)
 /// the plant has no friction modes.
 fn friction_variables() -> [Var; 10] {
-    let sliding = |name, symbol, vr, body| {
-        var(
-            name,
-            symbol,
-            vr,
-            Type::Integer,
-            Causality::Output,
-            Variability::Discrete,
-            Initial::Calculated,
-            None,
-            Range::Integers { min: -1, max: 1 },
-            "",
-            "",
-            body,
-        )
-    };
     [
         parameter(
             "tau_c_m",
@@ -379,13 +381,13 @@ fn friction_variables() -> [Var; 10] {
             "",
             "Breakaway torque of the load bearing over tau_c_L (>= 1): at rest the load sticks while the torque on it stays within peak_L*tau_c_L",
         ),
-        sliding(
+        sign_output(
             "sliding_m",
             "SlidingM",
             52,
             "Friction mode of the motor at the communication point: +1 sliding forward, 0 stuck, -1 sliding backward (without friction the sign of omega_m)",
         ),
-        sliding(
+        sign_output(
             "sliding_L",
             "SlidingL",
             53,
@@ -483,18 +485,10 @@ fn common_head(transmission: &Transmission) -> Vec<Var> {
         state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
         state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
         var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
-        var(
+        sign_output(
             "contact",
             "Contact",
             8,
-            Type::Integer,
-            Output,
-            Variability::Discrete,
-            Initial::Calculated,
-            None,
-            Range::Integers { min: -1, max: 1 },
-            "",
-            "",
             "Contact at the communication point, the sign of psi: +1 positive flank, 0 free (inside the gap, or the damped force would pull), -1 negative flank",
         ),
         var(
