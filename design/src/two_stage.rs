@@ -103,6 +103,14 @@ fn min_damping(chain: &Chain<2>, gains: PiGains) -> (f64, Vec<Complex<f64>>) {
 /// Runs the design for `request`.
 pub fn solve(request: Request) -> Result<Answer, String> {
     let chain = Chain::new(request.drive).map_err(|e| e.to_string())?;
+    if chain.has_friction() {
+        // The answer shares the tolerance among the gaps' terms, linear in each g_j; the
+        // friction's term (docs/model.md §10) does not shrink with the gaps.
+        return Err(
+            "a body of the drive has Coulomb friction: the two-stage design shares the tolerance among the gaps only"
+                .to_string(),
+        );
+    }
     let (gains, rule) = match request.gains {
         Some(gains) => (gains, false),
         None => {

@@ -89,8 +89,6 @@ pub enum BoundError {
     Overflow { bound: f64, bound_paper: f64 },
     #[error("the chain pulls a web span: its bounds are the web line's (docs/model.md §8), not built over several stages yet")]
     WebChain,
-    #[error("a body of the chain has Coulomb friction: the bound over several stages does not cover it yet")]
-    Friction,
 }
 
 // The augmented state [v, I] with v = e^{A s} D_1 and I = ∫_0^s v: y' = [A v; v], `BA` = 2 N

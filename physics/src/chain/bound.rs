@@ -10,6 +10,13 @@
 //! spring-damper K u_i + D u_i′, and stage i's φ_i splits as in docs/model.md §3 ("With a
 //! damper") into a part within K_i g_i and one within D_i |u_i′| over its free, slack and capped
 //! time: its term gains D_i max|h_i| V_i.
+//!
+//! Bearing friction (docs/model.md §10, "The bound with bearing friction"): body b's friction
+//! torque f_b stays within peak_b τ_c,b in every mode, on the chain and on its twin alike, so the
+//! difference of the two enters e′ along E_b (1/J_b at ω_b) within 2 peak_b τ_c,b, and the
+//! bound gains 2 peak_b τ_c,b ∫_0^t |L e^{A s} E_b| ds per body with friction: one more
+//! [`LoopBound`] each. It stays a true bound but is not attained, and it does not vanish with
+//! the gaps.
 
 use super::params::Chain;
 use crate::bound::{check_gains, BoundError, Disturbance, LoopBound, PiGains, Trajectory, Unbounded};
@@ -84,6 +91,13 @@ pub fn disturbance_column<const S: usize, const N: usize>(chain: &Chain<S>, stag
     column
 }
 
+/// The column E_b along which body b's bearing friction torque enters the loop: 1/J_b at ω_b.
+pub fn friction_column<const S: usize, const N: usize>(chain: &Chain<S>, body: usize) -> [f64; N] {
+    let mut column = [0.0; N];
+    column[LoopLayout::<S>::omega(body)] = 1.0 / chain.body(body).j;
+    column
+}
+
 /// The poles of the backlash-free chain under the PI `gains` (docs/model.md §10): the
 /// eigenvalues of its loop on the reduced coordinates (every gap, every speed, x_c when Ki ≠ 0),
 /// without the rigid rotation of the whole chain, which no disturbance excites; None if they
@@ -95,8 +109,9 @@ pub fn loop_poles<const S: usize, const N: usize>(chain: &Chain<S>, gains: PiGai
 }
 
 /// `bound(t)` and `bound_sup` of a chain of S stages (docs/model.md §10) under a PI loop on the
-/// motor speed: the sum over the stages of K_i g_i ∫|h_i|, each a [`LoopBound`] (N = 2S + 3
-/// loop entries, BA = 2N, KO kernel outputs, R = 2S + 2 reduced coordinates, OUT = ω_S).
+/// motor speed: the sum over the stages of K_i g_i ∫|h_i|, and over the bodies with bearing
+/// friction of 2 peak_b τ_c,b ∫|h_b|, each a [`LoopBound`] (N = 2S + 3 loop entries, BA = 2N,
+/// KO kernel outputs, R = 2S + 2 reduced coordinates, OUT = ω_S).
 #[derive(Clone, Debug)]
 pub struct ChainBound<
     const S: usize,
@@ -107,6 +122,10 @@ pub struct ChainBound<
     const OUT: usize,
 > {
     stages: [LoopBound<N, BA, KO, R, OUT>; S],
+    /// The motor's friction term, None without friction on it.
+    motor_friction: Option<LoopBound<N, BA, KO, R, OUT>>,
+    /// Each driven body's friction term, None without friction on it.
+    driven_friction: [Option<LoopBound<N, BA, KO, R, OUT>>; S],
 }
 
 /// The bound of [`crate::chain::TwoStageStepper`]'s chain.
@@ -118,8 +137,8 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     ChainBound<S, N, BA, KO, R, OUT>
 {
     /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
-    /// not finite or not in scale, a chain that pulls a web span (its loop is the web line's)
-    /// and one with Coulomb friction (its twin is no longer linear).
+    /// not finite or not in scale, and a chain that pulls a web span (its loop is the web
+    /// line's). A body with bearing friction adds its term; without friction none is built.
     pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
         assert!(
             N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
@@ -129,12 +148,24 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
         if chain.web().is_some() {
             return Err(BoundError::WebChain);
         }
-        if chain.has_friction() {
-            return Err(BoundError::Friction);
-        }
         let a = chain_loop::<S, N>(chain, gains);
         let full = DMatrix::from_iterator(N, N, a.iter().copied());
         let rate = chain.fastest_rate();
+        let friction = |body: usize| {
+            let coulomb = chain.body(body).friction;
+            (coulomb.tau_c > 0.0).then(|| {
+                // |f_b − f_b⁰| ≤ 2 peak_b τ_c,b: each within its breakaway torque.
+                let disturbance = Disturbance {
+                    column: friction_column::<S, N>(chain, body),
+                    scale: 2.0 * coulomb.breakaway(),
+                    rate,
+                    damping: 0.0,
+                    half_gap: 0.0,
+                };
+                let reduced = Reduced::from_loop(&full, reduced_coords(chain, gains), OUT);
+                LoopBound::build(&disturbance, a, reduced)
+            })
+        };
         Ok(ChainBound {
             stages: std::array::from_fn(|i| {
                 let s = chain.stage(i);
@@ -148,11 +179,18 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                 let reduced = Reduced::from_loop(&full, reduced_coords(chain, gains), OUT);
                 LoopBound::build(&disturbance, a, reduced)
             }),
+            motor_friction: friction(0),
+            driven_friction: std::array::from_fn(|i| friction(i + 1)),
         })
     }
 
-    /// Advances the time since the start by `h` ≥ 0 (every stage's term). On error nothing
-    /// changes.
+    /// The friction terms that were built, motor first.
+    fn friction_terms(&self) -> impl Iterator<Item = &LoopBound<N, BA, KO, R, OUT>> {
+        self.motor_friction.iter().chain(self.driven_friction.iter().flatten())
+    }
+
+    /// Advances the time since the start by `h` ≥ 0 (every stage's and body's term). On error
+    /// nothing changes.
     pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
         let before = self.stages.clone();
         for stage in &mut self.stages {
@@ -161,13 +199,44 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                 return Err(e);
             }
         }
+        if self.motor_friction.is_some() || self.driven_friction.iter().any(Option::is_some) {
+            let before_friction = (self.motor_friction.clone(), self.driven_friction.clone());
+            let terms = self
+                .motor_friction
+                .iter_mut()
+                .chain(self.driven_friction.iter_mut().flatten());
+            for term in terms {
+                if let Err(e) = term.advance(h) {
+                    self.stages = before;
+                    (self.motor_friction, self.driven_friction) = before_friction;
+                    return Err(e);
+                }
+            }
+        }
         Ok(())
     }
 
-    /// Σ_i K_i g_i ∫_0^t |h_i|: a true bound on |ω_S^b − ω_S^0| [rad/s] at the elapsed time t
-    /// without dampers; with one, the part of [`Self::damped_bound`] that the gaps cause.
+    /// Σ_i K_i g_i ∫_0^t |h_i| + Σ_b 2 peak_b τ_c,b ∫_0^t |h_b|: a true bound on
+    /// |ω_S^b − ω_S^0| [rad/s] at the elapsed time t without dampers; with one, the part of
+    /// [`Self::damped_bound`] that the gaps and the friction cause.
     pub fn bound(&self) -> f64 {
-        self.stages.iter().map(|s| s.bound()).sum()
+        self.stages.iter().map(|s| s.bound()).sum::<f64>() + self.friction_bound()
+    }
+
+    /// Σ_b 2 peak_b τ_c,b ∫_0^t |h_b|, the bearing friction's part of [`Self::bound`] (0 without
+    /// friction).
+    pub fn friction_bound(&self) -> f64 {
+        self.friction_terms().map(|s| s.bound()).sum()
+    }
+
+    /// Body b's term 2 peak_b τ_c,b ∫_0^t |h_b| (b = 0 the motor), None without friction on it.
+    pub fn body_bound(&self, body: usize) -> Option<f64> {
+        let term = if body == 0 {
+            &self.motor_friction
+        } else {
+            &self.driven_friction[body - 1]
+        };
+        term.as_ref().map(|s| s.bound())
     }
 
     /// Stage i's term K_i g_i ∫_0^t |h_i| of [`Self::bound`].
@@ -177,9 +246,11 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
 
     /// The bound with dampers: Σ_i (K_i g_i ∫_0^t |h_i| + D_i max_{[0,t]} |h_i| V_i), with V_i
     /// the stage's ∫|u_i′| over its free, slack and capped time on the trajectory
-    /// ([`super::ChainState::variation`]); [`Self::bound`] without a damper, whatever V.
+    /// ([`super::ChainState::variation`]), plus the friction's part; [`Self::bound`] without a
+    /// damper, whatever V.
     pub fn damped_bound(&self, variation: &[f64; S]) -> f64 {
-        self.stages
+        let gaps: f64 = self
+            .stages
             .iter()
             .zip(variation)
             .map(|(s, &v)| {
@@ -188,13 +259,18 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                     rate: 0.0,
                 })
             })
-            .sum()
+            .sum();
+        gaps + self.friction_bound()
     }
 
-    /// Σ_i K_i g_i ∫_0^∞ |h_i| (`bound_sup`; with dampers the gaps' part), or why it is
-    /// infinite.
+    /// Σ_i K_i g_i ∫_0^∞ |h_i| + Σ_b 2 peak_b τ_c,b ∫_0^∞ |h_b| (`bound_sup`; with dampers the
+    /// gaps' and the friction's part), or why it is infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
-        self.stages.iter().map(|s| s.sup()).sum()
+        let gaps: f64 = self.stages.iter().map(|s| s.sup()).sum::<Result<f64, Unbounded>>()?;
+        if self.motor_friction.is_none() && self.driven_friction.iter().all(Option::is_none) {
+            return Ok(gaps);
+        }
+        Ok(gaps + self.friction_terms().map(|s| s.sup()).sum::<Result<f64, Unbounded>>()?)
     }
 
     /// Stage i's term K_i g_i ∫_0^∞ |h_i| of [`Self::sup`]: linear in g_i, the rest of the chain
@@ -212,6 +288,7 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     pub fn max_advance(&self) -> f64 {
         self.stages
             .iter()
+            .chain(self.friction_terms())
             .map(|s| s.max_advance())
             .fold(f64::INFINITY, f64::min)
     }

@@ -29,7 +29,9 @@ mod params;
 mod state;
 mod stepper;
 
-pub use bound::{chain_loop, disturbance_column, loop_poles, ChainBound, LoopLayout, OneStageBound, TwoStageBound};
+pub use bound::{
+    chain_loop, disturbance_column, friction_column, loop_poles, ChainBound, LoopLayout, OneStageBound, TwoStageBound,
+};
 pub use linear::{mode_matrix, Layout, Rows};
 pub use params::{Body, Chain, ChainError, ChainParams, Coulomb, Part, Stage};
 pub use state::{mode_of, BodyMode, ChainMode, ChainState, Motion};
