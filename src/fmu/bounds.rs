@@ -2,6 +2,7 @@
 //! drive trains, and for the web line (§8) the pair of bounds of its loop, on load speed and on
 //! span tension, advanced together.
 
+use crate::physics::chain::OneStageFrictionBound;
 use crate::physics::{
     BoundError, BoundState, PiGains, Plant, SpeedErrorBound, Trajectory, Unbounded, WebSpeedBound, WebTensionBound,
 };
@@ -16,6 +17,15 @@ pub enum Bounds {
     /// The web line's: `bound`, `bound_paper`, `bound_sup` on its load speed, `bound_T`,
     /// `bound_T_sup` on its tension.
     Web(Box<WebBounds>),
+    /// A drive train's with bearing friction (docs/model.md §10, §12): `bound` and `bound_sup`
+    /// add each body's friction term to the speed-error bound's; `bound_paper` is the paper's.
+    Friction(Box<FrictionBounds>),
+}
+
+#[derive(Clone, Debug)]
+pub struct FrictionBounds {
+    speed: SpeedErrorBound,
+    friction: OneStageFrictionBound,
 }
 
 #[derive(Clone, Debug)]
@@ -64,12 +74,22 @@ impl Bounds {
         })
     }
 
-    /// How many numbers [`Bounds::words`] holds for a plant with (`web`) or without a web span.
+    /// A drive train's bounds with the friction terms `friction` (docs/model.md §10): the
+    /// speed-error bound's loop is the one-stage chain's, entry for entry.
+    pub fn with_friction(plant: &Plant, speed: PiGains, friction: OneStageFrictionBound) -> Result<Bounds, BoundError> {
+        Ok(Bounds::Friction(Box::new(FrictionBounds {
+            speed: SpeedErrorBound::new(plant, speed)?,
+            friction,
+        })))
+    }
+
+    /// How many numbers [`Bounds::words`] holds for a plant with (`web`) or without a web span: a
+    /// drive train's speed bound and room for its two bodies' friction terms (0 without).
     pub const fn word_count(web: bool) -> usize {
         if web {
             2 * words::<{ crate::physics::closed_loop::WEB_CL }>()
         } else {
-            words::<{ crate::physics::closed_loop::CL }>()
+            3 * words::<{ crate::physics::closed_loop::CL }>()
         }
     }
 
@@ -85,6 +105,13 @@ impl Bounds {
                     w.speed.restore(&before).expect("a state the bound had is valid");
                 })
             }
+            Bounds::Friction(f) => {
+                let before = f.speed.state();
+                f.speed.advance(h)?;
+                f.friction.advance(h).inspect_err(|_| {
+                    f.speed.restore(&before).expect("a state the bound had is valid");
+                })
+            }
         }
     }
 
@@ -95,6 +122,10 @@ impl Bounds {
                 w.speed.reset();
                 w.tension.reset();
             }
+            Bounds::Friction(f) => {
+                f.speed.reset();
+                f.friction.reset();
+            }
         }
     }
 
@@ -102,6 +133,7 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.elapsed(),
             Bounds::Web(w) => w.speed.elapsed(),
+            Bounds::Friction(f) => f.speed.elapsed(),
         }
     }
 
@@ -110,6 +142,7 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.max_advance(),
             Bounds::Web(w) => w.speed.max_advance().min(w.tension.max_advance()),
+            Bounds::Friction(f) => f.speed.max_advance().min(f.friction.max_advance()),
         }
     }
 
@@ -118,6 +151,7 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.damped_bound(trajectory),
             Bounds::Web(w) => w.speed.damped_bound(trajectory),
+            Bounds::Friction(f) => f.speed.damped_bound(trajectory) + f.friction.bound(),
         }
     }
 
@@ -125,6 +159,7 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.bound_paper(),
             Bounds::Web(w) => w.speed.bound_paper(),
+            Bounds::Friction(f) => f.speed.bound_paper(),
         }
     }
 
@@ -132,6 +167,7 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.damped_bound_rate(trajectory),
             Bounds::Web(w) => w.speed.damped_bound_rate(trajectory),
+            Bounds::Friction(f) => f.speed.damped_bound_rate(trajectory) + f.friction.bound_rate(),
         }
     }
 
@@ -139,20 +175,21 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.bound_paper_rate(),
             Bounds::Web(w) => w.speed.bound_paper_rate(),
+            Bounds::Friction(f) => f.speed.bound_paper_rate(),
         }
     }
 
     /// `bound_T` (0 without a web span, which has no such variable).
     pub fn bound_t(&self, trajectory: Trajectory) -> f64 {
         match self {
-            Bounds::Speed(_) => 0.0,
+            Bounds::Speed(_) | Bounds::Friction(_) => 0.0,
             Bounds::Web(w) => w.tension.damped_bound(trajectory),
         }
     }
 
     pub fn bound_t_rate(&self, trajectory: Trajectory) -> f64 {
         match self {
-            Bounds::Speed(_) => 0.0,
+            Bounds::Speed(_) | Bounds::Friction(_) => 0.0,
             Bounds::Web(w) => w.tension.damped_bound_rate(trajectory),
         }
     }
@@ -162,13 +199,14 @@ impl Bounds {
         match self {
             Bounds::Speed(b) => b.sup(),
             Bounds::Web(w) => w.speed.sup(),
+            Bounds::Friction(f) => Ok(f.speed.sup()? + f.friction.sup()?),
         }
     }
 
     /// `bound_T_sup`, or why it is +∞ (0 without a web span).
     pub fn sup_t(&self) -> Result<f64, Unbounded> {
         match self {
-            Bounds::Speed(_) => Ok(0.0),
+            Bounds::Speed(_) | Bounds::Friction(_) => Ok(0.0),
             Bounds::Web(w) => w.tension.sup(),
         }
     }
@@ -181,17 +219,31 @@ impl Bounds {
                 let slack = |s: Option<f64>| s.unwrap_or(0.0);
                 slack(w.speed.sup_slack()).max(slack(w.tension.sup_slack()))
             }
+            Bounds::Friction(f) => f.speed.sup_slack().unwrap_or(0.0).max(f.friction.sup_slack()),
         }
     }
 
     /// The evolving state as plain numbers, [`Bounds::word_count`] of them (FMU states).
     pub fn words(&self) -> Vec<f64> {
         let mut out = Vec::with_capacity(Self::word_count(matches!(self, Bounds::Web(_))));
+        let cl = words::<{ crate::physics::closed_loop::CL }>();
         match self {
-            Bounds::Speed(b) => put(&mut out, &b.state()),
+            Bounds::Speed(b) => {
+                put(&mut out, &b.state());
+                out.resize(3 * cl, 0.0);
+            }
             Bounds::Web(w) => {
                 put(&mut out, &w.speed.state());
                 put(&mut out, &w.tension.state());
+            }
+            Bounds::Friction(f) => {
+                put(&mut out, &f.speed.state());
+                for term in f.friction.states() {
+                    match term {
+                        Some(s) => put(&mut out, &s),
+                        None => out.resize(out.len() + cl, 0.0),
+                    }
+                }
             }
         }
         out
@@ -202,8 +254,36 @@ impl Bounds {
         if saved.len() != Self::word_count(matches!(self, Bounds::Web(_))) {
             return Err(BoundError::BadState);
         }
+        let cl = words::<{ crate::physics::closed_loop::CL }>();
+        // The friction terms' room is zeros where there is no term.
+        let empty = |words: &[f64]| words.iter().all(|x| *x == 0.0);
         match self {
-            Bounds::Speed(b) => b.restore(&take(saved)),
+            Bounds::Speed(b) if empty(&saved[cl..]) => b.restore(&take(&saved[..cl])),
+            Bounds::Speed(_) => Err(BoundError::BadState),
+            Bounds::Friction(f) => {
+                let bodies: Vec<Option<BoundState>> = f
+                    .friction
+                    .states()
+                    .iter()
+                    .zip(saved[cl..].chunks(cl))
+                    .map(|(built, words)| built.map(|_| take(words)))
+                    .collect();
+                let unused = f
+                    .friction
+                    .states()
+                    .iter()
+                    .zip(saved[cl..].chunks(cl))
+                    .any(|(built, words)| built.is_none() && !empty(words));
+                if unused {
+                    return Err(BoundError::BadState);
+                }
+                let speed = take(&saved[..cl]);
+                if bodies.iter().flatten().any(|b| b.elapsed != speed.elapsed) {
+                    return Err(BoundError::BadState);
+                }
+                f.speed.restore(&speed)?;
+                f.friction.restore(&bodies)
+            }
             Bounds::Web(w) => {
                 let (speed, tension) = saved.split_at(saved.len() / 2);
                 let (speed, tension) = (take(speed), take(tension));

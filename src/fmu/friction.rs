@@ -82,6 +82,11 @@ impl Friction {
         }))
     }
 
+    /// The chain it steps.
+    pub fn chain(&self) -> &Chain<1> {
+        each!(self, c => c.stepper.chain())
+    }
+
     /// The longest step the chain accepts [s].
     pub fn max_step(&self) -> f64 {
         each!(self, c => c.stepper.max_step())

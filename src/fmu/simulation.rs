@@ -6,6 +6,7 @@ use super::bounds::Bounds;
 use super::error::FmuError;
 use super::friction::{self, Friction};
 use super::variables::{Causality, ModelInfo};
+use crate::physics::chain::OneStageFrictionBound;
 use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, PlantState, Stepper, Trajectory};
 
 #[derive(Clone, Debug)]
@@ -202,10 +203,11 @@ impl Simulation {
         }
     }
 
-    /// Whether the bounds stand for this plant: not with Coulomb friction, whose twin is not
-    /// linear (docs/model.md §12); they are +∞ then.
+    /// Whether the bounds stand for this plant: not on a web line with Coulomb friction, whose
+    /// loop's friction terms are not built (docs/model.md §12); they are +∞ then. A drive train
+    /// with friction adds them (§10).
     pub fn bounded(&self) -> bool {
-        self.friction.is_none()
+        self.friction.is_none() || self.plant().web().is_none()
     }
 
     /// Whether `state` is finite and its force ψ = K·dz(u, g) too: finite but huge angles,
@@ -495,9 +497,16 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
         .ok_or_else(|| FmuError::InvalidArgument(format!("{} is a controller: it has no plant", model.identifier)))?;
     let plant = Plant::new(params)?;
     let (speed, tension) = adapter::gains(v);
-    let bound = Bounds::new(&plant, speed, tension)?;
-    let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
     let friction = Friction::of(&plant, friction::coulomb_of(v))?;
+    // A drive train with friction adds the friction's terms (docs/model.md §10); a web line
+    // with friction has no bound ([`Simulation::bounded`]).
+    let bound = match &friction {
+        Some(f) if plant.web().is_none() => {
+            Bounds::with_friction(&plant, speed, OneStageFrictionBound::new(f.chain(), speed)?)?
+        }
+        _ => Bounds::new(&plant, speed, tension)?,
+    };
+    let state = PlantState::new(&plant, 0.0, 0.0, 0.0, 0.0);
     let longest = friction
         .as_ref()
         .map_or(max_step(&plant), |f| max_step(&plant).min(f.max_step()));

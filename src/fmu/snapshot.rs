@@ -16,7 +16,7 @@
 //! | | 8·4 | the input lines' slopes dτ_m/dt, dτ_L/dt, dv_in/dt, dT_in/dt |
 //! | | 8·8 + 1 | θ_m, ω_m, θ_L, ω_L, T, u, u', V (∫|u'| off ordinary contact, with a damper), mode (signed byte: −1/0/+1 negative flank, free, positive flank; ±2 slack, ±3 capped) |
 //! | | 2 | the friction mode of the motor and of the load (signed bytes: +1 sliding forward, 0 stuck, −1 sliding backward; +1 for a body without friction; docs/model.md §12) |
-//! | | 8·b | bounds: elapsed, response[n], integral[n], l1, peak, variation of each loop bound; b = 14 for the drive trains (one bound, n = 5), 36 for the web line (speed and tension, n = 7) |
+//! | | 8·b | bounds: elapsed, response[n], integral[n], l1, peak, variation of each loop bound; b = 42 for the drive trains (the speed bound, then the motor's and the load's friction terms, zeros without friction; n = 5), 36 for the web line (speed and tension, n = 7) |
 //! | | 8 | how far the bounds lag behind the plant [s] (Co-Simulation: the steps since they were last read) |
 //! | | 8·5 | the damped bound's terms gathered at events (Model Exchange): tracked (0/1), the phase's mode code, u at its start, Σ|Δu| over slack and capped phases, phases in the gap |
 //! | | 8·3 | how far back the time may be set (Model Exchange): the times of the second-last and the last completed integrator step, and of the last event |

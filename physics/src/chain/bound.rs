@@ -19,7 +19,7 @@
 //! the gaps.
 
 use super::params::Chain;
-use crate::bound::{check_gains, BoundError, Disturbance, LoopBound, PiGains, Trajectory, Unbounded};
+use crate::bound::{check_gains, BoundError, BoundState, Disturbance, LoopBound, PiGains, Trajectory, Unbounded};
 use crate::closed_loop::{Coord, Reduced};
 use nalgebra::{Complex, DMatrix, SMatrix};
 
@@ -110,8 +110,8 @@ pub fn loop_poles<const S: usize, const N: usize>(chain: &Chain<S>, gains: PiGai
 
 /// `bound(t)` and `bound_sup` of a chain of S stages (docs/model.md §10) under a PI loop on the
 /// motor speed: the sum over the stages of K_i g_i ∫|h_i|, and over the bodies with bearing
-/// friction of 2 peak_b τ_c,b ∫|h_b|, each a [`LoopBound`] (N = 2S + 3 loop entries, BA = 2N,
-/// KO kernel outputs, R = 2S + 2 reduced coordinates, OUT = ω_S).
+/// friction of 2 peak_b τ_c,b ∫|h_b| ([`FrictionBound`]), each a [`LoopBound`] (N = 2S + 3 loop
+/// entries, BA = 2N, KO kernel outputs, R = 2S + 2 reduced coordinates, OUT = ω_S).
 #[derive(Clone, Debug)]
 pub struct ChainBound<
     const S: usize,
@@ -122,36 +122,62 @@ pub struct ChainBound<
     const OUT: usize,
 > {
     stages: [LoopBound<N, BA, KO, R, OUT>; S],
+    friction: FrictionBound<S, N, BA, KO, R, OUT>,
+}
+
+/// The bearing friction's part of a chain's bound (docs/model.md §10): one term
+/// 2 peak_b τ_c,b ∫|h_b| per body with friction, h_b = L e^{A s} E_b; none without friction.
+#[derive(Clone, Debug)]
+pub struct FrictionBound<
+    const S: usize,
+    const N: usize,
+    const BA: usize,
+    const KO: usize,
+    const R: usize,
+    const OUT: usize,
+> {
     /// The motor's friction term, None without friction on it.
-    motor_friction: Option<LoopBound<N, BA, KO, R, OUT>>,
+    motor: Option<LoopBound<N, BA, KO, R, OUT>>,
     /// Each driven body's friction term, None without friction on it.
-    driven_friction: [Option<LoopBound<N, BA, KO, R, OUT>>; S],
+    driven: [Option<LoopBound<N, BA, KO, R, OUT>>; S],
 }
 
 /// The bound of [`crate::chain::TwoStageStepper`]'s chain.
 pub type TwoStageBound = ChainBound<2, 7, 14, 18, 6, 5>;
 /// The bound of a one-stage chain (the loop of docs/model.md §3).
 pub type OneStageBound = ChainBound<1, 5, 10, 16, 4, 3>;
+/// The friction's part of a one-stage chain's bound: the FMUs' drive trains with bearing
+/// friction add it to docs/model.md §3's bound (their loop is that chain's, entry for entry).
+pub type OneStageFrictionBound = FrictionBound<1, 5, 10, 16, 4, 3>;
+
+/// The loop of `chain` under `gains` with its sizes checked, and the reduced loop's coordinates,
+/// or the refusal of the gains or of a chain that pulls a web span (its loop is the web line's).
+fn checked_loop<const S: usize, const N: usize, const R: usize, const OUT: usize>(
+    chain: &Chain<S>,
+    gains: PiGains,
+) -> Result<(SMatrix<f64, N, N>, DMatrix<f64>), BoundError> {
+    assert!(
+        N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
+        "a chain bound of sizes N = {N}, R = {R}, OUT = {OUT} for {S} stages"
+    );
+    check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
+    if chain.web().is_some() {
+        return Err(BoundError::WebChain);
+    }
+    let a = chain_loop::<S, N>(chain, gains);
+    let full = DMatrix::from_iterator(N, N, a.iter().copied());
+    Ok((a, full))
+}
 
 impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT: usize>
-    ChainBound<S, N, BA, KO, R, OUT>
+    FrictionBound<S, N, BA, KO, R, OUT>
 {
-    /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
-    /// not finite or not in scale, and a chain that pulls a web span (its loop is the web
-    /// line's). A body with bearing friction adds its term; without friction none is built.
+    /// The friction terms of `chain` under the PI `gains`: one per body with friction, none
+    /// without. Refuses as [`ChainBound::new`].
     pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
-        assert!(
-            N == LoopLayout::<S>::DIM && OUT == LoopLayout::<S>::OMEGA_LAST && R == 2 * S + 2,
-            "a chain bound of sizes N = {N}, R = {R}, OUT = {OUT} for {S} stages"
-        );
-        check_gains(&[("Kp", gains.kp), ("Ki", gains.ki)])?;
-        if chain.web().is_some() {
-            return Err(BoundError::WebChain);
-        }
-        let a = chain_loop::<S, N>(chain, gains);
-        let full = DMatrix::from_iterator(N, N, a.iter().copied());
+        let (a, full) = checked_loop::<S, N, R, OUT>(chain, gains)?;
         let rate = chain.fastest_rate();
-        let friction = |body: usize| {
+        let term = |body: usize| {
             let coulomb = chain.body(body).friction;
             (coulomb.tau_c > 0.0).then(|| {
                 // |f_b − f_b⁰| ≤ 2 peak_b τ_c,b: each within its breakaway torque.
@@ -166,6 +192,114 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                 LoopBound::build(&disturbance, a, reduced)
             })
         };
+        Ok(FrictionBound {
+            motor: term(0),
+            driven: std::array::from_fn(|i| term(i + 1)),
+        })
+    }
+
+    /// The terms that were built, motor first.
+    fn terms(&self) -> impl Iterator<Item = &LoopBound<N, BA, KO, R, OUT>> {
+        self.motor.iter().chain(self.driven.iter().flatten())
+    }
+
+    /// Whether no body has friction (no term).
+    pub fn is_empty(&self) -> bool {
+        self.terms().next().is_none()
+    }
+
+    /// Advances every term by `h` ≥ 0. On error nothing changes.
+    pub fn advance(&mut self, h: f64) -> Result<(), BoundError> {
+        if self.is_empty() {
+            return Ok(());
+        }
+        let before = self.clone();
+        let terms = self.motor.iter_mut().chain(self.driven.iter_mut().flatten());
+        for term in terms {
+            if let Err(e) = term.advance(h) {
+                *self = before;
+                return Err(e);
+            }
+        }
+        Ok(())
+    }
+
+    /// Σ_b 2 peak_b τ_c,b ∫_0^t |h_b| (0 without friction).
+    pub fn bound(&self) -> f64 {
+        self.terms().map(|s| s.bound()).sum()
+    }
+
+    /// Its time derivative Σ_b 2 peak_b τ_c,b |h_b(t)|.
+    pub fn bound_rate(&self) -> f64 {
+        self.terms().map(|s| s.bound_rate()).sum()
+    }
+
+    /// Body b's term (b = 0 the motor), None without friction on it.
+    pub fn body_bound(&self, body: usize) -> Option<f64> {
+        let term = if body == 0 { &self.motor } else { &self.driven[body - 1] };
+        term.as_ref().map(|s| s.bound())
+    }
+
+    /// Σ_b 2 peak_b τ_c,b ∫_0^∞ |h_b|, or why it is infinite.
+    pub fn sup(&self) -> Result<f64, Unbounded> {
+        self.terms().map(|s| s.sup()).sum::<Result<f64, Unbounded>>()
+    }
+
+    /// Back to the start (elapsed = 0).
+    pub fn reset(&mut self) {
+        for term in self.motor.iter_mut().chain(self.driven.iter_mut().flatten()) {
+            term.reset();
+        }
+    }
+
+    /// The largest relative slack of the terms' suprema (see `LoopBound::sup_slack`).
+    pub fn sup_slack(&self) -> f64 {
+        self.terms().filter_map(|s| s.sup_slack()).fold(0.0, f64::max)
+    }
+
+    /// The longest advance every term accepts (∞ without friction).
+    pub fn max_advance(&self) -> f64 {
+        self.terms().map(|s| s.max_advance()).fold(f64::INFINITY, f64::min)
+    }
+
+    /// Each body's term's state, motor first (None for a body without friction).
+    pub fn states(&self) -> Vec<Option<BoundState<N>>> {
+        std::iter::once(&self.motor)
+            .chain(&self.driven)
+            .map(|t| t.as_ref().map(|s| s.state()))
+            .collect()
+    }
+
+    /// Continues from [`Self::states`]: each built term from its state; refused
+    /// ([`BoundError::BadState`]) unless the states are those of the same bodies and each is one
+    /// a term could have.
+    pub fn restore(&mut self, states: &[Option<BoundState<N>>]) -> Result<(), BoundError> {
+        let before = self.clone();
+        let terms = std::iter::once(&mut self.motor).chain(&mut self.driven);
+        for (term, state) in terms.zip(states) {
+            let result = match (term, state) {
+                (Some(t), Some(s)) => t.restore(s),
+                (None, None) => Ok(()),
+                _ => Err(BoundError::BadState),
+            };
+            if let Err(e) = result {
+                *self = before;
+                return Err(e);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: usize, const OUT: usize>
+    ChainBound<S, N, BA, KO, R, OUT>
+{
+    /// The bound of `chain` under the PI `gains` (both 0: open loop). Refuses gains that are
+    /// not finite or not in scale, and a chain that pulls a web span (its loop is the web
+    /// line's). A body with bearing friction adds its term; without friction none is built.
+    pub fn new(chain: &Chain<S>, gains: PiGains) -> Result<Self, BoundError> {
+        let (a, full) = checked_loop::<S, N, R, OUT>(chain, gains)?;
+        let rate = chain.fastest_rate();
         Ok(ChainBound {
             stages: std::array::from_fn(|i| {
                 let s = chain.stage(i);
@@ -179,14 +313,8 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                 let reduced = Reduced::from_loop(&full, reduced_coords(chain, gains), OUT);
                 LoopBound::build(&disturbance, a, reduced)
             }),
-            motor_friction: friction(0),
-            driven_friction: std::array::from_fn(|i| friction(i + 1)),
+            friction: FrictionBound::new(chain, gains)?,
         })
-    }
-
-    /// The friction terms that were built, motor first.
-    fn friction_terms(&self) -> impl Iterator<Item = &LoopBound<N, BA, KO, R, OUT>> {
-        self.motor_friction.iter().chain(self.driven_friction.iter().flatten())
     }
 
     /// Advances the time since the start by `h` ≥ 0 (every stage's and body's term). On error
@@ -199,21 +327,7 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
                 return Err(e);
             }
         }
-        if self.motor_friction.is_some() || self.driven_friction.iter().any(Option::is_some) {
-            let before_friction = (self.motor_friction.clone(), self.driven_friction.clone());
-            let terms = self
-                .motor_friction
-                .iter_mut()
-                .chain(self.driven_friction.iter_mut().flatten());
-            for term in terms {
-                if let Err(e) = term.advance(h) {
-                    self.stages = before;
-                    (self.motor_friction, self.driven_friction) = before_friction;
-                    return Err(e);
-                }
-            }
-        }
-        Ok(())
+        self.friction.advance(h).inspect_err(|_| self.stages = before)
     }
 
     /// Σ_i K_i g_i ∫_0^t |h_i| + Σ_b 2 peak_b τ_c,b ∫_0^t |h_b|: a true bound on
@@ -226,17 +340,12 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     /// Σ_b 2 peak_b τ_c,b ∫_0^t |h_b|, the bearing friction's part of [`Self::bound`] (0 without
     /// friction).
     pub fn friction_bound(&self) -> f64 {
-        self.friction_terms().map(|s| s.bound()).sum()
+        self.friction.bound()
     }
 
     /// Body b's term 2 peak_b τ_c,b ∫_0^t |h_b| (b = 0 the motor), None without friction on it.
     pub fn body_bound(&self, body: usize) -> Option<f64> {
-        let term = if body == 0 {
-            &self.motor_friction
-        } else {
-            &self.driven_friction[body - 1]
-        };
-        term.as_ref().map(|s| s.bound())
+        self.friction.body_bound(body)
     }
 
     /// Stage i's term K_i g_i ∫_0^t |h_i| of [`Self::bound`].
@@ -267,10 +376,10 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     /// gaps' and the friction's part), or why it is infinite.
     pub fn sup(&self) -> Result<f64, Unbounded> {
         let gaps: f64 = self.stages.iter().map(|s| s.sup()).sum::<Result<f64, Unbounded>>()?;
-        if self.motor_friction.is_none() && self.driven_friction.iter().all(Option::is_none) {
+        if self.friction.is_empty() {
             return Ok(gaps);
         }
-        Ok(gaps + self.friction_terms().map(|s| s.sup()).sum::<Result<f64, Unbounded>>()?)
+        Ok(gaps + self.friction.sup()?)
     }
 
     /// Stage i's term K_i g_i ∫_0^∞ |h_i| of [`Self::sup`]: linear in g_i, the rest of the chain
@@ -288,9 +397,8 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
     pub fn max_advance(&self) -> f64 {
         self.stages
             .iter()
-            .chain(self.friction_terms())
             .map(|s| s.max_advance())
-            .fold(f64::INFINITY, f64::min)
+            .fold(self.friction.max_advance(), f64::min)
     }
 }
 

@@ -30,7 +30,8 @@ mod state;
 mod stepper;
 
 pub use bound::{
-    chain_loop, disturbance_column, friction_column, loop_poles, ChainBound, LoopLayout, OneStageBound, TwoStageBound,
+    chain_loop, disturbance_column, friction_column, loop_poles, ChainBound, FrictionBound, LoopLayout, OneStageBound,
+    OneStageFrictionBound, TwoStageBound,
 };
 pub use linear::{mode_matrix, Layout, Rows};
 pub use params::{Body, Chain, ChainError, ChainParams, Coulomb, Part, Stage};

@@ -27,9 +27,9 @@ use lifecycle::Lifecycle;
 /// exitInitializationMode warns.
 const SUP_SLACK_WARNING: f64 = 1e-9;
 
-/// Why the bounds are +∞ with Coulomb friction (docs/model.md §12).
-const FRICTION_UNBOUNDED: &str = "with Coulomb friction (tau_c_m or tau_c_L > 0) the twin without backlash is \
-                                  no longer linear, and no bound is proven for this plant yet";
+/// Why the bounds of a web line are +∞ with Coulomb friction (docs/model.md §12).
+const FRICTION_UNBOUNDED: &str = "with Coulomb friction (tau_c_m or tau_c_L > 0) on a web line: the friction's \
+                                  terms of the web loop's bounds are not built";
 
 /// Experiment set by fmi2SetupExperiment (defaults: start 0, no stop time).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -442,7 +442,7 @@ impl Instance {
         sim.rates(&sim.state, &inputs, format_args!("the initial accelerations overflow"))?;
         let unbounded = match (sim.bound.sup(), sim.bound.sup_t()) {
             _ if !sim.bounded() => Some((
-                "bound and bound_sup (bound_T and bound_T_sup too on a web line)",
+                "bound, bound_sup, bound_T and bound_T_sup",
                 FRICTION_UNBOUNDED.to_string(),
             )),
             (Err(why), Err(_)) => Some(("bound_sup and bound_T_sup", why.to_string())),

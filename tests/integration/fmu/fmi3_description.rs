@@ -409,10 +409,20 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
         }
 
         // Event indicators: u - g and u + g on the angles, then the damped force's and the cap's
-        // surfaces on the angles and the speeds (u and u'), in the order of the physics.
+        // surfaces on the angles and the speeds (u and u'), in the order of the physics; then
+        // friction's (docs/model.md §12): a body's speed, and the torque on it at rest, from
+        // every state and the body's own input.
         let found = unknowns(&d, "EventIndicator");
         let angles = vec![model.vr("theta_m"), model.vr("theta_L")];
         let all: Vec<u32> = (3..=6).collect();
+        let at_rest = |input: &str| {
+            let mut vrs: Vec<u32> = ["theta_m", "omega_m", "theta_L", "omega_L", "T", input]
+                .iter()
+                .filter_map(|n| model.by_name(n).map(|v| v.vr))
+                .collect();
+            vrs.sort_unstable();
+            Some(vrs)
+        };
         assert_eq!(
             found,
             [
@@ -422,6 +432,10 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
                 (45, Some(all.clone())),
                 (46, Some(all.clone())),
                 (47, Some(all)),
+                (54, Some(vec![model.vr("omega_m")])),
+                (55, at_rest("tau_m")),
+                (56, Some(vec![model.vr("omega_L")])),
+                (57, at_rest("tau_L")),
             ],
             "{id}"
         );
@@ -432,6 +446,10 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
             "force_lower",
             "cap_upper",
             "cap_lower",
+            "stop_m",
+            "breakaway_m",
+            "stop_L",
+            "breakaway_L",
         ];
         for ((vr, _), name) in found.iter().zip(names) {
             assert_eq!(model.by_vr(*vr).unwrap().name, name);

@@ -1,8 +1,8 @@
 //! Bearing friction with stiction through the FMU (docs/model.md §12), against closed forms
 //! written here: a motor that coasts to a stop inside the gap (FMI 3.0 returns early at the
 //! stop), one that breaks away under a torque ramp (the instant read from the logged switch);
-//! FMU states that continue bit for bit from a stuck body; the bounds +∞ with the reason
-//! logged; Model Exchange under an importer written here (the stop and the breakaway as events,
+//! FMU states that continue bit for bit from a stuck body; the bound with each body's friction
+//! term against a quadrature of the loop's exponential, and +∞ on the web line; Model Exchange under an importer written here (the stop and the breakaway as events,
 //! the stuck body held), and its Jacobian in the held modes against central differences.
 
 use backlash_fmu::fmu::{Collected, FmuError, Instance, Interface, LogCategory, ModelInfo, MODELS};
@@ -172,20 +172,80 @@ fn an_fmu_state_taken_while_stuck_continues_bit_for_bit() {
     assert!(first.iter().any(|row| row[5] == 1.0) && first.iter().any(|row| row[5] == -1.0));
 }
 
+/// The bound with friction (docs/model.md §10, §12): the frictionless drive's bound plus each
+/// body's 2 peak tau_c ∫_0^t |L e^{A s} E_b| ds, E_b = 1/J_b at its speed, L the load speed, A
+/// the loop of §3; the integral here by Simpson's rule on e^{A s} from nalgebra's exponential.
+/// The web line with friction: +∞ with the reason logged.
 #[test]
-fn with_friction_the_bounds_are_infinite_and_the_reason_is_logged() {
-    let log = Collected::default();
-    let mut inst = initialized(Interface::CoSimulation, &COAST, &log).unwrap();
-    inst.do_step(0.0, 0.1).unwrap();
-    let [bound, bound_sup] = get(&mut inst, &["bound", "bound_sup"])[..] else {
-        unreachable!()
+fn with_friction_the_bound_adds_each_bodys_term() {
+    use backlash_fmu::physics::closed_loop::closed_loop;
+    use backlash_fmu::physics::{PiGains, Plant, PlantParams};
+    use nalgebra::{SMatrix, SVector};
+    let (kp, ki, t_end) = (42.7, 179.2, 0.5);
+    let friction = [("tau_c_m", 0.5), ("peak_m", 1.2), ("tau_c_L", 0.1), ("peak_L", 1.5)];
+    let gains = [("Kp", kp), ("Ki", ki)];
+    let run = |values: &[(&str, f64)]| {
+        let log = Collected::default();
+        let mut inst = initialized(Interface::CoSimulation, values, &log).unwrap();
+        let mut t = 0.0;
+        while t < t_end - 1e-9 {
+            inst.do_step(t, 0.01).unwrap();
+            t += 0.01;
+        }
+        let out = get(&mut inst, &["bound", "bound_sup"]);
+        (out[0], out[1], log)
     };
-    assert_eq!((bound, bound_sup), (f64::INFINITY, f64::INFINITY));
+    let (plain, plain_sup, _) = run(&gains);
+    let mut with: Vec<(&str, f64)> = gains.to_vec();
+    with.extend(friction);
+    let (bound, sup, log) = run(&with);
+    let warned = log.0.borrow().iter().any(|(_, _, m)| m.contains("+inf"));
+    assert!(!warned, "{:?}", log.0.borrow());
+    // The friction's part from the loop's matrix exponential, by Simpson's rule with n and 2n
+    // panels: |h_b| has kinks where h_b changes sign, so the rule converges about as n⁻²; the
+    // difference of the two, times 4, bounds the finer one's error.
+    let plant = Plant::new(PlantParams::paper_rig(0.775e-3)).unwrap();
+    let a: SMatrix<f64, 5, 5> = closed_loop(&plant, PiGains { kp, ki });
+    let p = plant.params();
+    let l1 = |column: SVector<f64, 5>, n: usize| {
+        let ds = t_end / n as f64;
+        let h = |s: f64| ((a * s).exp() * column)[3].abs();
+        let inner: f64 = (1..n)
+            .map(|i| if i % 2 == 1 { 4.0 } else { 2.0 } * h(i as f64 * ds))
+            .sum();
+        ds / 3.0 * (h(0.0) + inner + h(t_end))
+    };
+    let mut e_m = SVector::<f64, 5>::zeros();
+    e_m[1] = 1.0 / p.j_m;
+    let mut e_l = SVector::<f64, 5>::zeros();
+    e_l[3] = 1.0 / p.j_l;
+    let part_of = |n: usize| 2.0 * 1.2 * 0.5 * l1(e_m, n) + 2.0 * 1.5 * 0.1 * l1(e_l, n);
+    let (coarse, expected) = (part_of(10_000), part_of(20_000));
+    let resolution = 4.0 * (expected - coarse).abs() + 1e-12 * expected;
+    let part = bound - plain;
+    assert!(
+        (part - expected).abs() <= resolution,
+        "{part} vs {expected} (resolution {resolution:e})"
+    );
+    assert!(sup >= plain_sup + part * (1.0 - 1e-12), "{sup} vs {plain_sup} + {part}");
+
+    // The web line with friction: +∞, with the reason.
+    let web = MODELS.iter().find(|m| m.identifier == "BacklashWeb").unwrap();
+    let log = Collected::default();
+    let mut inst = Instance::new_for(web, Interface::CoSimulation, Some(Box::new(log.clone())), true);
+    set(&mut inst, &[("tau_c_L", 0.01)]);
+    inst.setup_experiment(None, 0.0, None).unwrap();
+    inst.enter_initialization_mode().unwrap();
+    inst.exit_initialization_mode().unwrap();
+    let vrs = [web.vr("bound"), web.vr("bound_sup"), web.vr("bound_T")];
+    let mut out = [0.0; 3];
+    inst.get_real(&vrs, &mut out).unwrap();
+    assert_eq!(out, [f64::INFINITY; 3]);
     let said = log
         .0
         .borrow()
         .iter()
-        .any(|(_, _, m)| m.contains("bound_sup") && m.contains("Coulomb friction"));
+        .any(|(_, _, m)| m.contains("bound_T_sup") && m.contains("web line"));
     assert!(said, "{:?}", log.0.borrow());
 }
 
@@ -194,13 +254,12 @@ fn with_friction_the_bounds_are_infinite_and_the_reason_is_logged() {
 #[test]
 fn fmi3_returns_early_at_the_stop() {
     use super::fmi3_ffi::{Fmu3, OK3};
-    use backlash_fmu::ffi::fmi3::{fmi3EnterInitializationMode, fmi3ExitInitializationMode, fmi3Status};
+    use backlash_fmu::ffi::fmi3::{fmi3EnterInitializationMode, fmi3ExitInitializationMode};
     let fmu = Fmu3::co_simulation(0, false, true);
     let (names, values): (Vec<&str>, Vec<f64>) = COAST.iter().copied().unzip();
     assert_eq!(fmu.set(&names, &values), OK3);
     assert_eq!(fmi3EnterInitializationMode(fmu.c, false, 0.0, 0.0, false, 0.0), OK3);
-    // A warning: the bounds are +∞ with friction.
-    assert_eq!(fmi3ExitInitializationMode(fmu.c), fmi3Status::fmi3Warning);
+    assert_eq!(fmi3ExitInitializationMode(fmu.c), OK3);
     let (t_stop, _) = coast_stop(2.28, 0.05, 0.2, 0.5);
     // Communication points every 10 ms; after an early return the step goes on to the next.
     let (mut t, mut k) = (0.0, 1);

@@ -104,7 +104,7 @@ fn xml_and_rust_table_describe_the_same_variables() {
     }
 }
 
-/// Model Exchange: the four states in z order with their derivatives (FMI 2.0 §2.2.8), six
+/// Model Exchange: the four states in z order with their derivatives (FMI 2.0 §2.2.8), ten
 /// event indicators, and nominal values that are those the FMU reports for the default
 /// parameters (fmi2GetNominalsOfContinuousStates computes them for any parameters).
 #[test]
@@ -114,7 +114,7 @@ fn states_derivatives_and_nominals_agree_with_the_running_fmu() {
         let text = xml::model_description(id);
         let doc = roxmltree::Document::parse(&text).unwrap();
         let root = doc.root_element();
-        assert_eq!(root.attribute("numberOfEventIndicators"), Some("6"), "{id}");
+        assert_eq!(root.attribute("numberOfEventIndicators"), Some("10"), "{id}");
         let reals: Vec<_> = doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")).collect();
         let name_at = |index: &str| reals[index.parse::<usize>().unwrap() - 1].attribute("name").unwrap();
         let derivatives: Vec<_> = doc

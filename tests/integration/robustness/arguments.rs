@@ -1153,7 +1153,7 @@ fn null_arrays_and_out_pointers_are_refused_in_me(model: usize) {
             ),
             (
                 false,
-                "argument eventIndicators is NULL but 6 values",
+                "argument eventIndicators is NULL but 10 values",
                 Box::new(|c| fmi2GetEventIndicators(c, null_mut(), NI)),
             ),
             (

@@ -66,8 +66,9 @@ pub const WEB: usize = 2;
 pub const CONTROLLER: usize = MODELS.len();
 
 /// Number of event indicators of every model in Model Exchange: u ∓ g, the damped force's and
-/// the cap's surfaces (docs/model.md §6).
-pub const NI: usize = 6;
+/// the cap's surfaces (docs/model.md §6), and the bodies' friction surfaces (§12); the
+/// descriptions declare as many (`fmu::variables` tests).
+pub const NI: usize = 10;
 
 /// Every model the library serves, by index: the plants in the order of `MODELS` (so that
 /// [`SHAFT`], [`BELT`], [`WEB`] index both), then the controllers (Co-Simulation only, no
@@ -723,12 +724,12 @@ pub fn plant_offset(bytes: &[u8]) -> usize {
 }
 
 /// Number of f64 of the bound part of an FMU state of `model` (format in src/fmu/snapshot.rs):
-/// 14 for a drive train's one bound, 36 for the web line's two.
+/// 42 for a drive train's bound and its two bodies' friction terms, 36 for the web line's two.
 pub fn bound_words(model: &ModelInfo) -> usize {
     if model.web {
         36
     } else {
-        14
+        42
     }
 }
 
