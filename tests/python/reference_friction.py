@@ -76,7 +76,8 @@ class FrictionPlant:
 
     `sliding` holds each body's friction mode (None for a body without friction), `contact` the
     contact mode; `events` every switch as (time, what, from, to) with `what` one of "contact",
-    "m", "L"."""
+    "m", "L"; `trace` the state z at the start, at every switch and at every step's end, as
+    (time, z): between two consecutive entries no body changes its direction of motion."""
 
     def __init__(self, plant: Plant, friction: Friction, z0=None, tau0=(0.0, 0.0), method="DOP853",
                  rtol=1e-12, atol=1e-16):
@@ -86,6 +87,7 @@ class FrictionPlant:
         self.x = np.array([z[0], z[1], plant.r_m * z[0] - plant.r_L * z[2], z[3]])
         self.t = 0.0
         self.events: list[tuple[float, str, int, int]] = []
+        self.trace: list[tuple[float, np.ndarray]] = []
         self.sliding: list[int | None] = [None if friction.tau_c(b) == 0.0 else _sign(self.x[_OMEGA[b]])
                                           for b in (MOTOR, LOAD)]
         self.contact = self._side(self.x[2])
@@ -93,13 +95,17 @@ class FrictionPlant:
         self._t_k, self._tau, self._rate = 0.0, np.array(tau0, dtype=float), np.zeros(2)
         self._apply_law_at_rest(record=False)
         self.contact = self._entering_contact()
+        self.trace.append((self.t, self.z))
 
     # --- the plant in one mode ---------------------------------------------------------------
 
+    def _state(self, x) -> np.ndarray:
+        p = self.plant
+        return np.array([x[0], x[1], (p.r_m * x[0] - x[2]) / p.r_L, x[3]])
+
     @property
     def z(self) -> np.ndarray:
-        p = self.plant
-        return np.array([self.x[0], self.x[1], (p.r_m * self.x[0] - self.x[2]) / p.r_L, self.x[3]])
+        return self._state(self.x)
 
     def psi(self) -> float:
         return self.plant.K * self.plant.dead_zone(float(self.x[2]))
@@ -149,15 +155,17 @@ class FrictionPlant:
 
     # --- the law -------------------------------------------------------------------------------
 
-    def _law_at_rest(self, body: int, x, t: float) -> int:
+    def _law_at_rest(self, body: int, x, t: float, on_surface: bool = False) -> int:
         """The mode of a body at rest (omega = 0) by the law of §12, ties by the first non-zero
-        derivative of |tau_h| with the body held (module docstring)."""
+        derivative of |tau_h| with the body held (module docstring). `on_surface`: at a located
+        root of |tau_h| = peak tau_c, taken as a tie (the root is exact only to round-off)."""
         limit = self.friction.breakaway(body)
         th = self.tau_h(body, t, x)
-        if abs(th) < limit:
-            return STUCK
-        if abs(th) > limit:
-            return _sign(th)
+        if not on_surface:
+            if abs(th) < limit:
+                return STUCK
+            if abs(th) > limit:
+                return _sign(th)
         held = list(self.sliding)
         held[body] = STUCK
         A, w, B = self._system(self.contact, held)
@@ -259,11 +267,10 @@ class FrictionPlant:
             body = BODIES.index(kind)
             before = self.sliding[body]
             x[_OMEGA[body]] = 0.0  # at rest exactly, whichever way it leaves
-            if target == "stop":
-                self.sliding[body] = STUCK  # held while the law is asked
-                new = self._law_at_rest(body, x, t)
-            else:
-                new = target
+            # A stop, or a breakaway surface reached: the law decides at rest (a tie by the
+            # derivatives, so that a torque that only touches peak tau_c does not break it away).
+            self.sliding[body] = STUCK
+            new = self._law_at_rest(body, x, t, on_surface=target != "stop")
             self.sliding[body] = new
             self.events.append((t, kind, before, new))
         return x
@@ -277,6 +284,7 @@ class FrictionPlant:
         self._apply_law_at_rest()
         t, t_end, x = self.t, self.t + h, self.x
         muted: set[int] = set()  # events that fired at t without changing the mode
+        stalls = 0  # switches in a row without progress
         while t < t_end:
             fns, what = self._events()
             live = [i for i in range(len(fns)) if i not in muted]
@@ -303,10 +311,15 @@ class FrictionPlant:
                 continue
             if t_ev > t:
                 muted.clear()
-            elif len(muted) > 16:
-                raise RuntimeError(f"switches do not advance at t = {t}")
+                stalls = 0
+            else:
+                stalls += 1
+                if stalls > 16:
+                    raise RuntimeError(f"switches do not advance at t = {t}")
             t, x = t_ev, x_new
+            self.trace.append((t, self._state(x)))
         self.t, self.x = t_end, x
+        self.trace.append((t_end, self.z))
         return self.z
 
     def outputs(self) -> dict[str, float]:
