@@ -10,6 +10,7 @@ from backlash_fmu.fmu import STATES
 
 import archives
 import reference
+import reference_friction
 from loops import Record, run_open_loop, run_pi_loop
 from rigs import RIGS, plant_of, with_delta
 from signals import reversing_torques, sine_reference, step_reference
@@ -98,3 +99,25 @@ def twin(reference_name: str):
         for inst in insts:
             inst.free()
     return records[0].arrays(), records[1].arrays()
+
+
+# Bearing friction (docs/model.md §12): a slow reversal on each rig, the motor driven by
+# 0.3 sin(2 pi 0.25 t) N.m held every 10 ms for 8 s, no load torque. The load's breakaway torque
+# (1.4 x 0.15 N.m) exceeds the motor's (1.2 x 0.05 N.m), so at each reversal the load sticks while
+# the motor turns back across the gap, until the compliant member pulls it away.
+FRICTION = {"tau_c_m": 0.05, "tau_c_L": 0.15, "peak_m": 1.2, "peak_L": 1.4}
+FRICTION_STEP, FRICTION_STEPS = 0.01, 800
+
+
+def friction_torques():
+    """(tau_m, tau_L) per step of the slow reversal."""
+    t = np.arange(FRICTION_STEPS) * FRICTION_STEP
+    return 0.3 * np.sin(2 * np.pi * 0.25 * t), np.zeros(FRICTION_STEPS)
+
+
+@functools.cache
+def friction_reversal_reference(model: str, rtol: float = 1e-12, atol: float = 1e-16, method: str = "DOP853"):
+    """(outputs, solver) of reference_friction.py for the slow reversal on `model`'s rig."""
+    params, _ = RIGS[model]
+    return reference_friction.run_open_loop(plant_of(model, params), reference_friction.Friction(**FRICTION),
+                                            *friction_torques(), FRICTION_STEP, rtol=rtol, atol=atol, method=method)
