@@ -114,6 +114,8 @@ fn measured(text: &str, criterion: bool) -> Measurements {
             ("matvec_4x4", 1.68, 1.7, 1.72),
             ("step_1ms_no_switch", 26.4, 26.5, 26.6),
             ("web_bounds_advance_100us", 139.3, 139.6, 139.8),
+            ("chain_two_stage_step_1ms_sliding", 61.0, 61.4, 61.9),
+            ("chain_two_stage_step_1ms_sliding_friction", 66.2, 66.8, 67.5),
         ]
         .into_iter()
         .map(|(name, low_ns, estimate_ns, high_ns)| CriterionEstimate {
@@ -292,4 +294,34 @@ fn paired_damped_step_is_read_and_judged() {
     }
     assert!(PairedDamped::parse("no such line").expect("nothing to read").is_none());
     assert!(PairedDamped::parse("paired-damped-step {\"rounds\": 3}").is_err());
+}
+
+/// The friction line: the ratio of the two sliding steps' estimates, judged against 1.2x, and
+/// no line when either bench did not run.
+#[test]
+fn friction_ratio_is_judged() {
+    let plan = Plan::full();
+    for (rough, ratio, verdict) in [
+        (73.6, "**1.20x**", "**met** here"),
+        (73.8, "**1.20x**", "**not met** here"),
+    ] {
+        let mut m = measured(&full_text(), true);
+        let entry = m
+            .criterion
+            .iter_mut()
+            .find(|c| c.name == "chain_two_stage_step_1ms_sliding_friction")
+            .expect("in the fixture");
+        entry.estimate_ns = rough;
+        // 61.4 ns without friction: 1.2x is 73.68 ns.
+        let report = render(&plan, &m, &facts()).expect("renders");
+        let line = report
+            .lines()
+            .find(|l| l.starts_with("Bearing friction on every body"))
+            .expect("the friction line");
+        assert!(line.contains(ratio) && line.contains(verdict), "{line}");
+    }
+    let mut m = measured(&full_text(), true);
+    m.criterion.retain(|c| c.name != "chain_two_stage_step_1ms_sliding");
+    let report = render(&plan, &m, &facts()).expect("renders");
+    assert!(!report.contains("Bearing friction on every body"));
 }
