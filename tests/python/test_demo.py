@@ -249,8 +249,8 @@ def test_the_friction_step_shows_the_load_stuck_at_each_reversal_until_its_break
 
     from backlash_fmu.demo.friction_reversal import FRICTION, H, PERIOD
 
-    start = {name: float(v.start) for name, v in archives.require("BacklashShaft").variables.items()}
-    delta, k = start["Delta"], start["k"]
+    variables = archives.require("BacklashShaft").variables
+    delta, k = float(variables["Delta"].start), float(variables["k"].start)
     breakaway = FRICTION["peak_L"] * FRICTION["tau_c_L"]
     with (out / "friction_reversal.csv").open() as f:
         rows = list(csv.DictReader(f))
