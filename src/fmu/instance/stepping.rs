@@ -7,6 +7,7 @@ use crate::fmu::error::{FmuError, Status};
 use crate::fmu::friction;
 use crate::fmu::logging::LogCategory;
 use crate::physics::chain::ChainEvent;
+use crate::physics::ContactMode;
 use crate::physics::{finite, Inputs, StepError, MAX_PERIODS_PER_STEP};
 
 /// Relative tolerance for "the communication point equals the current time": steps are
@@ -208,10 +209,7 @@ impl Instance {
         }
         // A switch that does not move time (on the step's start, or at its end to round-off) is
         // no reason to return early: the whole step is taken instead.
-        if stopped.is_some_and(|offset| {
-            let t = communication_point + offset;
-            t <= communication_point || t >= communication_point + h
-        }) {
+        if without_progress(communication_point, h, stopped) {
             stopped = None;
             state = sim.state;
             switches.clear();
@@ -234,10 +232,7 @@ impl Instance {
         for e in switches {
             let t = communication_point + e.offset;
             self.log.emit(Status::Ok, LogCategory::ContactEvents, || {
-                format!(
-                    "contact switch at t = {t} s: {:?} -> {:?} (g = {half_gap})",
-                    e.from, e.to
-                )
+                contact_switch(t, e.from, e.to, half_gap)
             });
         }
         Ok(stopped)
@@ -266,10 +261,7 @@ impl Instance {
         };
         let (mut next, mut stopped) = friction.step(inputs, h, early_return, &mut record).map_err(overflow)?;
         // As `general_step`: a switch that does not move time is no reason to return early.
-        if stopped.is_some_and(|offset| {
-            let t = communication_point + offset;
-            t <= communication_point || t >= communication_point + h
-        }) {
+        if without_progress(communication_point, h, stopped) {
             switches.clear();
             let mut record = |event| {
                 if want_switches {
@@ -291,10 +283,7 @@ impl Instance {
         for e in switches {
             let t = communication_point + e.offset();
             self.log.emit(Status::Ok, LogCategory::ContactEvents, || match e {
-                ChainEvent::Stage(s) => format!(
-                    "contact switch at t = {t} s: {:?} -> {:?} (g = {half_gap})",
-                    s.from, s.to
-                ),
+                ChainEvent::Stage(s) => contact_switch(t, s.from, s.to, half_gap),
                 ChainEvent::Body(b) => format!(
                     "friction switch of the {} at t = {t} s: {:?} -> {:?}",
                     friction::BODIES[b.body],
@@ -305,4 +294,19 @@ impl Instance {
         }
         Ok(stopped)
     }
+}
+
+/// Whether the switch a step stopped at (its offset in `stopped`) does not move time: on the
+/// step's start, or at its end to round-off. That is no reason to return early; the whole step
+/// is taken instead.
+fn without_progress(communication_point: f64, h: f64, stopped: Option<f64>) -> bool {
+    stopped.is_some_and(|offset| {
+        let t = communication_point + offset;
+        t <= communication_point || t >= communication_point + h
+    })
+}
+
+/// The logged line of a contact switch at `t`.
+fn contact_switch(t: f64, from: ContactMode, to: ContactMode, half_gap: f64) -> String {
+    format!("contact switch at t = {t} s: {from:?} -> {to:?} (g = {half_gap})")
 }
