@@ -1014,7 +1014,7 @@ fn chain_ratio(md: &mut Md, measured: &Measurements) {
     md.line(format!(
         "The chain of stages (docs/model.md §10), physics alone: the two-stage drive's event-free step \
          {two:.1} ns = **{:.2}x** the shaft's {shaft:.1} ns (the two-stage FMU's target is 2.5x the shaft's \
-         step; no model steps a chain yet, so this is the physics part of it); the shaft stepped as a one-stage \
+         step; no FMU steps the two-stage chain yet, so this is the physics part of it); the shaft stepped as a one-stage \
          chain {one:.1} ns = {:.2}x the shaft's own stepper.",
         two / shaft,
         one / shaft
