@@ -18,23 +18,38 @@ impl<const OUT: usize> KernelColumn<OUT> {
     /// zeros but for the sign of a zero.
     #[inline(always)]
     pub fn product(&self, x: f64, abs_row: usize) -> [f64; OUT] {
-        let by = Self::multipliers(x, abs_row);
-        std::array::from_fn(|r| self.0[r] * by[r])
+        self.product_by(Self::multipliers(x, abs_row, OUT))
     }
 
     /// `acc += this column times x`. Inlined, it vectorizes across the outputs.
     #[inline(always)]
     pub fn accumulate(&self, acc: &mut [f64; OUT], x: f64, abs_row: usize) {
-        let by = Self::multipliers(x, abs_row);
+        self.accumulate_by(acc, Self::multipliers(x, abs_row, OUT));
+    }
+
+    /// This column times `by`, entry by entry (`by` from [`KernelColumn::multipliers`]).
+    #[inline(always)]
+    pub fn product_by(&self, by: [f64; OUT]) -> [f64; OUT] {
+        std::array::from_fn(|r| self.0[r] * by[r])
+    }
+
+    /// `acc += this column times by`, entry by entry.
+    #[inline(always)]
+    pub fn accumulate_by(&self, acc: &mut [f64; OUT], by: [f64; OUT]) {
         for r in 0..OUT {
             acc[r] += self.0[r] * by[r];
         }
     }
 
+    /// What each output multiplies an entry x by: |x| in the growth bound's row `abs_row` and in
+    /// the bounds' rows from `abs_from` on, x in the others.
     #[inline(always)]
-    fn multipliers(x: f64, abs_row: usize) -> [f64; OUT] {
+    pub fn multipliers(x: f64, abs_row: usize, abs_from: usize) -> [f64; OUT] {
         let mut by = [x; OUT];
         by[abs_row] = x.abs();
+        for b in by.iter_mut().skip(abs_from) {
+            *b = x.abs();
+        }
         by
     }
 }

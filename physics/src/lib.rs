@@ -34,7 +34,9 @@ pub use chain::{Chain, ChainError, ChainMode, ChainParams, ChainState, ChainStep
 pub use controller::{ControllerParams, Reference, SampleError, SampledPi};
 pub use mode::{contact_indicator, damped_mode_at, mode_at, ContactMode, PlantState};
 pub use params::{dead_zone, ContactLaw, Damping, Geometry, ParamError, Plant, PlantParams, WebSpan};
-pub use stepper::{max_step, Inputs, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP};
+pub use stepper::{
+    max_step, Inputs, SlidingDriveStepper, SlidingWebStepper, StepError, Stepper, SwitchEvent, MAX_PERIODS_PER_STEP,
+};
 
 /// `x.is_finite()` as one floating-point comparison, for the tests that run on every step:
 /// `is_finite` moves x to the integer unit and back.

@@ -9,6 +9,9 @@ use super::taylor::{exp_series, PieceModel, Sparse};
 use thiserror::Error;
 
 mod damped;
+mod sliding;
+
+pub use sliding::{SlidingDriveStepper, SlidingWebStepper};
 
 /// Inputs over one step: values at the step start and their slopes over the step.
 /// Slopes are 0 for a zero-order hold (FMI 2 CS default); non-zero for first-order hold.
@@ -91,7 +94,9 @@ struct ModeDynamics<const N: usize> {
 /// outputs 0–4 are e^{M len} y restricted to [u, ω_m, ω_L, δθ_m, δθ_L], 5–6 are u″ and u‴ at
 /// the piece start, and 7 is `remainder`·|y|, which bounds how far u‴ moves over the piece;
 /// with a web span, output 8 is T at the piece end (and 9 pads the column to whole vectors).
-/// Stored by column, `KO` outputs wide, so that the pass vectorizes across the outputs.
+/// A stepper of a plant with Coulomb friction has four outputs more, each body's ω′ at the piece
+/// start and a bound on its |ω‴| over the piece (`sliding.rs`). Stored by column, `KO` outputs wide, so that the pass
+/// vectorizes across the outputs.
 #[derive(Clone, Debug)]
 struct PieceKernel<const N: usize, const KO: usize> {
     cols: [KernelColumn<KO>; N],
@@ -110,7 +115,13 @@ type PieceEnd = [f64; 6];
 type SpanEntries = [f64; 3];
 
 impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
-    fn new(phi: &AugMatrix<N>, u_rows: &SignalRows<N>, remainder: &AugVector<N>) -> Self {
+    /// The first output past the frictionless ones: the speeds' bounds, when `KO` has them.
+    const SPEED_ROW: usize = if N == WEB_AUG { 10 } else { 8 };
+    /// The kernel carries the speeds' bounds (a stepper of the sliding plant).
+    const SLIDING: bool = KO > Self::SPEED_ROW;
+
+    /// `speed`: the speeds' rows (used only when `KO` has them).
+    fn new(phi: &AugMatrix<N>, u_rows: &SignalRows<N>, remainder: &AugVector<N>, speed: &[AugVector<N>; 4]) -> Self {
         PieceKernel {
             cols: KernelColumn::table(|r, j| match r {
                 0..=4 => phi[(r, j)],
@@ -118,10 +129,18 @@ impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
                 6 => u_rows.row(3)[j],
                 GROWTH_ROW => remainder[j],
                 TENSION_ROW if N == WEB_AUG => phi[(linear::TENSION, j)],
+                r if r >= Self::SPEED_ROW => speed[r - Self::SPEED_ROW][j],
                 _ if N == WEB_AUG => 0.0,
                 _ => unreachable!("KO rows"),
             }),
         }
+    }
+
+    /// What each output multiplies an entry x by: |x| in the growth bounds' rows (u‴'s, and the
+    /// speeds' bounds).
+    #[inline(always)]
+    fn by(x: f64) -> [f64; KO] {
+        KernelColumn::<KO>::multipliers(x, GROWTH_ROW, Self::SPEED_ROW + 2)
     }
 
     /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L, T], u″, bound on sup |u‴| over the piece).
@@ -140,9 +159,10 @@ impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
     }
 
     /// `apply` at the start of a step from `state` under `inputs`, with the sums inlined:
-    /// for the one-piece step, where there is no loop to hoist the coefficients out of.
+    /// for the one-piece step, where there is no loop to hoist the coefficients out of. Also
+    /// the speeds' bounds, when the kernel has them (else 0).
     #[inline(always)]
-    fn apply_at_start(&self, state: &PlantState, inputs: &Inputs) -> (PieceEnd, f64, f64) {
+    fn apply_at_start(&self, state: &PlantState, inputs: &Inputs) -> (PieceEnd, f64, f64, [f64; 4]) {
         let i = inputs;
         let span = [state.tension, i.span, i.dspan];
         let acc = self.sums_inline(
@@ -159,7 +179,13 @@ impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
         // vectorizer, seeing each output used on its own below, pairs products of different
         // columns, which takes more shuffling (measured by callgrind: 355 instructions per
         // event-free fmi2DoStep with it, 370 without).
-        Self::split(std::hint::black_box(acc))
+        let acc = std::hint::black_box(acc);
+        let speed = match Self::SLIDING {
+            true => std::array::from_fn(|r| acc[Self::SPEED_ROW + r]),
+            false => [0.0; 4],
+        };
+        let (whole, d2, c3) = Self::split(acc);
+        (whole, d2, c3, speed)
     }
 
     #[inline(always)]
@@ -201,20 +227,20 @@ impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
         // The first product rather than zeros plus it (the same but for a zero's sign); then a
         // loop over the columns rather than one call per column: unrolled after it is
         // vectorized, it keeps each column's outputs together in vector registers.
-        let mut acc = self.cols[U].product(u, GROWTH_ROW);
+        let mut acc = self.cols[U].product_by(Self::by(u));
         for (j, yj) in [(V, v), (OMEGA_L, w), (TAU_M, tm), (TAU_L, tl), (ONE, 1.0)] {
-            self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
+            self.cols[j].accumulate_by(&mut acc, Self::by(yj));
         }
         // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign).
         if !((dtm == 0.0) & (dtl == 0.0)) {
             for (j, yj) in [(DTAU_M, dtm), (DTAU_L, dtl)] {
-                self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
+                self.cols[j].accumulate_by(&mut acc, Self::by(yj));
             }
         }
         if N == WEB_AUG {
             let [t, w, dw] = span;
             for (j, yj) in [(TENSION, t), (SPAN, w), (DSPAN, dw)] {
-                self.cols[j].accumulate(&mut acc, yj, GROWTH_ROW);
+                self.cols[j].accumulate_by(&mut acc, Self::by(yj));
             }
         }
         acc
@@ -403,6 +429,14 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         &self.plant
     }
 
+    /// Makes `h` the step size of the quiet path, when `step` accepts it: for a stepper whose
+    /// plant another one steps in general (the sliding stepper's, by the chain).
+    pub fn prepare(&mut self, h: f64) {
+        if h.is_finite() && h > 0.0 && h <= self.max_h {
+            self.ensure_cache(h);
+        }
+    }
+
     #[inline(always)]
     fn ensure_cache(&mut self, h: f64) {
         if !self.cache.as_ref().is_some_and(|c| c.h == h) {
@@ -421,7 +455,12 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         let len = h / pieces;
         let kernel_of = |i: usize| {
             let ModeDynamics { m, sparse, u_rows } = &self.modes[i];
-            PieceKernel::new(&exp_series(sparse, len), u_rows, &u_rows.remainder_row(m, len))
+            let phi = exp_series(sparse, len);
+            let speed = match PieceKernel::<N, KO>::SLIDING {
+                true => sliding::speed_bound_rows(&self.plant, m, &phi, len),
+                false => [AugVector::<N>::zeros(); 4],
+            };
+            PieceKernel::new(&phi, u_rows, &u_rows.remainder_row(m, len), &speed)
         };
         let paper = [0, 1, 2].map(kernel_of);
         let free = ContactMode::Free.index();
@@ -510,13 +549,15 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         })
     }
 
-    /// [`Stepper::quiet_step`].
-    #[inline]
+    /// [`Stepper::quiet_step`]. Always inlined: the sliding stepper calls it too, and a second
+    /// caller must not make the compiler keep it out of line in the frictionless path (measured:
+    /// 52 ns instead of 40 per event-free fmi2DoStep).
+    #[inline(always)]
     pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
         debug_assert!(state.is_finite());
         // The cache holds only step sizes `step` accepted, so h is finite, > 0 and short enough.
         let cache = self.cache.as_ref().filter(|c| c.h == h && c.pieces == 1)?;
-        let (whole, d2, c3) = cache.kernel[state.mode.index()].apply_at_start(state, inputs);
+        let (whole, d2, c3, _) = cache.kernel[state.mode.index()].apply_at_start(state, inputs);
         // Non-finite inputs make u″ or c3 NaN or infinite, which fails the test.
         if !self.clear(state.mode, state.u, state.du, d2, c3, cache.len) {
             return None;
@@ -534,6 +575,40 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
             sum += next.tension;
         }
         super::finite(sum).then_some(next)
+    }
+
+    /// [`Stepper::quiet_step`], also refused unless `accept(end state, speeds' outputs, piece
+    /// length)` (the speeds' outputs are 0 unless the kernel has them).
+    #[inline(always)]
+    fn quiet_step_with(
+        &self,
+        state: &PlantState,
+        inputs: &Inputs,
+        h: f64,
+        accept: impl FnOnce(&PlantState, [f64; 4], f64) -> bool,
+    ) -> Option<PlantState> {
+        debug_assert!(state.is_finite());
+        // The cache holds only step sizes `step` accepted, so h is finite, > 0 and short enough.
+        let cache = self.cache.as_ref().filter(|c| c.h == h && c.pieces == 1)?;
+        let (whole, d2, c3, speed) = cache.kernel[state.mode.index()].apply_at_start(state, inputs);
+        // Non-finite inputs make u″ or c3 NaN or infinite, which fails the test.
+        if !self.clear(state.mode, state.u, state.du, d2, c3, cache.len) {
+            return None;
+        }
+        let mut next = *state;
+        if self.damping != 0.0 && !state.mode.in_contact() {
+            let y = augmented(state, inputs, 0.0);
+            next.variation += self.variation(state.mode, &y, d2, c3, cache.len, whole[linear::U]);
+        }
+        self.finish_piece(&mut next, &whole);
+        // Finite when the sum of its fields is (a NaN or ∞ field makes the sum NaN or ∞);
+        // the sum of finite fields that overflows leaves the step to `step`.
+        let mut sum = next.theta_m + next.omega_m + next.theta_l + next.omega_l + next.u + next.du;
+        if N == WEB_AUG {
+            sum += next.tension;
+        }
+        // One exit (non-short-circuit `&`).
+        (super::finite(sum) & accept(&next, speed, cache.len)).then_some(next)
     }
 
     /// Why `step` refuses its arguments (called only when it does).

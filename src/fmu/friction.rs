@@ -1,9 +1,13 @@
 //! Bearing friction with stiction in an instance (docs/model.md §12): when a body's `tau_c` is
 //! above 0 the plant is stepped as the one-stage chain with Coulomb friction on its bodies
 //! (`backlash_physics::chain`), whose modes join each body's (sliding forward, backward, stuck)
-//! to the contact mode. The simulation's plant state mirrors the chain's after every change, so
-//! that every output reads the same quantities with and without friction; without friction the
-//! chain is not built at all and the single-gap stepper runs as before, bit for bit.
+//! to the contact mode. The simulation's plant state is the state, with friction as without (the
+//! chain's state is the plant state in the bodies' modes, which this module holds), so that every
+//! output reads the same quantities with and without friction; without friction the chain is not
+//! built at all and the single-gap stepper runs as before, bit for bit. While every
+//! body with friction slides, the plant is the frictionless one under the bearings' constant
+//! torques: a step that no speed can cross 0 in is the sliding stepper's quiet step
+//! (`backlash_physics::SlidingDriveStepper`), which the chain then follows.
 
 use super::adapter::Values;
 use super::error::FmuError;
@@ -12,7 +16,8 @@ use crate::physics::chain::{
     mode_of, BodyMode, ChainEvent, ChainMode, ChainParams, ChainState, Coulomb, Motion, OneStageStepper,
     OneStageWebStepper,
 };
-use crate::physics::{Chain, Inputs, Plant, PlantState, StepError};
+use crate::physics::stepper::Exact;
+use crate::physics::{finite, Chain, Inputs, Plant, PlantState, StepError};
 
 /// The motor (body 0) and the load (body 1), as the chain numbers them.
 pub const BODIES: [&str; 2] = ["motor", "load"];
@@ -20,16 +25,19 @@ pub const BODIES: [&str; 2] = ["motor", "load"];
 /// The one-stage chain that steps a plant with friction, without or with a web span (the
 /// augmented systems differ in size).
 #[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant, reason = "the simulation boxes it whole")]
 pub enum Friction {
-    Drive(Chained<10, 8>),
-    Web(Chained<13, 10>),
+    Drive(Chained<10, 8, 12>),
+    Web(Chained<13, 10, 14>),
 }
 
-/// A chain stepper and its state.
+/// A chain stepper, the chain's mode in force, and the sliding stepper of the quiet path (`KS`
+/// kernel outputs: `crate::physics::SlidingDriveStepper` or `SlidingWebStepper`).
 #[derive(Clone, Debug)]
-pub struct Chained<const N: usize, const KO: usize> {
+pub struct Chained<const N: usize, const KO: usize, const KS: usize> {
     stepper: crate::physics::chain::ChainStepper<1, N, KO>,
-    state: ChainState<1>,
+    mode: ChainMode<1>,
+    quiet: Exact<N, KS>,
 }
 
 /// The friction of each body from the stored values: `tau_c_m`, `peak_m` on the motor,
@@ -69,15 +77,17 @@ impl Friction {
         params.motor.friction = coulomb[0];
         params.driven[0].friction = coulomb[1];
         let chain = Chain::new(params).map_err(|e| FmuError::InvalidArgument(e.to_string()))?;
-        let start = ChainState::new(&chain, Motion::default(), [Motion::default()]);
+        let start = ChainState::new(&chain, Motion::default(), [Motion::default()]).mode;
         Ok(Some(match chain.web() {
             None => Friction::Drive(Chained {
                 stepper: OneStageStepper::new(chain),
-                state: start,
+                mode: start,
+                quiet: Exact::new(*plant),
             }),
             Some(_) => Friction::Web(Chained {
                 stepper: OneStageWebStepper::new(chain),
-                state: start,
+                mode: start,
+                quiet: Exact::new(*plant),
             }),
         }))
     }
@@ -92,51 +102,52 @@ impl Friction {
         each!(self, c => c.stepper.max_step())
     }
 
-    /// The chain's state.
-    pub fn state(&self) -> &ChainState<1> {
-        each!(self, c => &c.state)
+    /// The chain's mode in force.
+    pub fn mode(&self) -> ChainMode<1> {
+        each!(self, c => c.mode)
     }
 
-    /// Starts from `plant_state` with the law of stiction applied with `inputs` (docs/model.md
+    /// Starts from `s` with the law of stiction applied with `inputs` (docs/model.md
     /// §12: the initial mode follows the law at the start time; a state set by the importer
-    /// likewise).
-    pub fn start(&mut self, plant_state: &PlantState, inputs: &Inputs) {
+    /// likewise); returns the state the law leaves.
+    pub fn start(&mut self, s: &PlantState, inputs: &Inputs) -> PlantState {
         each!(self, c => {
             // Each body with friction by the sign of its speed, stuck at rest; then the law.
-            let s = plant_state;
             let mode = mode_of(c.stepper.chain(), &[s.u], &[s.du], &[s.omega_m, s.omega_l]);
             let mut state = chain_state(s, mode);
             c.stepper.apply_stiction(&mut state, inputs);
-            c.state = state;
+            c.mode = state.mode;
+            plant_state(&state)
         })
     }
 
-    /// Continues from a saved plant state with the bodies' saved modes.
+    /// Continues from a plant state in the contact mode it has with the bodies' modes `bodies`.
     pub fn restore(&mut self, plant_state: &PlantState, bodies: [BodyMode; 2]) {
         let mut mode = ChainMode::new([plant_state.mode]);
         mode.set_body(0, bodies[0]);
         mode.set_body(1, bodies[1]);
-        each!(self, c => c.state = chain_state(plant_state, mode))
+        each!(self, c => c.mode = mode)
     }
 
     /// The bodies' friction modes.
     pub fn bodies(&self) -> [BodyMode; 2] {
-        let mode = self.state().mode;
+        let mode = self.mode();
         [mode.body(0), mode.body(1)]
     }
 
-    /// Steps the chain's state over `h` (to the first switch with `early_return`), calling
-    /// `record` for each switch; returns the new state, as the plant state it mirrors, and the
-    /// offset of the switch it stopped at. Nothing changes until [`Friction::commit`].
+    /// Steps the plant from `plant_state` over `h` (to the first switch with `early_return`) in
+    /// the chain, calling `record` for each switch; returns the new chain state and the offset of
+    /// the switch it stopped at. Nothing changes until [`Friction::commit`].
     pub fn step(
         &mut self,
+        plant_state: &PlantState,
         inputs: &Inputs,
         h: f64,
         early_return: bool,
         record: &mut dyn FnMut(ChainEvent),
     ) -> Result<(ChainState<1>, Option<f64>), StepError> {
         each!(self, c => {
-            let mut next = c.state;
+            let mut next = chain_state(plant_state, c.mode);
             let stopped = if early_return {
                 c.stepper.step_to_first_switch(&mut next, inputs, h, record)?
             } else {
@@ -147,17 +158,45 @@ impl Friction {
         })
     }
 
-    /// Makes `next` (from [`Friction::step`]) the chain's state.
-    pub fn commit(&mut self, next: ChainState<1>) {
-        each!(self, c => c.state = next)
+    /// The quiet step of a plant whose bodies with friction all slide
+    /// ([`Exact::quiet_sliding_step`]): when no speed can reach 0 and no contact switch happen
+    /// within `h`, and the state stays finite with its force, the state after it, in the modes
+    /// in force. None when one may, or a body is stuck.
+    #[inline]
+    pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
+        each!(self, c => {
+            let mode = c.mode;
+            let mut bearings = [0.0; 2];
+            for (j, torque) in bearings.iter_mut().enumerate() {
+                let f = c.stepper.chain().body(j).friction;
+                if f.tau_c > 0.0 {
+                    match mode.body(j) {
+                        BodyMode::Stuck => return None,
+                        sliding => *torque = sliding.friction_sign() * f.tau_c,
+                    }
+                }
+            }
+            let next = c.quiet.quiet_sliding_step(state, inputs, bearings, h)?;
+            // `next` is finite: its force is what is left of the state's check.
+            finite(c.quiet.plant().force(next.u, next.du)).then_some(next)
+        })
     }
 
-    /// d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (a stuck body does not accelerate).
-    /// θ′ is the speed itself, ω′ and T′ from the chain's mode.
-    pub fn rates(&self, inputs: &Inputs) -> [f64; 5] {
-        let r = each!(self, c => c.stepper.rates(&c.state, inputs));
-        let s = self.state();
-        [s.motor.omega, r[1], s.driven[0].omega, r[3], r[4]]
+    /// Makes `h` the step size of the quiet path (after a whole step of that size).
+    pub fn prepare(&mut self, h: f64) {
+        each!(self, c => c.quiet.prepare(h))
+    }
+
+    /// Makes the mode of `next` (from [`Friction::step`]) the chain's.
+    pub fn commit(&mut self, next: &ChainState<1>) {
+        each!(self, c => c.mode = next.mode)
+    }
+
+    /// d/dt [θ_m, ω_m, θ_L, ω_L, T] at `state` in the mode in force (a stuck body does not
+    /// accelerate). θ′ is the speed itself, ω′ and T′ from the chain's mode.
+    pub fn rates(&self, state: &PlantState, inputs: &Inputs) -> [f64; 5] {
+        let r = each!(self, c => c.stepper.rates(&chain_state(state, c.mode), inputs));
+        [state.omega_m, r[1], state.omega_l, r[3], r[4]]
     }
 
     /// Body `j`'s `sliding` output (docs/model.md §12): its friction mode with friction, the
@@ -165,7 +204,7 @@ impl Friction {
     pub fn sliding(&self, j: usize, plant_state: &PlantState) -> i32 {
         let with_friction = each!(self, c => c.stepper.chain().body(j).friction.tau_c > 0.0);
         if with_friction {
-            self.state().mode.body(j).sliding()
+            self.mode().body(j).sliding()
         } else {
             sign_of(speed(plant_state, j))
         }
@@ -213,7 +252,7 @@ impl Friction {
         let mut out = [1.0; 4];
         for j in 0..2 {
             let Some(c) = self.coulomb(j) else { continue };
-            match self.state().mode.body(j) {
+            match self.mode().body(j) {
                 BodyMode::Stuck => out[2 * j + 1] = c.breakaway() - holding_torque(plant, state, inputs, j).abs(),
                 BodyMode::Forward | BodyMode::Backward => out[2 * j] = speed(state, j),
             }
@@ -236,7 +275,7 @@ impl Friction {
             if self.coulomb(j).is_none() {
                 continue;
             }
-            match self.state().mode.body(j) {
+            match self.mode().body(j) {
                 BodyMode::Stuck => {
                     let tau_h = holding_torque(plant, state, inputs, j);
                     out[2 * j + 1] = -tau_h.signum() * holding_rate(plant, state, dz, dtau, j)
@@ -250,7 +289,7 @@ impl Friction {
     /// Whether body `j` is stuck (its speed held at 0: Model Exchange's Jacobian row of its
     /// acceleration is 0).
     pub fn stuck(&self, j: usize) -> bool {
-        self.coulomb(j).is_some() && self.state().mode.body(j) == BodyMode::Stuck
+        self.coulomb(j).is_some() && self.mode().body(j) == BodyMode::Stuck
     }
 
     /// Model Exchange's Event Mode (docs/model.md §12): the law of stiction applied to the held
@@ -339,7 +378,7 @@ fn chain_state(s: &PlantState, mode: ChainMode<1>) -> ChainState<1> {
     }
 }
 
-/// The plant state a chain state mirrors.
+/// The plant state of a chain state (the inverse of `chain_state`).
 pub fn plant_state(c: &ChainState<1>) -> PlantState {
     PlantState {
         theta_m: c.motor.theta,

@@ -12,7 +12,7 @@ use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, P
 #[derive(Clone, Debug)]
 pub struct Simulation {
     pub stepper: Stepper,
-    /// The plant's state; with friction, the mirror of the chain's.
+    /// The plant's state (with friction too: the chain's state is it in the chain's mode).
     pub state: PlantState,
     /// With Coulomb friction on a body (docs/model.md §12): the chain that steps the plant.
     /// None without: the single-gap stepper steps it.
@@ -155,10 +155,7 @@ impl Simulation {
     pub fn set_state(&mut self, state: PlantState, inputs: &Inputs) {
         match &mut self.friction {
             None => self.state = state,
-            Some(f) => {
-                f.start(&state, inputs);
-                self.state = friction::plant_state(f.state());
-            }
+            Some(f) => self.state = f.start(&state, inputs),
         }
     }
 
@@ -257,9 +254,8 @@ impl Simulation {
                 let [a, b, c, d] = plant.rates(state, inputs.tau_m, inputs.tau_l);
                 [a, b, c, d, plant.tension_rate(state, inputs.span)]
             }
-            // In the held friction modes (docs/model.md §12); `state` is the chain's, which
-            // every state set reaches (`set_state`, `set_continuous`).
-            Some(f) => f.rates(inputs),
+            // In the held friction modes (docs/model.md §12).
+            Some(f) => f.rates(state, inputs),
         };
         // θ' = ω is finite with the state; the rest are checked in one branch.
         if finite(rates[1]) & finite(rates[3]) & finite(rates[4]) {
@@ -274,7 +270,7 @@ impl Simulation {
     #[inline]
     pub fn quiet_step(&mut self, inputs: &Inputs, h: f64) -> bool {
         if self.friction.is_some() {
-            return false;
+            return self.quiet_sliding_step(inputs, h);
         }
         let Some(next) = self.stepper.quiet_step(&self.state, inputs, h) else {
             return false;
@@ -283,6 +279,20 @@ impl Simulation {
         if !finite(self.plant().force(next.u, next.du)) {
             return false;
         }
+        self.state = next;
+        self.bounds_lag(h);
+        true
+    }
+
+    /// `quiet_step` with friction: while every body with friction slides and no speed can reach
+    /// 0 within the step, the frictionless plant under the bearings' torques takes it
+    /// ([`Friction::quiet_step`]), and the chain follows in its modes.
+    #[inline(never)]
+    fn quiet_sliding_step(&mut self, inputs: &Inputs, h: f64) -> bool {
+        let friction = self.friction.as_ref().expect("a plant with friction");
+        let Some(next) = friction.quiet_step(&self.state, inputs, h) else {
+            return false;
+        };
         self.state = next;
         self.bounds_lag(h);
         true

@@ -239,7 +239,7 @@ impl Instance {
     }
 
     /// `general_step` of a plant with Coulomb friction (docs/model.md §12): the chain steps it,
-    /// with its contact and friction switches located, and the plant state mirrors the chain's.
+    /// with its contact and friction switches located, from the plant state in the bodies' modes.
     #[cold]
     #[inline(never)]
     fn friction_step(
@@ -259,7 +259,9 @@ impl Instance {
                 switches.push(event)
             }
         };
-        let (mut next, mut stopped) = friction.step(inputs, h, early_return, &mut record).map_err(overflow)?;
+        let (mut next, mut stopped) = friction
+            .step(&sim.state, inputs, h, early_return, &mut record)
+            .map_err(overflow)?;
         // As `general_step`: a switch that does not move time is no reason to return early.
         if without_progress(communication_point, h, stopped) {
             switches.clear();
@@ -268,7 +270,9 @@ impl Instance {
                     switches.push(event)
                 }
             };
-            (next, stopped) = friction.step(inputs, h, false, &mut record).map_err(overflow)?;
+            (next, stopped) = friction
+                .step(&sim.state, inputs, h, false, &mut record)
+                .map_err(overflow)?;
         }
         let advanced = stopped.unwrap_or(h);
         let end = communication_point + advanced;
@@ -276,8 +280,13 @@ impl Instance {
         if !sim.state_ok(&state) {
             return Err(sim.overflow(&state, format_args!("the step to t = {end} overflows")));
         }
-        sim.friction.as_mut().expect("a plant with friction").commit(next);
+        sim.friction.as_mut().expect("a plant with friction").commit(&next);
         sim.state = state;
+        // The quiet path of the steps that follow takes this step size (after a whole step: one
+        // that stopped early is usually followed by its remainder, then by the steps before it).
+        if stopped.is_none() {
+            sim.friction.as_mut().expect("a plant with friction").prepare(h);
+        }
         sim.bounds_lag(advanced);
         let half_gap = sim.plant().half_gap();
         for e in switches {

@@ -462,7 +462,7 @@ impl Instance {
             // d/dt [θ_m, ω_m, θ_L, ω_L, T] in the mode in force (at a switch: the mode entered).
             let z_dot = *rates.get_or_insert_with(|| match &sim.friction {
                 None => sim.stepper.time_derivative(&sim.state, &inputs, 1),
-                Some(f) => f.rates(&inputs),
+                Some(f) => f.rates(&sim.state, &inputs),
             });
             let rate = match v.symbol.source() {
                 Source::State(entry) => Some(z_dot[entry.index()]),
