@@ -491,3 +491,79 @@ fn a_gearbox_with_friction_on_every_body_agrees_with_a_hybrid_integrator() {
         assert!(deviation[i] <= estimate[i] + 64.0 * EPS * scale[i], "component {i}");
     }
 }
+
+/// The order of switches at one instant (docs/model.md §12), in runs built so that the events
+/// fall on t* = 0.5 s exactly (binary fractions throughout, no viscous friction). In a gap too
+/// wide to close, the motor (J = 1, τ_c = 2, from 1 rad/s) and the load (J = 1, τ_c = 1, from
+/// 0.5 rad/s) stop together: located in one search, they are reported at one instant, the
+/// motor's first. With g = 0.5 and the motor without friction at 1 rad/s from θ_m = 0.125, the
+/// gap closes at t* too (u = 0.125 + t/2 + t²/2 reaches 0.5 there, at u′ = 1) as the load
+/// stops: each surface is located at its own round-off floor (the contact where u passes g by
+/// 8 ulps of |u| + g), so the two are located a few ulps apart and reported in that order, both
+/// within 64 ulps of t*.
+#[test]
+fn simultaneous_switches_are_reported_in_a_defined_order() {
+    let chain = |tau_m: f64, g: f64| {
+        Chain::new(ChainParams {
+            motor: Body {
+                j: 1.0,
+                b: 0.0,
+                friction: Coulomb {
+                    tau_c: tau_m,
+                    peak: 1.0,
+                },
+            },
+            driven: [Body {
+                j: 1.0,
+                b: 0.0,
+                friction: Coulomb { tau_c: 1.0, peak: 1.0 },
+            }],
+            stages: [Stage {
+                a: 1.0,
+                c: 1.0,
+                k: 100.0,
+                g,
+                damper: Damping::NONE,
+            }],
+            web: None,
+        })
+        .unwrap()
+    };
+    // The switches near t*, in the order reported: (which, offset).
+    let near_t_star = |tau_m: f64, g: f64, theta_m: f64| {
+        let chain = chain(tau_m, g);
+        let motor = Motion {
+            theta: theta_m,
+            omega: 1.0,
+        };
+        let load = Motion { theta: 0.0, omega: 0.5 };
+        let mut state = ChainState::new(&chain, motor, [load]);
+        let mut stepper = ChainStepper::<1, 10, 8>::new(chain);
+        let mut events = Vec::new();
+        stepper
+            .step(&mut state, &Inputs::held(0.0, 0.0), 0.75, &mut |e| events.push(e))
+            .unwrap();
+        let near: Vec<(String, f64)> = events
+            .iter()
+            .map(|e| match e {
+                ChainEvent::Stage(s) => ("contact".to_string(), s.offset),
+                ChainEvent::Body(b) => (BODY[b.body].to_string(), b.offset),
+            })
+            .filter(|(_, t)| (t - 0.5).abs() <= 64.0 * EPS * 0.5)
+            .collect();
+        near
+    };
+    const BODY: [&str; 2] = ["motor", "load"];
+    let stops = near_t_star(2.0, 10.0, 0.0);
+    let names: Vec<&str> = stops.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["motor", "load"], "{stops:?}");
+    assert_eq!(stops[0].1, stops[1].1, "one instant: {stops:?}");
+    let closing = near_t_star(0.0, 0.5, 0.125);
+    let mut names: Vec<&str> = closing.iter().map(|(n, _)| n.as_str()).collect();
+    assert!(
+        closing.windows(2).all(|w| w[0].1 <= w[1].1),
+        "in time order: {closing:?}"
+    );
+    names.sort();
+    assert_eq!(names, ["contact", "load"], "both located near t*: {closing:?}");
+}

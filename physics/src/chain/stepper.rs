@@ -39,7 +39,8 @@ pub struct BodySwitch {
 }
 
 /// A switch inside a step: of a stage's contact mode or of a body's friction mode. Switches at
-/// one instant are reported together, stages first.
+/// one instant (within 4 ulps of the step's time) are reported together, stages first, then the
+/// bodies in order; switches located further apart, in time order (docs/model.md §12).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ChainEvent {
     Stage(StageSwitch),
