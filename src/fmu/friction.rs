@@ -56,6 +56,16 @@ pub fn coulomb_of(v: &Values) -> [Coulomb; 2] {
     ]
 }
 
+impl<const N: usize, const KO: usize, const KS: usize> Chained<N, KO, KS> {
+    /// The chain's mode with the contact mode of `state` (the bodies' held).
+    fn mode_at(&self, state: &PlantState) -> ChainMode<1> {
+        let mut mode = ChainMode::new([state.mode]);
+        mode.set_body(0, self.mode.body(0));
+        mode.set_body(1, self.mode.body(1));
+        mode
+    }
+}
+
 /// Dispatches to the chain of either size.
 macro_rules! each {
     ($self:expr, $c:ident => $body:expr) => {
@@ -211,34 +221,29 @@ impl Friction {
     }
 }
 
-/// τ_h of body `j` at `state` under `inputs` (docs/model.md §12): every torque on it but its
-/// bearing's, τ_m − r_m ψ on the motor, τ_L + r_L ψ − R_w T on the load (the viscous term
-/// vanishes at rest).
-pub fn holding_torque(plant: &Plant, state: &PlantState, inputs: &Inputs, j: usize) -> f64 {
-    let psi = plant.force(state.u, state.du);
-    if j == 0 {
-        inputs.tau_m - plant.r_m() * psi
-    } else {
-        inputs.tau_l + plant.r_l() * psi - plant.web_lever() * state.tension
-    }
-}
-
-/// Its change for a change `dz` of z = [θ_m, ω_m, θ_L, ω_L, T] and `dtau` of (τ_m, τ_L).
-fn holding_rate(plant: &Plant, state: &PlantState, dz: &[f64; 5], dtau: [f64; 2], j: usize) -> f64 {
-    let dpsi = plant.force_rate(state.mode, [dz[0], dz[2]], [dz[1], dz[3]]);
-    if j == 0 {
-        dtau[0] - plant.r_m() * dpsi
-    } else {
-        dtau[1] + plant.r_l() * dpsi - plant.web_lever() * dz[4]
-    }
-}
-
 /// The index of body `j`'s speed in z = [θ_m, ω_m, θ_L, ω_L, T].
 pub const fn speed_index(j: usize) -> usize {
     2 * j + 1
 }
 
 impl Friction {
+    /// τ_h of body `j` at `state` in the contact mode it has (docs/model.md §12): every torque on
+    /// the body but its bearing's, τ_m − r_m ψ on the motor, τ_L + r_L ψ − R_w T on the load.
+    pub fn holding_torque(&self, state: &PlantState, inputs: &Inputs, j: usize) -> f64 {
+        each!(self, c => c.stepper.holding(&chain_state(state, c.mode_at(state)), inputs, j))
+    }
+
+    /// Its change for a change `dz` of z = [θ_m, ω_m, θ_L, ω_L, T] and `dtau` of (τ_m, τ_L).
+    fn holding_rate(&self, state: &PlantState, dz: &[f64; 5], dtau: [f64; 2], j: usize) -> f64 {
+        let d_inputs = Inputs::held(dtau[0], dtau[1]);
+        each!(self, c => {
+            let motor = Motion { theta: dz[0], omega: dz[1] };
+            let load = Motion { theta: dz[2], omega: dz[3] };
+            let d = ChainState::new(c.stepper.chain(), motor, [load]).with_tension(dz[4]);
+            c.stepper.holding_change(&c.mode_at(state), &d, &d_inputs, j)
+        })
+    }
+
     /// Body `j`'s friction, when it has any.
     fn coulomb(&self, j: usize) -> Option<Coulomb> {
         let c = each!(self, c => c.stepper.chain().body(j).friction);
@@ -248,12 +253,12 @@ impl Friction {
     /// The friction surfaces' event indicators [stop_m, breakaway_m, stop_L, breakaway_L]
     /// (docs/model.md §12): a sliding body's speed, peak·τ_c − |τ_h| of a stuck one; 1 where
     /// the body has no such surface.
-    pub fn indicators(&self, plant: &Plant, state: &PlantState, inputs: &Inputs) -> [f64; 4] {
+    pub fn indicators(&self, state: &PlantState, inputs: &Inputs) -> [f64; 4] {
         let mut out = [1.0; 4];
         for j in 0..2 {
             let Some(c) = self.coulomb(j) else { continue };
             match self.mode().body(j) {
-                BodyMode::Stuck => out[2 * j + 1] = c.breakaway() - holding_torque(plant, state, inputs, j).abs(),
+                BodyMode::Stuck => out[2 * j + 1] = c.breakaway() - self.holding_torque(state, inputs, j).abs(),
                 BodyMode::Forward | BodyMode::Backward => out[2 * j] = speed(state, j),
             }
         }
@@ -262,14 +267,7 @@ impl Friction {
 
     /// Their changes for a change `dz` of the state and `dtau` of the torques (the Jacobian's
     /// rows; 0 where an indicator is the constant 1).
-    pub fn indicator_rates(
-        &self,
-        plant: &Plant,
-        state: &PlantState,
-        inputs: &Inputs,
-        dz: &[f64; 5],
-        dtau: [f64; 2],
-    ) -> [f64; 4] {
+    pub fn indicator_rates(&self, state: &PlantState, inputs: &Inputs, dz: &[f64; 5], dtau: [f64; 2]) -> [f64; 4] {
         let mut out = [0.0; 4];
         for j in 0..2 {
             if self.coulomb(j).is_none() {
@@ -277,8 +275,8 @@ impl Friction {
             }
             match self.mode().body(j) {
                 BodyMode::Stuck => {
-                    let tau_h = holding_torque(plant, state, inputs, j);
-                    out[2 * j + 1] = -tau_h.signum() * holding_rate(plant, state, dz, dtau, j)
+                    let tau_h = self.holding_torque(state, inputs, j);
+                    out[2 * j + 1] = -tau_h.signum() * self.holding_rate(state, dz, dtau, j)
                 }
                 BodyMode::Forward | BodyMode::Backward => out[2 * j] = dz[speed_index(j)],
             }
@@ -310,7 +308,7 @@ impl Friction {
         for (j, mode) in modes.iter_mut().enumerate() {
             let Some(c) = self.coulomb(j) else { continue };
             let omega = z[speed_index(j)];
-            let tau_h = holding_torque(plant, state, inputs, j);
+            let tau_h = self.holding_torque(state, inputs, j);
             let beyond = tau_h.abs() > c.breakaway();
             let stopped = match *mode {
                 BodyMode::Forward => omega <= 0.0,

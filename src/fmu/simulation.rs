@@ -173,7 +173,7 @@ impl Simulation {
     pub fn friction_indicators(&self, inputs: &Inputs) -> [f64; 4] {
         self.friction
             .as_ref()
-            .map_or([1.0; 4], |f| f.indicators(self.plant(), &self.state, inputs))
+            .map_or([1.0; 4], |f| f.indicators(&self.state, inputs))
     }
 
     /// Model Exchange's Event Mode: each body's friction mode by the law at the state in force

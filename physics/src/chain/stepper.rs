@@ -392,6 +392,23 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         }
     }
 
+    /// τ_h of body `j` at `state` in its mode under `inputs` (docs/model.md §10): every torque on
+    /// the body but its bearing's, which the bearing must cancel to hold it at rest (the viscous
+    /// term vanishes at rest and is left out).
+    pub fn holding(&self, state: &ChainState<S>, inputs: &Inputs, j: usize) -> f64 {
+        let y = augmented::<S, N>(state, inputs, 0.0);
+        Rows::<S, N>::new(&self.chain, &state.mode).holding(j).dot(&y)
+    }
+
+    /// The change of [`ChainStepper::holding`] in `mode` for a change `d` of the state (its
+    /// angles, speeds, u, u′ and T) and `d_inputs` of the inputs: τ_h is linear in them within a
+    /// mode (the change carries none of a flank's constant term).
+    pub fn holding_change(&self, mode: &ChainMode<S>, d: &ChainState<S>, d_inputs: &Inputs, j: usize) -> f64 {
+        let mut dy = augmented::<S, N>(d, d_inputs, 0.0);
+        dy[Layout::<S>::ONE] = 0.0;
+        Rows::<S, N>::new(&self.chain, mode).holding(j).dot(&dy)
+    }
+
     /// The time derivative of `state` in its mode under `inputs`: [θ_0′, ω_0′, …, θ_S′, ω_S′,
     /// T′] (T′ = 0 without a web span), from the mode's rows of docs/model.md §2 (a stuck body
     /// does not accelerate).

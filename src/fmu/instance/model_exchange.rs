@@ -333,7 +333,7 @@ impl Instance {
         }
         let friction_rates = sim.friction.as_ref().map_or([0.0; 4], |f| {
             let inputs = adapter::inputs(plant, &values, &slopes);
-            f.indicator_rates(plant, &sim.state, &inputs, &dz, [dinput[0], dinput[1]])
+            f.indicator_rates(&sim.state, &inputs, &dz, [dinput[0], dinput[1]])
         });
         // The span's forcing w is linear in v_in and T_in.
         let dw = plant.web().map_or(0.0, |w| w.forcing(dinput[2], dinput[3]));
