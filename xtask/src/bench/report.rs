@@ -541,7 +541,7 @@ const NATIVE_ROWS: [(&str, &str, &str); 20] = [
     ("copy_set2_step_get1", "floor: FMI call pattern", "setReal(2) + doStep + getReal(1) on a trivial C copy-input-to-output component, through function pointers"),
     ("ours_set2_get1", "our call guard", "fmi2SetReal(tau_m, tau_L) + fmi2GetReal(omega_m), no step"),
     ("ours_step_event_free", "event-free step", "fmi2DoStep alone, in permanent contact (u pressed past g, constant 2 N.m)"),
-    ("ours_step_event_free_friction", "event-free step with friction", "as `ours_step_event_free` with bearing friction in both bearings (tau_c_m = tau_c_L = 0.05 N.m), both bodies sliding: the chain's step (docs/model.md §12)"),
+    ("ours_step_event_free_friction", "event-free step with friction", "as `ours_step_event_free` with bearing friction in both bearings (tau_c_m = tau_c_L = 0.05 N.m), both bodies sliding: the sliding quiet step (docs/model.md §12)"),
     ("ours_set2_step", "step with inputs", "fmi2SetReal(tau_m, tau_L) + fmi2DoStep, event-free"),
     ("ours_set2_step_get1", "PI loop's calls", "fmi2SetReal(2) + fmi2DoStep + fmi2GetReal(omega_m), event-free"),
     ("ours_set2_step_get_all", "all outputs", "fmi2SetReal(2) + fmi2DoStep + fmi2GetReal of all 7 Real outputs (incl. bound, bound_paper) + fmi2GetInteger(contact), event-free"),
@@ -977,9 +977,10 @@ fn criterion_ns(measured: &Measurements, name: &str) -> Option<f64> {
         .map(|c| c.estimate_ns)
 }
 
-/// Bearing friction on every body of the two-stage drive (docs/model.md §10): its sliding
-/// event-free step over the same step without friction, from criterion's estimates of this run;
-/// the physics part only of the friction FMUs' target (1.2x).
+/// Bearing friction on every body of the two-stage drive (docs/model.md §10): the chain's general
+/// step sliding event-free over the same step without friction, from criterion's estimates of
+/// this run. The chain has no quiet sliding step (the FMUs' one-stage plants take the single-gap
+/// stepper's, measured in section 1); a two-stage FMU would need one to meet 1.2x.
 fn friction_ratio(md: &mut Md, measured: &Measurements) {
     let (Some(plain), Some(rough)) = (
         criterion_ns(measured, "chain_two_stage_step_1ms_sliding"),
@@ -989,9 +990,10 @@ fn friction_ratio(md: &mut Md, measured: &Measurements) {
     };
     md.line("");
     md.line(format!(
-        "Bearing friction on every body of the two-stage drive (docs/model.md §10), physics part only: its \
-         sliding event-free step {rough:.1} ns = **{:.2}x** the same step without friction, {plain:.1} ns \
-         (target: within 1.2x, **{}** here; criterion's separate estimates, not a paired measure).",
+        "Bearing friction on every body of the two-stage drive (docs/model.md §10), the chain's general step \
+         (no quiet sliding step of its own; no FMU steps the two-stage chain yet): its sliding event-free step \
+         {rough:.1} ns = **{:.2}x** the same step without friction, {plain:.1} ns (1.2x would be **{}** here; \
+         criterion's separate estimates, not a paired measure).",
         rough / plain,
         if rough <= 1.2 * plain { "met" } else { "not met" }
     ));
