@@ -18,16 +18,20 @@ impl<const OUT: usize> KernelColumn<OUT> {
     /// zeros but for the sign of a zero.
     #[inline(always)]
     pub fn product(&self, x: f64, abs_row: usize) -> [f64; OUT] {
-        self.product_by(Self::multipliers(x, abs_row, OUT))
+        let by = Self::multipliers(x, abs_row);
+        std::array::from_fn(|r| self.0[r] * by[r])
     }
 
     /// `acc += this column times x`. Inlined, it vectorizes across the outputs.
     #[inline(always)]
     pub fn accumulate(&self, acc: &mut [f64; OUT], x: f64, abs_row: usize) {
-        self.accumulate_by(acc, Self::multipliers(x, abs_row, OUT));
+        let by = Self::multipliers(x, abs_row);
+        for r in 0..OUT {
+            acc[r] += self.0[r] * by[r];
+        }
     }
 
-    /// This column times `by`, entry by entry (`by` from [`KernelColumn::multipliers`]).
+    /// This column times `by`, entry by entry (`by` from [`KernelColumn::multipliers_from`]).
     #[inline(always)]
     pub fn product_by(&self, by: [f64; OUT]) -> [f64; OUT] {
         std::array::from_fn(|r| self.0[r] * by[r])
@@ -41,12 +45,19 @@ impl<const OUT: usize> KernelColumn<OUT> {
         }
     }
 
-    /// What each output multiplies an entry x by: |x| in the growth bound's row `abs_row` and in
-    /// the bounds' rows from `abs_from` on, x in the others.
+    /// What each output multiplies an entry x by: |x| in the growth bound's row `abs_row`, x in
+    /// the others.
     #[inline(always)]
-    pub fn multipliers(x: f64, abs_row: usize, abs_from: usize) -> [f64; OUT] {
+    fn multipliers(x: f64, abs_row: usize) -> [f64; OUT] {
         let mut by = [x; OUT];
         by[abs_row] = x.abs();
+        by
+    }
+
+    /// As `multipliers`, and |x| in the bounds' rows from `abs_from` on too.
+    #[inline(always)]
+    pub fn multipliers_from(x: f64, abs_row: usize, abs_from: usize) -> [f64; OUT] {
+        let mut by = Self::multipliers(x, abs_row);
         for b in by.iter_mut().skip(abs_from) {
             *b = x.abs();
         }

@@ -136,11 +136,23 @@ impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
         }
     }
 
-    /// What each output multiplies an entry x by: |x| in the growth bounds' rows (u‴'s, and the
-    /// speeds' bounds).
+    /// Column U times u: the first term of the sums. |u| in the growth bounds' rows (u‴'s, and
+    /// with the speeds' rows their bounds).
     #[inline(always)]
-    fn by(x: f64) -> [f64; KO] {
-        KernelColumn::<KO>::multipliers(x, GROWTH_ROW, Self::SPEED_ROW + 2)
+    fn first(&self, u: f64) -> [f64; KO] {
+        match Self::SLIDING {
+            true => self.cols[linear::U].product_by(KernelColumn::multipliers_from(u, GROWTH_ROW, Self::SPEED_ROW + 2)),
+            false => self.cols[linear::U].product(u, GROWTH_ROW),
+        }
+    }
+
+    /// `acc +=` column `j` times x, as `first`.
+    #[inline(always)]
+    fn add(&self, acc: &mut [f64; KO], j: usize, x: f64) {
+        match Self::SLIDING {
+            true => self.cols[j].accumulate_by(acc, KernelColumn::multipliers_from(x, GROWTH_ROW, Self::SPEED_ROW + 2)),
+            false => self.cols[j].accumulate(acc, x, GROWTH_ROW),
+        }
     }
 
     /// (propagated [u, ω_m, ω_L, δθ_m, δθ_L, T], u″, bound on sup |u‴| over the piece).
@@ -227,20 +239,20 @@ impl<const N: usize, const KO: usize> PieceKernel<N, KO> {
         // The first product rather than zeros plus it (the same but for a zero's sign); then a
         // loop over the columns rather than one call per column: unrolled after it is
         // vectorized, it keeps each column's outputs together in vector registers.
-        let mut acc = self.cols[U].product_by(Self::by(u));
+        let mut acc = self.first(u);
         for (j, yj) in [(V, v), (OMEGA_L, w), (TAU_M, tm), (TAU_L, tl), (ONE, 1.0)] {
-            self.cols[j].accumulate_by(&mut acc, Self::by(yj));
+            self.add(&mut acc, j, yj);
         }
         // Zero under a zero-order hold: skipped (the sums are the same but for a zero's sign).
         if !((dtm == 0.0) & (dtl == 0.0)) {
             for (j, yj) in [(DTAU_M, dtm), (DTAU_L, dtl)] {
-                self.cols[j].accumulate_by(&mut acc, Self::by(yj));
+                self.add(&mut acc, j, yj);
             }
         }
         if N == WEB_AUG {
             let [t, w, dw] = span;
             for (j, yj) in [(TENSION, t), (SPAN, w), (DSPAN, dw)] {
-                self.cols[j].accumulate_by(&mut acc, Self::by(yj));
+                self.add(&mut acc, j, yj);
             }
         }
         acc
