@@ -37,6 +37,9 @@ pub enum Friction {
 pub struct Chained<const N: usize, const KO: usize, const KS: usize> {
     stepper: crate::physics::chain::ChainStepper<1, N, KO>,
     mode: ChainMode<1>,
+    /// The torques the bearings add in `mode` (0 on a body without friction), None when a body
+    /// with friction is stuck: the quiet step's shift ([`Exact::quiet_sliding_step`]).
+    bearings: Option<[f64; 2]>,
     quiet: Exact<N, KS>,
 }
 
@@ -57,6 +60,34 @@ pub fn coulomb_of(v: &Values) -> [Coulomb; 2] {
 }
 
 impl<const N: usize, const KO: usize, const KS: usize> Chained<N, KO, KS> {
+    fn new(stepper: crate::physics::chain::ChainStepper<1, N, KO>, mode: ChainMode<1>, plant: &Plant) -> Self {
+        let mut chained = Chained {
+            stepper,
+            mode,
+            bearings: None,
+            quiet: Exact::new(*plant),
+        };
+        chained.set_mode(mode);
+        chained
+    }
+
+    /// Makes `mode` the chain's, with the bearings' torques in it.
+    fn set_mode(&mut self, mode: ChainMode<1>) {
+        self.mode = mode;
+        let mut bearings = Some([0.0; 2]);
+        for j in 0..2 {
+            let f = self.stepper.chain().body(j).friction;
+            if f.tau_c > 0.0 {
+                match (mode.body(j), &mut bearings) {
+                    (BodyMode::Stuck, _) => bearings = None,
+                    (sliding, Some(b)) => b[j] = sliding.friction_sign() * f.tau_c,
+                    (_, None) => {}
+                }
+            }
+        }
+        self.bearings = bearings;
+    }
+
     /// The chain's mode with the contact mode of `state` (the bodies' held).
     fn mode_at(&self, state: &PlantState) -> ChainMode<1> {
         let mut mode = ChainMode::new([state.mode]);
@@ -89,16 +120,8 @@ impl Friction {
         let chain = Chain::new(params).map_err(|e| FmuError::InvalidArgument(e.to_string()))?;
         let start = ChainState::new(&chain, Motion::default(), [Motion::default()]).mode;
         Ok(Some(match chain.web() {
-            None => Friction::Drive(Chained {
-                stepper: OneStageStepper::new(chain),
-                mode: start,
-                quiet: Exact::new(*plant),
-            }),
-            Some(_) => Friction::Web(Chained {
-                stepper: OneStageWebStepper::new(chain),
-                mode: start,
-                quiet: Exact::new(*plant),
-            }),
+            None => Friction::Drive(Chained::new(OneStageStepper::new(chain), start, plant)),
+            Some(_) => Friction::Web(Chained::new(OneStageWebStepper::new(chain), start, plant)),
         }))
     }
 
@@ -126,7 +149,7 @@ impl Friction {
             let mode = mode_of(c.stepper.chain(), &[s.u], &[s.du], &[s.omega_m, s.omega_l]);
             let mut state = chain_state(s, mode);
             c.stepper.apply_stiction(&mut state, inputs);
-            c.mode = state.mode;
+            c.set_mode(state.mode);
             plant_state(&state)
         })
     }
@@ -136,7 +159,7 @@ impl Friction {
         let mut mode = ChainMode::new([plant_state.mode]);
         mode.set_body(0, bodies[0]);
         mode.set_body(1, bodies[1]);
-        each!(self, c => c.mode = mode)
+        each!(self, c => c.set_mode(mode))
     }
 
     /// The bodies' friction modes.
@@ -175,18 +198,7 @@ impl Friction {
     #[inline]
     pub fn quiet_step(&self, state: &PlantState, inputs: &Inputs, h: f64) -> Option<PlantState> {
         each!(self, c => {
-            let mode = c.mode;
-            let mut bearings = [0.0; 2];
-            for (j, torque) in bearings.iter_mut().enumerate() {
-                let f = c.stepper.chain().body(j).friction;
-                if f.tau_c > 0.0 {
-                    match mode.body(j) {
-                        BodyMode::Stuck => return None,
-                        sliding => *torque = sliding.friction_sign() * f.tau_c,
-                    }
-                }
-            }
-            let next = c.quiet.quiet_sliding_step(state, inputs, bearings, h)?;
+            let next = c.quiet.quiet_sliding_step(state, inputs, c.bearings?, h)?;
             // `next` is finite: its force is what is left of the state's check.
             finite(c.quiet.plant().force(next.u, next.du)).then_some(next)
         })
@@ -199,7 +211,7 @@ impl Friction {
 
     /// Makes the mode of `next` (from [`Friction::step`]) the chain's.
     pub fn commit(&mut self, next: &ChainState<1>) {
-        each!(self, c => c.mode = next.mode)
+        each!(self, c => c.set_mode(next.mode))
     }
 
     /// d/dt [θ_m, ω_m, θ_L, ω_L, T] at `state` in the mode in force (a stuck body does not

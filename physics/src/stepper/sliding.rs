@@ -25,8 +25,8 @@ pub type SlidingWebStepper = Exact<WEB_AUG, 14>;
 const ROUNDING: f64 = 32.0 * f64::EPSILON;
 
 /// For a piece of length `len` in one contact mode with matrix `m` and `phi` = e^{M len}, the
-/// kernel rows of the speeds: c M over y at the piece start (ω_m′ and ω_L′ there), then over |y|
-/// the bounds on |ω_m‴| and |ω_L‴| over the piece, |c M³| e^{|M| len} (since ω‴(σ) = c M³ e^{M σ} y
+/// kernel rows of the speeds: c M over y at the piece start ((r_m ω_m)′ and ω_L′ there), then over |y|
+/// the bounds on |(r_m ω_m)‴| and |ω_L‴| over the piece, |c M³| e^{|M| len} (since ω‴(σ) = c M³ e^{M σ} y
 /// and e^{|M| σ} bounds |e^{M σ}| entrywise and grows with σ), plus the rounding allowance of
 /// [`ROUNDING`].
 pub(super) fn speed_bound_rows<const N: usize>(
@@ -47,11 +47,12 @@ pub(super) fn speed_bound_rows<const N: usize>(
     [motor.0, load.0, motor.1, load.1]
 }
 
-/// ω_m = (v + r_L ω_L)/r_m and ω_L as rows over y.
+/// The speeds as rows over y: the motor's as r_m ω_m = v + r_L ω_L (the test is the same for
+/// any positive multiple, and this one needs no division at the step's end), and ω_L.
 fn speed_rows<const N: usize>(plant: &Plant) -> [AugVector<N>; 2] {
     let mut motor = AugVector::<N>::zeros();
-    motor[linear::V] = 1.0 / plant.r_m();
-    motor[linear::OMEGA_L] = plant.r_l() / plant.r_m();
+    motor[linear::V] = 1.0;
+    motor[linear::OMEGA_L] = plant.r_l();
     let mut load = AugVector::<N>::zeros();
     load[linear::OMEGA_L] = 1.0;
     [motor, load]
@@ -96,10 +97,13 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         };
         // Sliding forward (ω > 0) the bearing's torque is −τ_c: the direction is minus its sign.
         let d = bearings.map(|b| -b.signum());
-        let (w0, watched) = ([state.omega_m, state.omega_l], bearings.map(|b| b != 0.0));
+        // The motor's speed as r_m ω_m = u′ + r_L ω_L (`speed_rows`).
+        let r_l = self.plant.r_l();
+        let w0 = [state.du + r_l * state.omega_l, state.omega_l];
+        let watched = bearings.map(|b| b != 0.0);
         self.quiet_step_with(state, &shifted, h, |next, speeds, len| {
             let [a0, s] = [[speeds[0], speeds[1]], [speeds[2], speeds[3]]];
-            let w1 = [next.omega_m, next.omega_l];
+            let w1 = [next.du + r_l * next.omega_l, next.omega_l];
             let clear = |j: usize| keeps_sign(d[j] * w0[j], d[j] * a0[j], d[j] * w1[j], s[j], len);
             // Non-short-circuit: one branch.
             (!watched[0] | clear(0)) & (!watched[1] | clear(1))
