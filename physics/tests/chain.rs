@@ -8,7 +8,7 @@ use backlash_physics::chain::{
     StageSwitch, TwoStageStepper,
 };
 use backlash_physics::{
-    ContactLaw, ContactMode, Damping, Geometry, Inputs, Plant, PlantParams, PlantState, StepError, Stepper, WebSpan,
+    ContactLaw, ContactMode, Damping, Inputs, Plant, PlantParams, PlantState, StepError, Stepper, WebSpan,
 };
 
 const EPS: f64 = f64::EPSILON;
@@ -35,23 +35,7 @@ fn reversing(amplitude: f64, frequency: f64, load: f64, t: f64, h: f64) -> Input
 
 /// The paper's rig (docs/model.md §4) and a small servo belt drive with a gap.
 fn plants() -> [PlantParams; 2] {
-    let belt = PlantParams {
-        j_m: 1e-4,
-        j_l: 5e-3,
-        b_m: 1e-4,
-        b_l: 1e-3,
-        geometry: Geometry::Belt {
-            k_b: 2e5,
-            r_1: 0.02,
-            r_2: 0.04,
-            r_g1: 0.015,
-            r_g2: 0.045,
-            delta: 5e-5,
-        },
-        damping: Damping::NONE,
-        web: None,
-    };
-    [PlantParams::paper_rig(1e-3), belt]
+    [PlantParams::paper_rig(1e-3), common::servo_belt()]
 }
 
 /// S = 1 and the single-gap stepper (physics::Stepper) are two computations of one trajectory
@@ -106,18 +90,12 @@ fn one_stage_with_a_web_span_agrees_with_the_single_gap_stepper() {
 #[test]
 fn one_damped_stage_agrees_with_the_single_gap_stepper() {
     for params in plants() {
-        let omega0 = Plant::new(params).unwrap().contact_frequency();
-        let k = Plant::new(params).unwrap().stiffness();
         for (law, zeta) in [
             (ContactLaw::ElastoBacklash, 0.5),
             (ContactLaw::ElastoBacklash2, 0.5),
             (ContactLaw::ElastoBacklash, 0.05),
         ] {
-            let d = 2.0 * zeta * k / omega0;
-            agrees_with_the_single_gap_stepper::<10, 8>(PlantParams {
-                damping: Damping { d, law },
-                ..params
-            });
+            agrees_with_the_single_gap_stepper::<10, 8>(common::with_damper(params, law, zeta));
         }
     }
 }

@@ -3,8 +3,10 @@
 //! contact switches: two computations of one trajectory, written separately (the chain's
 //! matrices are composed per stage from docs/model.md §10, the single gap's from §1).
 
+mod common;
+
 use backlash_physics::chain::{Chain, ChainEvent, ChainParams, ChainState, Motion, OneStageStepper};
-use backlash_physics::{ContactLaw, ContactMode, Damping, Inputs, Plant, PlantParams, PlantState, Stepper};
+use backlash_physics::{ContactLaw, ContactMode, Inputs, Plant, PlantParams, PlantState, Stepper};
 
 const EPS: f64 = f64::EPSILON;
 
@@ -115,15 +117,7 @@ fn deviations(a: &Run, b: &Run) -> ([f64; 7], f64) {
 
 /// The rig with a damper at contact damping ratio ζ (D = 2 ζ k / ω_0).
 fn damped(law: ContactLaw, zeta: f64) -> PlantParams {
-    let params = PlantParams::paper_rig(1e-3);
-    let plant = Plant::new(params).unwrap();
-    PlantParams {
-        damping: Damping {
-            d: 2.0 * zeta * plant.stiffness() / plant.contact_frequency(),
-            law,
-        },
-        ..params
-    }
+    common::with_damper(PlantParams::paper_rig(1e-3), law, zeta)
 }
 
 /// The largest deviation allowed between the runs, in ulps of each quantity's magnitude (see
