@@ -79,6 +79,12 @@ options:
                   two-stage: each stage's half gap [rad] (defaults 0.3875e-3, 0.3875e-3)
   --d1 --d2       two-stage: each stage's damper [N.m.s/rad] (default 0), under --contact-law;
                   bound_sup then answers for the gaps only, as with --damping
+  --tau-c-m --tau-c-l --peak-m --peak-l
+                  shaft and belt: Coulomb friction with stiction in the motor's and the load's
+                  bearing (docs/model.md §12), tau_c [N.m] >= 0 and peak >= 1 (defaults 0, 1).
+                  bound_sup then adds 2 peak tau_c int|h_b| per body, a part no gap shrinks
+                  (docs/model.md §10): delta_max and the stiffness window include it, and when
+                  friction alone spends the accuracy there is no delta_max
   --json          print one JSON object instead of text
   --help          this text";
 
@@ -181,7 +187,7 @@ pub fn design(command: &str, args: &[String]) -> Result<String, CliError> {
 
 /// The flags that take a number, and the setting each one gives ([`request::SETTINGS`]; `--k` is
 /// the stiffness of the form: `k` or `K_b`).
-const NUMBER_FLAGS: [(&str, &str); 32] = [
+const NUMBER_FLAGS: [(&str, &str); 36] = [
     ("--accuracy", "accuracy"),
     ("--delta", "Delta"),
     ("--k", STIFFNESS),
@@ -213,6 +219,10 @@ const NUMBER_FLAGS: [(&str, &str); 32] = [
     ("--delta1", "Delta_1"),
     ("--delta2", "Delta_2"),
     ("--d1", "d_1"),
+    ("--tau-c-m", "tau_c_m"),
+    ("--tau-c-l", "tau_c_L"),
+    ("--peak-m", "peak_m"),
+    ("--peak-l", "peak_L"),
     ("--d2", "d_2"),
 ];
 
@@ -348,6 +358,72 @@ mod tests {
             assert_eq!(params.damping.d, 12.5, "{model}");
             assert_eq!(params.damping.law.code() as f64, law, "{model}");
         }
+    }
+
+    /// The friction flags reach the speed design's request, checked by range; the web line and
+    /// the two-stage form refuse them.
+    #[test]
+    fn friction_flags_reach_the_speed_design() {
+        let list = [
+            "--accuracy",
+            "0.1",
+            "--tau-c-m",
+            "0.5",
+            "--tau-c-l",
+            "0.25",
+            "--peak-m",
+            "1.5",
+            "--peak-l",
+            "2",
+        ];
+        let Ok(Some((Request::Speed(r), false))) = parse(COMMAND, &args(&list)) else {
+            panic!("{list:?} refused")
+        };
+        let [m, l] = r.friction;
+        assert_eq!((m.tau_c, m.peak, l.tau_c, l.peak), (0.5, 1.5, 0.25, 2.0));
+        for bad in [
+            &["--accuracy", "0.1", "--tau-c-m", "-0.5"][..],
+            &["--accuracy", "0.1", "--peak-l", "0.999"],
+            &["--model", "web", "--tension-accuracy", "20", "--tau-c-m", "0.5"],
+            &["--model", "two-stage", "--accuracy", "0.1", "--tau-c-l", "0.5"],
+        ] {
+            assert!(parse(COMMAND, &args(bad)).is_err(), "{bad:?}");
+        }
+    }
+
+    /// With bearing friction, bound_sup = s Δ + F (docs/model.md §10): delta_max spends what F
+    /// leaves of the accuracy, and F is linear in each body's peak·τ_c (the bound is 2 peak τ_c
+    /// ∫|h_b| per body). Friction that alone spends the accuracy leaves no delta_max.
+    #[test]
+    fn friction_spends_part_of_the_accuracy() {
+        let solve = |extra: &[&str]| {
+            let mut list = vec!["--accuracy", "0.02", "--kp", "20", "--ki", "50"];
+            list.extend_from_slice(extra);
+            let Ok(Some((Request::Speed(r), false))) = parse(COMMAND, &args(&list)) else {
+                panic!("{list:?} refused")
+            };
+            crate::speed::solve(r).unwrap()
+        };
+        let plain = solve(&[]);
+        assert_eq!(plain.friction_sup, 0.0);
+        let motor = solve(&["--tau-c-m", "0.01"]);
+        let load = solve(&["--tau-c-l", "0.01", "--peak-l", "2"]);
+        let both = solve(&["--tau-c-m", "0.01", "--tau-c-l", "0.01", "--peak-l", "2"]);
+        assert!(motor.friction_sup > 0.0 && load.friction_sup > 0.0);
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+        // Each body's term apart, and the load's twice what peak 1 gives.
+        assert!(close(both.friction_sup, motor.friction_sup + load.friction_sup));
+        let load_peak1 = solve(&["--tau-c-l", "0.01"]);
+        assert!(close(load.friction_sup, 2.0 * load_peak1.friction_sup));
+        // delta_max: s Δ_max + F = ε, the same s as without friction.
+        let d = both.delta_max.unwrap();
+        assert!(close(both.bound_sup_per_delta * d + both.friction_sup, 0.02));
+        assert_eq!(both.bound_sup_per_delta, plain.bound_sup_per_delta);
+        assert!(d < plain.delta_max.unwrap());
+        // Friction 0.02/F times that spends the whole accuracy: no delta_max.
+        let heavy = format!("{}", 0.01 * 1.01 * 0.02 / motor.friction_sup);
+        let none = solve(&["--tau-c-m", heavy.as_str()]);
+        assert!(none.friction_sup > 0.02 && none.delta_max.is_none());
     }
 
     /// The two-stage flags reach their stage and body; a flag of another form is refused.

@@ -4,6 +4,7 @@
 //! passes keyword arguments as settings. Both speak of a setting by their own label (`--jm`,
 //! `J_m`), which the reasons quote.
 
+use backlash_physics::chain::Coulomb;
 use backlash_physics::{ChainParams, ContactLaw, Geometry, PiGains, PlantParams};
 
 use crate::{default_params, speed, study, two_stage, web, Form};
@@ -11,7 +12,7 @@ use crate::{default_params, speed, study, two_stage, web, Form};
 /// What can be set, by name: the accuracies and the parameters by their FMU names
 /// (docs/model.md §4, §8), each with the forms it belongs to (every form when empty) and the
 /// range it must lie in.
-pub const SETTINGS: [(&str, &[Form], Range); 34] = [
+pub const SETTINGS: [(&str, &[Form], Range); 38] = [
     ("accuracy", &[], Range::Positive),
     ("tension_accuracy", &[Form::Web], Range::Positive),
     ("Delta", SINGLE_GAP, Range::Positive),
@@ -46,10 +47,18 @@ pub const SETTINGS: [(&str, &[Form], Range); 34] = [
     ("Delta_2", &[Form::TwoStage], Range::Positive),
     ("d_1", &[Form::TwoStage], Range::NonNegative),
     ("d_2", &[Form::TwoStage], Range::NonNegative),
+    ("tau_c_m", SPEED_SINGLE_GAP, Range::NonNegative),
+    ("tau_c_L", SPEED_SINGLE_GAP, Range::NonNegative),
+    ("peak_m", SPEED_SINGLE_GAP, Range::AtLeastOne),
+    ("peak_L", SPEED_SINGLE_GAP, Range::AtLeastOne),
 ];
 
 /// The forms with one gap (docs/model.md §1, §8).
 const SINGLE_GAP: &[Form] = &[Form::Shaft, Form::Belt, Form::Web];
+
+/// The forms whose speed design takes bearing friction (docs/model.md §10, §12): the web line's
+/// bounds with friction are +∞, and the two-stage design shares the accuracy among the gaps.
+const SPEED_SINGLE_GAP: &[Form] = &[Form::Shaft, Form::Belt];
 
 /// The drive a request is for: one gap, or the two stages of docs/model.md §10.
 enum Drive {
@@ -129,6 +138,8 @@ pub enum Range {
     Any,
     /// `contact_law`: 1 (Modelica's ElastoBacklash) or 2 (ElastoBacklash2).
     Law,
+    /// `peak_*`: breakaway over sliding friction, ≥ 1.
+    AtLeastOne,
 }
 
 /// One value given for a design.
@@ -211,6 +222,8 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
     let (mut accuracy, mut tension_accuracy) = (None, None);
     let (mut kp, mut ki) = (None, None);
     let mut tension_gains = PiGains::default();
+    // The motor's and the load's bearing friction.
+    let mut friction = [Coulomb::NONE; 2];
     for (i, s) in settings.iter().enumerate() {
         let Some((_, forms, range)) = SETTINGS.iter().find(|(name, _, _)| *name == s.name) else {
             return Err(refuse(format!("unknown parameter `{}`", s.label)));
@@ -232,6 +245,7 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
         match range {
             Range::Positive if value <= 0.0 => return Err(refuse(format!("{label} = {text} must be > 0"))),
             Range::NonNegative if value < 0.0 => return Err(refuse(format!("{label} = {text} must be >= 0"))),
+            Range::AtLeastOne if value < 1.0 => return Err(refuse(format!("{label} = {text} must be >= 1"))),
             Range::Law if ContactLaw::from_code(value as i32).is_none() || value.fract() != 0.0 => {
                 return Err(refuse(format!(
                     "{label} = {text} must be 1 (ElastoBacklash) or 2 (ElastoBacklash2)"
@@ -250,6 +264,10 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
             "L_w" => line.l_w = value,
             "EA" => line.ea = value,
             "v_ref" => line.v_ref = value,
+            "tau_c_m" => friction[0].tau_c = value,
+            "tau_c_L" => friction[1].tau_c = value,
+            "peak_m" => friction[0].peak = value,
+            "peak_L" => friction[1].peak = value,
             drive_train => drive.set(drive_train, value),
         }
     }
@@ -275,6 +293,7 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
             accuracy: accuracy.ok_or_else(|| missing("accuracy"))?,
             params,
             gains,
+            friction,
         }),
         (_, Drive::TwoStage(drive)) => Request::TwoStage(two_stage::Request {
             accuracy: accuracy.ok_or_else(|| missing("accuracy"))?,

@@ -6,6 +6,7 @@
 
 use serde_json::{json, Value};
 
+use backlash_physics::chain::Coulomb;
 use backlash_physics::{closed_loop, Geometry, PiGains, Plant, PlantParams};
 
 use crate::study::{self, Crossing, GainDesign, StiffnessStudy};
@@ -18,6 +19,8 @@ pub struct Request {
     pub params: PlantParams,
     /// Gains given by the user; `None` means the best-damped rule.
     pub gains: Option<PiGains>,
+    /// Coulomb friction with stiction in the motor's and the load's bearing (docs/model.md §12).
+    pub friction: [Coulomb; 2],
 }
 
 /// The answer, with everything needed to write it as text or JSON.
@@ -30,9 +33,13 @@ pub struct Answer {
     pub min_damping: f64,
     /// bound_sup at Δ = 1 and the nominal stiffness [rad/s per unit Δ].
     pub bound_sup_per_delta: f64,
-    /// bound_sup at the requested Δ and the nominal stiffness.
+    /// bound_sup at the requested Δ and the nominal stiffness (with the friction's part).
     pub bound_sup_nominal: f64,
-    pub delta_max: f64,
+    /// The friction's part of bound_sup at the nominal stiffness, the same at every Δ (0 without
+    /// friction).
+    pub friction_sup: f64,
+    /// The largest Δ with bound_sup ≤ ε; None when the friction alone spends ε.
+    pub delta_max: Option<f64>,
     pub study: StiffnessStudy,
 }
 
@@ -64,10 +71,40 @@ pub fn solve(request: Request) -> Result<Answer, String> {
         }
     };
     let min_damping = study::min_damping_ratio(&plant, gains);
+    let friction = request.friction;
     let bound_sup_per_delta = study::bound_sup(&params.with_half_gap(1.0), gains).map_err(|e| e.to_string())?;
-    let bound_sup_nominal = study::bound_sup(&params, gains).map_err(|e| e.to_string())?;
-    let delta_max = study::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
-    let study = study::stiffness_study(&params, gains, request.accuracy).map_err(|e| e.to_string())?;
+    let friction_sup = study::friction_sup(&params, friction, gains).map_err(|e| e.to_string())?;
+    let bound_sup_nominal = study::bound_sup(&params, gains).map_err(|e| e.to_string())? + friction_sup;
+    // bound_sup = s Δ + F, linear in Δ: the accuracy left after the friction's part F, over s.
+    let delta_max = match friction_sup {
+        0.0 => Some(study::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?),
+        f if f < request.accuracy => Some((request.accuracy - f) / bound_sup_per_delta),
+        _ => None,
+    };
+    let study = match friction_sup {
+        0.0 => study::stiffness_study(&params, gains, request.accuracy),
+        _ => {
+            // At each stiffness the gap's part and the friction's, each +∞ where the loop is
+            // not stable.
+            let eval = |k: f64| {
+                let at = study::with_stiffness(&params, k);
+                let infinite = |e| match e {
+                    study::DesignError::Unbounded { .. } => Ok(f64::INFINITY),
+                    e => Err(e),
+                };
+                let gap = study::bound_sup(&at, gains).or_else(infinite)?;
+                Ok(gap + study::friction_sup(&at, friction, gains).or_else(infinite)?)
+            };
+            study::stiffness_scan(
+                study::stiffness(&params),
+                study::half_gap(&params),
+                request.accuracy,
+                study::StiffnessScan::default(),
+                &eval,
+            )
+        }
+    }
+    .map_err(|e| e.to_string())?;
     Ok(Answer {
         request,
         gains,
@@ -75,6 +112,7 @@ pub fn solve(request: Request) -> Result<Answer, String> {
         min_damping,
         bound_sup_per_delta,
         bound_sup_nominal,
+        friction_sup,
         delta_max,
         study,
     })
@@ -126,13 +164,23 @@ pub fn to_text(a: &Answer) -> String {
         study::stiffness(p),
         a.bound_sup_per_delta
     ));
-    out.push(format!(
-        "delta_max = {:.9e} {delta_unit} (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
-        a.delta_max,
-        2.0 * a.delta_max,
-        study::half_gap(p),
-        a.bound_sup_nominal
-    ));
+    out.push(friction_text(a));
+    out.push(match a.delta_max {
+        Some(delta_max) => format!(
+            "delta_max = {:.9e} {delta_unit} (gap 2*delta_max = {:.9e}); at Delta = {}: bound_sup = {:.6e}",
+            delta_max,
+            2.0 * delta_max,
+            study::half_gap(p),
+            a.bound_sup_nominal
+        ),
+        None => format!(
+            "delta_max: none: bearing friction alone spends the accuracy ({:.6e} >= eps); at Delta = {}: \
+             bound_sup = {:.6e}",
+            a.friction_sup,
+            study::half_gap(p),
+            a.bound_sup_nominal
+        ),
+    });
     let s = &a.study;
     out.push(format!(
         "stiffness at Delta = {} {delta_unit} (scan {} points, k in [{:.4}, {:.4}] {k_unit}): bound_sup is {}",
@@ -167,6 +215,21 @@ pub fn to_text(a: &Answer) -> String {
         ));
     }
     out.join("\n")
+}
+
+/// Whether the answer holds with bearing friction (docs/model.md §10, §12), on one line.
+fn friction_text(a: &Answer) -> String {
+    let [m, l] = a.request.friction;
+    match a.friction_sup {
+        0.0 => "bearing friction: none (tau_c_m = tau_c_L = 0); with Coulomb friction bound_sup gains \
+                2 peak tau_c int|h_b| per body, which no gap shrinks: give --tau-c-m/--tau-c-l to include it"
+            .to_string(),
+        f => format!(
+            "bearing friction: tau_c_m = {}, peak_m = {}, tau_c_L = {}, peak_L = {}: its part of bound_sup is \
+             {f:.6e} rad/s at every Delta (docs/model.md §10), included below",
+            m.tau_c, m.peak, l.tau_c, l.peak
+        ),
+    }
 }
 
 fn join(values: &[f64]) -> String {
@@ -225,6 +288,13 @@ pub fn to_value(a: &Answer) -> Value {
         "poles": poles.iter().map(|z| json!([z.re, z.im])).collect::<Vec<_>>(),
         "bound_sup_per_unit_delta": a.bound_sup_per_delta,
         "bound_sup_at_delta": a.bound_sup_nominal,
+        "friction": {
+            "tau_c_m": a.request.friction[0].tau_c,
+            "peak_m": a.request.friction[0].peak,
+            "tau_c_L": a.request.friction[1].tau_c,
+            "peak_L": a.request.friction[1].peak,
+        },
+        "bound_sup_friction": a.friction_sup,
         "delta_max": a.delta_max,
         "k_min": s.k_min().map(|c| c.k),
         "k_max": s.k_max().map(|c| c.k),

@@ -13,6 +13,7 @@ use nalgebra::Complex;
 use thiserror::Error;
 
 use backlash_physics::bound::BoundError;
+use backlash_physics::chain::{Chain, ChainError, ChainParams, Coulomb, OneStageFrictionBound};
 use backlash_physics::closed_loop::reduced_loop_poles;
 use backlash_physics::{Geometry, ParamError, PiGains, Plant, PlantParams, SpeedErrorBound, Unbounded};
 
@@ -37,6 +38,8 @@ pub enum DesignError {
     NotSingleGap { form: &'static str },
     #[error("the model {identifier} pulls no web span")]
     NoWebSpan { identifier: &'static str },
+    #[error(transparent)]
+    Chain(#[from] ChainError),
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -237,6 +240,25 @@ fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, x0: [f64; 2], size: f64, x_tol: f64,
 pub fn bound_sup(params: &PlantParams, gains: PiGains) -> Result<f64, DesignError> {
     let plant = Plant::new(*params)?;
     let bound = SpeedErrorBound::new(&plant, gains)?;
+    bound.sup().map_err(|reason| DesignError::Unbounded {
+        kp: gains.kp,
+        ki: gains.ki,
+        reason,
+    })
+}
+
+/// The part of bound_sup [rad/s] that Coulomb friction `friction` on the motor and the load adds
+/// (docs/model.md §10, "The bound with bearing friction"): Σ_b 2 peak_b τ_c,b ∫_0^∞ |h_b|, 0
+/// without friction. No gap enters it: it is what the bound keeps with every gap closed.
+pub fn friction_sup(params: &PlantParams, friction: [Coulomb; 2], gains: PiGains) -> Result<f64, DesignError> {
+    if friction.iter().all(|c| c.tau_c == 0.0) {
+        return Ok(0.0);
+    }
+    let plant = Plant::new(*params)?;
+    let mut chain = ChainParams::from_plant(&plant).expect("a drive without a web span is a one-stage chain");
+    chain.motor.friction = friction[0];
+    chain.driven[0].friction = friction[1];
+    let bound = OneStageFrictionBound::new(&Chain::new(chain)?, gains)?;
     bound.sup().map_err(|reason| DesignError::Unbounded {
         kp: gains.kp,
         ki: gains.ki,

@@ -39,7 +39,8 @@ def design(model: str, accuracy: float | None = None, tension_accuracy: float | 
     load-speed accuracy ε [rad/s] (required for shaft, belt and two-stage), `tension_accuracy`
     the web line's ε_T [N] (required for web); `parameters` by the FMUs' variable names (J_m,
     J_L, b_m, b_L, k or K_b, Delta, R_1, R_2, R_g1, R_g2, R_w, L_w, EA, v_ref, Kp, Ki, Kp_T, Ki_T;
-    two-stage: J_i, b_i, n_1, n_2, k_1, k_2, Delta_1, Delta_2) replace the defaults.
+    shaft and belt: the bearing friction tau_c_m, tau_c_L, peak_m, peak_L; two-stage: J_i, b_i,
+    n_1, n_2, k_1, k_2, Delta_1, Delta_2) replace the defaults.
     Returns the answer as `backlash design ... --json` prints it. Raises ValueError with the
     reason on bad input (an unknown model or parameter, a non-finite or out-of-range value)."""
     return json.loads(design_json(model, accuracy, tension_accuracy, **parameters))

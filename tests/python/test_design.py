@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import archives
+import backlash_fmu
 from reference import Plant
 from reference_bound import BoundReference
 
@@ -214,6 +215,35 @@ def test_given_gains_are_used():
     assert d["delta_max"] == pytest.approx(0.02 / reference_sup(RIG["k"], 1.0, 20.0, 50.0), rel=1e-6)
 
 
+# Bearing friction on both bodies of the rig (docs/model.md §12): a quarter or so of EPS.
+FRICTION = {"tau_c_m": 0.01, "tau_c_L": 0.01, "peak_L": 1.5}
+
+
+def test_with_friction_delta_max_makes_the_fmu_bound_sup_equal_the_accuracy(shaft):
+    """The design with bearing friction against the FMU with the same friction: its bound_sup
+    (the speed bound and each body's friction term, composed by the FMU's own bounds) equals EPS
+    at delta_max, and at Delta = 0 it is the friction's part the design reports, which no gap
+    shrinks. The friction term itself is checked against a quadrature of the loop's matrix
+    exponential in tests/integration/fmu/friction.rs."""
+    gains = {"Kp": 20.0, "Ki": 50.0}
+    plain = backlash_fmu.design("shaft", accuracy=EPS, **gains)
+    d = backlash_fmu.design("shaft", accuracy=EPS, **gains, **FRICTION)
+    assert d["friction"] == {"tau_c_m": 0.01, "peak_m": 1.0, "tau_c_L": 0.01, "peak_L": 1.5}
+    assert 0 < d["bound_sup_friction"] < EPS
+    assert d["delta_max"] < plain["delta_max"]
+    at_max = fmu_bound_sup(shaft, Delta=d["delta_max"], **gains, **FRICTION)
+    assert at_max == pytest.approx(EPS, rel=1e-9)
+    closed = fmu_bound_sup(shaft, Delta=0.0, **gains, **FRICTION)
+    assert closed == pytest.approx(d["bound_sup_friction"], rel=1e-9)
+    # The gap's part is the frictionless design's, to the independent quadrature.
+    assert EPS - d["bound_sup_friction"] == pytest.approx(reference_sup(RIG["k"], d["delta_max"], 20.0, 50.0), rel=1e-6)
+    # Friction that alone spends the accuracy: no delta_max.
+    heavy = backlash_fmu.design("shaft", accuracy=EPS, **gains, tau_c_m=0.2)
+    assert heavy["bound_sup_friction"] > EPS and heavy["delta_max"] is None
+    # Without friction the answer says so and stays what it was.
+    assert plain["bound_sup_friction"] == 0.0
+
+
 @pytest.mark.parametrize(
     "args",
     [
@@ -238,6 +268,9 @@ def test_given_gains_are_used():
         ["--model", "belt", "--tension-accuracy", "1"],
         ["--model", "belt", "--accuracy", "2.5", "--tension-accuracy", "1"],
         ["--accuracy", "0.02", "--tension-accuracy", "1"],
+        ["--accuracy", "0.02", "--tau-c-m", "-1"],
+        ["--accuracy", "0.02", "--peak-m", "0.5"],
+        ["--model", "web", "--tension-accuracy", "1", "--tau-c-l", "0.1"],
     ],
 )
 def test_cli_rejects_bad_arguments(args):
