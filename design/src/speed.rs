@@ -75,36 +75,8 @@ pub fn solve(request: Request) -> Result<Answer, String> {
     let bound_sup_per_delta = study::bound_sup(&params.with_half_gap(1.0), gains).map_err(|e| e.to_string())?;
     let friction_sup = study::friction_sup(&params, friction, gains).map_err(|e| e.to_string())?;
     let bound_sup_nominal = study::bound_sup(&params, gains).map_err(|e| e.to_string())? + friction_sup;
-    // bound_sup = s Δ + F, linear in Δ: the accuracy left after the friction's part F, over s.
-    let delta_max = match friction_sup {
-        0.0 => Some(study::delta_max(&params, gains, request.accuracy).map_err(|e| e.to_string())?),
-        f if f < request.accuracy => Some((request.accuracy - f) / bound_sup_per_delta),
-        _ => None,
-    };
-    let study = match friction_sup {
-        0.0 => study::stiffness_study(&params, gains, request.accuracy),
-        _ => {
-            // At each stiffness the gap's part and the friction's, each +∞ where the loop is
-            // not stable.
-            let eval = |k: f64| {
-                let at = study::with_stiffness(&params, k);
-                let infinite = |e| match e {
-                    study::DesignError::Unbounded { .. } => Ok(f64::INFINITY),
-                    e => Err(e),
-                };
-                let gap = study::bound_sup(&at, gains).or_else(infinite)?;
-                Ok(gap + study::friction_sup(&at, friction, gains).or_else(infinite)?)
-            };
-            study::stiffness_scan(
-                study::stiffness(&params),
-                study::half_gap(&params),
-                request.accuracy,
-                study::StiffnessScan::default(),
-                &eval,
-            )
-        }
-    }
-    .map_err(|e| e.to_string())?;
+    let delta_max = study::delta_max(&params, gains, request.accuracy, friction_sup).map_err(|e| e.to_string())?;
+    let study = study::stiffness_study(&params, friction, gains, request.accuracy).map_err(|e| e.to_string())?;
     Ok(Answer {
         request,
         gains,

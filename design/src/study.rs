@@ -247,6 +247,9 @@ pub fn bound_sup(params: &PlantParams, gains: PiGains) -> Result<f64, DesignErro
     })
 }
 
+/// No bearing friction on either body.
+pub const NO_FRICTION: [Coulomb; 2] = [Coulomb::NONE; 2];
+
 /// The part of bound_sup [rad/s] that Coulomb friction `friction` on the motor and the load adds
 /// (docs/model.md §10, "The bound with bearing friction"): Σ_b 2 peak_b τ_c,b ∫_0^∞ |h_b|, 0
 /// without friction. No gap enters it: it is what the bound keeps with every gap closed.
@@ -274,11 +277,20 @@ fn check_accuracy(epsilon: f64) -> Result<(), DesignError> {
     }
 }
 
-/// The largest half gap Δ with bound_sup ≤ ε for the plant's stiffness and `gains`.
-/// bound_sup = K g ∫|h| is linear in Δ (h does not depend on it), so Δ_max = ε / bound_sup(Δ=1).
-pub fn delta_max(params: &PlantParams, gains: PiGains, epsilon: f64) -> Result<f64, DesignError> {
+/// The largest half gap Δ with bound_sup ≤ ε for the plant's stiffness and `gains`, with bearing
+/// friction whose part of bound_sup is `friction_sup` (0 without): bound_sup = s Δ + F is linear
+/// in Δ (h does not depend on it), so Δ_max = (ε − F) / s with s = bound_sup(Δ = 1); None when F
+/// alone spends ε.
+pub fn delta_max(
+    params: &PlantParams,
+    gains: PiGains,
+    epsilon: f64,
+    friction_sup: f64,
+) -> Result<Option<f64>, DesignError> {
     check_accuracy(epsilon)?;
-    Ok(epsilon / bound_sup(&params.with_half_gap(1.0), gains)?)
+    let left = epsilon - friction_sup;
+    let per_delta = bound_sup(&params.with_half_gap(1.0), gains)?;
+    Ok((left > 0.0).then(|| left / per_delta))
 }
 
 /// Where the stiffness study looks: a logarithmic grid around the nominal K.
@@ -375,30 +387,39 @@ impl StiffnessStudy {
     }
 }
 
-/// bound_sup, with an infinite bound (unstable or undamped loop) as +∞ so that it is infeasible.
-fn sup_or_inf(params: &PlantParams, gains: PiGains) -> Result<f64, DesignError> {
-    match bound_sup(params, gains) {
-        Ok(v) => Ok(v),
-        Err(DesignError::Unbounded { .. }) => Ok(f64::INFINITY),
-        Err(e) => Err(e),
-    }
+/// bound_sup with bearing friction `friction` (its part [`friction_sup`] added; nothing without
+/// friction), with an infinite bound (unstable or undamped loop) as +∞ so that it is infeasible.
+fn sup_or_inf(params: &PlantParams, friction: [Coulomb; 2], gains: PiGains) -> Result<f64, DesignError> {
+    let infinite = |e| match e {
+        DesignError::Unbounded { .. } => Ok(f64::INFINITY),
+        e => Err(e),
+    };
+    let gap = bound_sup(params, gains).or_else(infinite)?;
+    Ok(gap + friction_sup(params, friction, gains).or_else(infinite)?)
 }
 
-/// Stiffness study at half gap Δ = `half_gap(params)` and fixed `gains` (see [`StiffnessStudy`]).
-/// The nominal K is `stiffness(params)`; the grid is [`StiffnessScan::default`].
-pub fn stiffness_study(params: &PlantParams, gains: PiGains, epsilon: f64) -> Result<StiffnessStudy, DesignError> {
-    stiffness_study_on(params, gains, epsilon, StiffnessScan::default())
+/// Stiffness study at half gap Δ = `half_gap(params)`, bearing friction `friction` and fixed
+/// `gains` (see [`StiffnessStudy`]). The nominal K is `stiffness(params)`; the grid is
+/// [`StiffnessScan::default`].
+pub fn stiffness_study(
+    params: &PlantParams,
+    friction: [Coulomb; 2],
+    gains: PiGains,
+    epsilon: f64,
+) -> Result<StiffnessStudy, DesignError> {
+    stiffness_study_on(params, friction, gains, epsilon, StiffnessScan::default())
 }
 
 /// [`stiffness_study`] on a given grid.
 pub fn stiffness_study_on(
     params: &PlantParams,
+    friction: [Coulomb; 2],
     gains: PiGains,
     epsilon: f64,
     grid: StiffnessScan,
 ) -> Result<StiffnessStudy, DesignError> {
     Plant::new(*params)?;
-    let eval = |k: f64| sup_or_inf(&with_stiffness(params, k), gains);
+    let eval = |k: f64| sup_or_inf(&with_stiffness(params, k), friction, gains);
     stiffness_scan(stiffness(params), half_gap(params), epsilon, grid, &eval)
 }
 
@@ -709,7 +730,7 @@ mod tests {
     fn delta_max_attains_the_accuracy() {
         let gains = paper_gains();
         let eps = 0.02;
-        let d = delta_max(&rig(0.0), gains, eps).unwrap();
+        let d = delta_max(&rig(0.0), gains, eps, 0.0).unwrap().unwrap();
         let at = bound_sup(&rig(d), gains).unwrap();
         assert!((at / eps - 1.0).abs() < 1e-12, "{at} vs {eps}");
         assert!(bound_sup(&rig(1.01 * d), gains).unwrap() > eps);
@@ -720,11 +741,11 @@ mod tests {
         let gains = paper_gains();
         for eps in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             assert!(matches!(
-                delta_max(&rig(0.0), gains, eps),
+                delta_max(&rig(0.0), gains, eps, 0.0),
                 Err(DesignError::BadAccuracy { .. })
             ));
             assert!(matches!(
-                stiffness_study(&rig(1e-3), gains, eps),
+                stiffness_study(&rig(1e-3), NO_FRICTION, gains, eps),
                 Err(DesignError::BadAccuracy { .. })
             ));
         }
@@ -734,7 +755,7 @@ mod tests {
     fn k_min_is_where_the_bound_reaches_the_accuracy() {
         let gains = paper_gains();
         let (eps, delta) = (0.02, 0.775e-3);
-        let study = stiffness_study(&rig(delta), gains, eps).unwrap();
+        let study = stiffness_study(&rig(delta), NO_FRICTION, gains, eps).unwrap();
         let k_min = study
             .k_min()
             .expect("the nominal stiffness is feasible at this accuracy");
@@ -758,7 +779,7 @@ mod tests {
     fn an_accuracy_below_the_best_bound_has_no_stiffness() {
         let gains = paper_gains();
         let delta = 0.775e-3;
-        let study = stiffness_study(&rig(delta), gains, 1e-4).unwrap();
+        let study = stiffness_study(&rig(delta), NO_FRICTION, gains, 1e-4).unwrap();
         assert!(study.k_min().is_none() && study.nominal_interval.is_none());
     }
 }

@@ -90,11 +90,16 @@ impl<const N: usize, const KO: usize, const KS: usize> Chained<N, KO, KS> {
 
     /// The chain's mode with the contact mode of `state` (the bodies' held).
     fn mode_at(&self, state: &PlantState) -> ChainMode<1> {
-        let mut mode = ChainMode::new([state.mode]);
-        mode.set_body(0, self.mode.body(0));
-        mode.set_body(1, self.mode.body(1));
-        mode
+        mode_with(state, [self.mode.body(0), self.mode.body(1)])
     }
+}
+
+/// The chain mode of the contact mode of `state` and the bodies' modes `bodies`.
+fn mode_with(state: &PlantState, bodies: [BodyMode; 2]) -> ChainMode<1> {
+    let mut mode = ChainMode::new([state.mode]);
+    mode.set_body(0, bodies[0]);
+    mode.set_body(1, bodies[1]);
+    mode
 }
 
 /// Dispatches to the chain of either size.
@@ -156,10 +161,7 @@ impl Friction {
 
     /// Continues from a plant state in the contact mode it has with the bodies' modes `bodies`.
     pub fn restore(&mut self, plant_state: &PlantState, bodies: [BodyMode; 2]) {
-        let mut mode = ChainMode::new([plant_state.mode]);
-        mode.set_body(0, bodies[0]);
-        mode.set_body(1, bodies[1]);
-        each!(self, c => c.set_mode(mode))
+        each!(self, c => c.set_mode(mode_with(plant_state, bodies)))
     }
 
     /// The bodies' friction modes.
