@@ -7,29 +7,48 @@ use nalgebra::{SMatrix, SVector};
 pub const TERMS: usize = 32;
 
 /// A matrix kept as its non-zero entries: the augmented mode matrices have ~16 of 100, so a
-/// product with them costs a sixth of a dense one.
+/// product with them costs a sixth of a dense one. The entries are grouped by row, in column
+/// order, and each row's sum is accumulated from 0 in that order: `apply` does the arithmetic of
+/// the dense product with the zero terms left out, in one register per row.
 #[derive(Clone, Debug)]
 pub struct Sparse<const N: usize> {
-    entries: Vec<(usize, usize, f64)>,
+    /// (column, value) of the non-zero entries, row by row.
+    entries: Box<[(usize, f64)]>,
+    /// Row i's entries are `entries[ends[i - 1]..ends[i]]` (from 0 for row 0).
+    ends: [usize; N],
 }
 
 impl<const N: usize> Sparse<N> {
     pub fn new(m: &SMatrix<f64, N, N>) -> Self {
-        let entries = (0..N)
-            .flat_map(|i| (0..N).map(move |j| (i, j)))
-            .filter(|&(i, j)| m[(i, j)] != 0.0)
-            .map(|(i, j)| (i, j, m[(i, j)]))
-            .collect();
-        Sparse { entries }
+        let mut entries = Vec::new();
+        let mut ends = [0; N];
+        for (i, end) in ends.iter_mut().enumerate() {
+            entries.extend((0..N).filter(|&j| m[(i, j)] != 0.0).map(|j| (j, m[(i, j)])));
+            *end = entries.len();
+        }
+        Sparse {
+            entries: entries.into_boxed_slice(),
+            ends,
+        }
     }
 
     #[inline]
     pub fn apply(&self, x: &SVector<f64, N>) -> SVector<f64, N> {
         let mut out = SVector::<f64, N>::zeros();
-        for &(i, j, v) in &self.entries {
-            out[i] += v * x[j];
-        }
+        self.each_row(x, |i, sum| out[i] = sum);
         out
+    }
+
+    /// Calls `row(i, (M x)_i)` for each row i in order. (A closure rather than a loop writing
+    /// `out[i]` in `apply`: the switching step measured 10% faster this way.)
+    #[inline(always)]
+    fn each_row(&self, x: &SVector<f64, N>, mut row: impl FnMut(usize, f64)) {
+        let mut begin = 0;
+        for (i, &end) in self.ends.iter().enumerate() {
+            let sum = self.entries[begin..end].iter().fold(0.0, |acc, &(j, v)| acc + v * x[j]);
+            row(i, sum);
+            begin = end;
+        }
     }
 }
 
@@ -64,11 +83,21 @@ impl<const N: usize> TaylorModel<N> {
         let mut terms = TERMS;
         let mut power = 1.0;
         for k in 1..TERMS {
-            v[k] = m.apply(&v[k - 1]) / k as f64;
             power *= span;
-            let term = v[k].abs() * power;
-            let negligible = term.iter().zip(magnitude.iter()).all(|(t, m)| *t <= 1e-17 * m);
-            magnitude += term;
+            let kf = k as f64;
+            // v_k = M v_{k-1} / k, and each component's term at σ = span tested against and
+            // added to its running magnitude, in a loop without early exit that the compiler
+            // vectorizes (the divisions are most of an expansion's cost).
+            let sums = m.apply(&v[k - 1]);
+            let next = &mut v[k];
+            let mut negligible = true;
+            for i in 0..N {
+                let c = sums[i] / kf;
+                next[i] = c;
+                let term = c.abs() * power;
+                negligible &= term <= 1e-17 * magnitude[i];
+                magnitude[i] += term;
+            }
             quiet = if negligible { quiet + 1 } else { 0 };
             // Keep at least the cubic: the search reads the first four coefficients.
             if quiet == 2 && k >= 3 {

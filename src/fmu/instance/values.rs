@@ -52,19 +52,32 @@ impl Instance {
 
     /// The physics in force: the simulation after initialization, before it the plant the
     /// current parameters and start values describe (built once per change).
+    #[inline]
     pub(super) fn physics(&mut self) -> Result<&Simulation, FmuError> {
+        if !matches!(self.life, Lifecycle::Running { .. }) {
+            self.preview()?;
+        }
+        Ok(self.built())
+    }
+
+    /// Before initialization: builds the plant the current values describe unless built since
+    /// they last changed, or refuses (a controller). Out of line: a simulation under
+    /// construction takes kilobytes of stack, which the calls after initialization need not set
+    /// up.
+    #[cold]
+    #[inline(never)]
+    fn preview(&mut self) -> Result<(), FmuError> {
         match &mut self.life {
-            Lifecycle::Running { sim, .. } => Ok(sim),
+            Lifecycle::Running { .. } => Ok(()),
             Lifecycle::Sampling { .. } => Err(FmuError::InvalidArgument(format!(
                 "{} is a controller: it has no plant",
                 self.model.identifier
             ))),
             Lifecycle::Setup { preview, .. } => {
-                let sim = match preview.take() {
-                    Some(sim) => sim,
-                    None => Simulation::build(self.model, &self.values)?,
-                };
-                Ok(preview.insert(sim))
+                if preview.is_none() {
+                    *preview = Some(Simulation::build(self.model, &self.values)?);
+                }
+                Ok(())
             }
         }
     }
