@@ -208,25 +208,9 @@ fn search(p: &Poly, side: Side, lo: f64, hi: f64, resolution: f64, budget: &mut 
     if *budget == 0 {
         return None;
     }
-    search_shifted(p, &p.shifted(lo), side, lo, hi, resolution, budget)
-}
-
-/// `search` given `q`, p shifted to `lo`: the left half of an interval starts where it does, so
-/// it searches on the same `q` (a shift costs deg² dependent multiply-adds).
-fn search_shifted(
-    p: &Poly,
-    q: &Poly,
-    side: Side,
-    lo: f64,
-    hi: f64,
-    resolution: f64,
-    budget: &mut usize,
-) -> Option<f64> {
-    if *budget == 0 {
-        return None;
-    }
     *budget -= 1;
     let w = hi - lo;
+    let q = p.shifted(lo);
     let s = side.sign;
     let f0 = side.value(q.coef[0]);
     if f0 < -side.tol {
@@ -249,19 +233,19 @@ fn search_shifted(
         // f' ≤ f₁ + f₂σ + c₃σ²/2, convex: if negative at both ends, f falls through one root.
         let slope_end = f1 + w * (f2 + 0.5 * c3 * w);
         if f1 < 0.0 && slope_end < 0.0 {
-            return Some(lo + refine(q, side, w));
+            return Some(lo + refine(&q, side, w));
         }
     }
     let mid = lo + 0.5 * w;
     if w <= resolution || mid <= lo || mid >= hi {
         // At the resolution of the span: the crossing, if any, is here.
         return if f_hi < -side.tol {
-            Some(lo + refine(q, side, w))
+            Some(lo + refine(&q, side, w))
         } else {
             None
         };
     }
-    search_shifted(p, q, side, lo, mid, resolution, budget).or_else(|| search(p, side, mid, hi, resolution, budget))
+    search(p, side, lo, mid, resolution, budget).or_else(|| search(p, side, mid, hi, resolution, budget))
 }
 
 /// The root of side.value(q(σ)) on [0, w], given f(0) ≥ −tol and f(w) < −tol: Newton
