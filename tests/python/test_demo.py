@@ -270,3 +270,31 @@ def test_the_friction_step_shows_the_load_stuck_at_each_reversal_until_its_break
     frictionless = np.array([float(r["omega_L_frictionless"]) for r in rows])
     assert np.sum(sliding[later] == 0) > 100 and np.sum(frictionless[later] == 0.0) == 0
     assert "load stuck:" in stdout and (out / "friction_reversal.png").stat().st_size > 10_000
+
+
+def test_the_two_stage_step_says_which_mesh_costs_the_accuracy(demo):
+    """backlash_fmu.demo.two_stage, on a gearbox no other test uses: each stage's bound_sup per
+    unit of its gap in DIR/two_stage.json against the loop written in test_design_two_stage.py
+    from the equations of two stages, integrated by reference_bound.py's quadrature (no code
+    shared with the design library); the shares, bound_sup and the stage named as the costliest
+    follow from those numbers, and the figure is written."""
+    out, stdout = demo
+    from test_design_two_stage import reference_per_delta
+
+    from backlash_fmu.demo.two_stage import EPS, GEARBOX
+
+    answer = json.loads((out / "two_stage.json").read_text())
+    reference = reference_per_delta(GEARBOX, answer["Kp"], answer["Ki"])
+    shares = []
+    for stage, expected in zip(answer["stages"], reference):
+        j = stage["stage"]
+        # Both integrals to round-off; 1e-9 as test_design_two_stage allows for the quadrature.
+        assert stage["bound_sup_per_unit_delta"] == pytest.approx(expected, rel=1e-9)
+        shares.append(expected * GEARBOX[f"Delta_{j}"])
+        assert stage["bound_sup_share"] == pytest.approx(shares[-1], rel=1e-9)
+    assert answer["accuracy"] == EPS
+    assert answer["bound_sup"] == pytest.approx(sum(shares), rel=1e-9)
+    costliest = 1 + int(shares[1] > shares[0])
+    assert answer["dominant_stage"] == costliest
+    assert f"stage {costliest}'s backlash costs the most" in stdout
+    assert (out / "two_stage.png").stat().st_size > 10_000

@@ -15,7 +15,10 @@
 //!   bound_T_sup;
 //! - identifies the paper's rig from a noisy BacklashShaft run: results/identify*.{csv,json};
 //! - runs a low-speed reversal on BacklashShaft with bearing friction with stiction and without,
-//!   under the PI speed loop: results/friction_reversal.csv and results/friction_reversal.png.
+//!   under the PI speed loop: results/friction_reversal.csv and results/friction_reversal.png;
+//! - answers which mesh's backlash costs the accuracy of a two-stage gearbox, from its design
+//!   answer (`backlash_fmu.design("two-stage", ...)`): results/two_stage.json and
+//!   results/two_stage.png.
 //!
 //! The demo runs on the installed package's own archives (built from this tree by the install):
 //! `BACKLASH_FMU_DIR` is removed from its environment.
@@ -36,8 +39,9 @@ eps = 0.02 m/s, and the web-tension question for a film line on BacklashBelt's d
 eps_T = 20 N. Then runs twin BacklashWeb.fmu web lines (Delta and Delta = 0) under speed and
 tension PI loops closed through fmpy and compares |T^b - T^0| with bound_T; identifies the
 paper's rig from a noisy run; runs a low-speed reversal with bearing friction beside the same
-run without. Writes results/*.csv, results/*.png, results/design.json and
-results/design_web.json.
+run without; says which mesh's backlash costs the accuracy of a two-stage gearbox. Writes
+results/*.csv, results/*.png, results/design.json, results/design_web.json and
+results/two_stage.json.
 
 The experiments are the package backlash_fmu's (python -m backlash_fmu.demo), installed into
 .venv first.

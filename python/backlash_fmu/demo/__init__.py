@@ -29,6 +29,10 @@ In order (`main`):
 6. `friction_reversal.run`: a low-speed reversal on the paper's rig under the PI speed loop, with
    bearing friction with stiction (docs/model.md §12) and without: motor and load speeds, the
    sliding modes, the lost motion: DIR/friction_reversal.csv, DIR/friction_reversal.png.
+7. `two_stage.run`: a gearbox of two unequal meshes under the PI speed loop, and which mesh's
+   backlash costs the accuracy: each stage's bound_sup per unit of its gap, its share, the
+   admissible triangle of gaps (`backlash_fmu.design("two-stage", ...)`): DIR/two_stage.json,
+   DIR/two_stage.png.
 
 DIR defaults to results; `--short` (or CI=true in the environment) shortens the horizons. The
 archives are those of $BACKLASH_FMU_DIR when it is set, else the package's own
@@ -179,6 +183,12 @@ def main(argv: list[str] | None = None) -> int:
 
     _step("bearing friction: a low-speed reversal on the paper's rig, with stiction and without")
     status = friction_reversal.run(answer, args.out, short)
+    if status != 0:
+        return status
+    from . import two_stage
+
+    _step("two stages: which mesh's backlash costs the accuracy")
+    status = two_stage.run(args.out)
     if status != 0:
         return status
     print(f"\ndemo finished in {time.perf_counter() - started:.1f} s")
