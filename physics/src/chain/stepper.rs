@@ -139,6 +139,42 @@ impl<const S: usize> PieceStart<S> {
     }
 }
 
+impl<const S: usize> PieceStart<S> {
+    /// Calls `add(j, y_j)` for the entries of the augmented vector that may be non-zero, in the
+    /// column order of chain/linear.rs; the slopes of the inputs are skipped when both are 0
+    /// (a zero-order hold), the span's entries without a web span (`web`).
+    #[inline(always)]
+    fn each_entry_of(&self, web: bool, mut add: impl FnMut(usize, f64)) {
+        for i in 0..S {
+            add(Layout::<S>::u(i), self.u[i]);
+        }
+        for i in 0..S {
+            add(Layout::<S>::v(i), self.v[i]);
+        }
+        add(Layout::<S>::OMEGA_LAST, self.omega_last);
+        add(Layout::<S>::TAU_M, self.tau_m);
+        add(Layout::<S>::TAU_L, self.tau_l);
+        add(Layout::<S>::ONE, 1.0);
+        // Zero under a zero-order hold: skipped.
+        if !((self.dtau_m == 0.0) & (self.dtau_l == 0.0)) {
+            add(Layout::<S>::DTAU_M, self.dtau_m);
+            add(Layout::<S>::DTAU_L, self.dtau_l);
+        }
+        if web {
+            let [t, w, dw] = self.span;
+            add(Layout::<S>::TENSION, t);
+            add(Layout::<S>::SPAN, w);
+            add(Layout::<S>::DSPAN, dw);
+        }
+    }
+
+    /// `each_entry_of` for an augmented vector of N entries (with a web span: N = 3S + 10).
+    #[inline(always)]
+    fn each_entry<const N: usize>(&self, add: impl FnMut(usize, f64)) {
+        self.each_entry_of(N == Layout::<S>::WEB_DIM, add)
+    }
+}
+
 impl<const S: usize, const N: usize, const KO: usize> PieceKernel<S, N, KO> {
     /// The state rows: u_i, v_i, ω_S, δθ_j.
     const STATE_ROWS: usize = 3 * S + 2;
@@ -186,27 +222,7 @@ impl<const S: usize, const N: usize, const KO: usize> PieceKernel<S, N, KO> {
     #[inline(always)]
     fn apply(&self, start: &PieceStart<S>) -> [f64; KO] {
         let mut acc = [0.0; KO];
-        for i in 0..S {
-            self.add(&mut acc, Layout::<S>::u(i), start.u[i]);
-        }
-        for i in 0..S {
-            self.add(&mut acc, Layout::<S>::v(i), start.v[i]);
-        }
-        self.add(&mut acc, Layout::<S>::OMEGA_LAST, start.omega_last);
-        self.add(&mut acc, Layout::<S>::TAU_M, start.tau_m);
-        self.add(&mut acc, Layout::<S>::TAU_L, start.tau_l);
-        self.add(&mut acc, Layout::<S>::ONE, 1.0);
-        // Zero under a zero-order hold: skipped.
-        if !((start.dtau_m == 0.0) & (start.dtau_l == 0.0)) {
-            self.add(&mut acc, Layout::<S>::DTAU_M, start.dtau_m);
-            self.add(&mut acc, Layout::<S>::DTAU_L, start.dtau_l);
-        }
-        if Self::WEB {
-            let [t, w, dw] = start.span;
-            self.add(&mut acc, Layout::<S>::TENSION, t);
-            self.add(&mut acc, Layout::<S>::SPAN, w);
-            self.add(&mut acc, Layout::<S>::DSPAN, dw);
-        }
+        start.each_entry::<N>(|j, x| self.add(&mut acc, j, x));
         acc
     }
 
@@ -227,6 +243,44 @@ impl<const S: usize, const N: usize, const KO: usize> PieceKernel<S, N, KO> {
             acc[Self::SECOND + i],
             acc[Self::THIRD + i].abs() + acc[Self::GROWTH + i],
         )
+    }
+}
+
+/// A body's certificate over a whole piece, with friction (docs/model.md §2's cubic test on
+/// its signal s: the speed while it slides, the held torque τ_h while it sticks), fused as
+/// [`PieceKernel`]'s: s, s′, s″ and s‴ at the piece start, the bound on how far s‴ moves over the
+/// piece (`SignalRows::remainder_row` for the piece's length) and Σ|row of s|·|y|, the scale of
+/// its round-off floor; the last two multiply |y|. One pass over the piece start's non-zero
+/// entries, in place of six dot products over the whole augmented vector.
+#[derive(Clone, Copy, Debug)]
+struct BodyKernel<const N: usize> {
+    cols: [KernelColumn<BODY_OUTPUTS>; N],
+}
+
+/// [`BodyKernel`]'s outputs: s⁽ᵏ⁾ for k = 0..=3, then the rows that multiply |y|.
+const BODY_OUTPUTS: usize = 6;
+const BODY_ABS_ROW: usize = 4;
+
+impl<const N: usize> BodyKernel<N> {
+    fn new(rows: &SignalRows<N>, remainder: &SVector<f64, N>) -> Self {
+        BodyKernel {
+            cols: KernelColumn::table(|r, j| match r {
+                0..=3 => rows.row(r)[j],
+                BODY_ABS_ROW => rows.row(0)[j].abs(),
+                _ => remainder[j],
+            }),
+        }
+    }
+
+    /// ([s, s′, s″] at the piece start, the bound on sup |s‴| over the piece, the floor's scale).
+    #[inline(always)]
+    fn apply<const S: usize>(&self, start: &PieceStart<S>) -> ([f64; 3], f64, f64) {
+        let mut acc = [0.0; BODY_OUTPUTS];
+        start.each_entry::<N>(|j, x| {
+            let by = KernelColumn::<BODY_OUTPUTS>::multipliers_from(x, BODY_ABS_ROW, BODY_ABS_ROW);
+            self.cols[j].accumulate_by(&mut acc, by);
+        });
+        ([acc[0], acc[1], acc[2]], acc[3].abs() + acc[5], acc[4])
     }
 }
 
@@ -263,6 +317,9 @@ pub struct ChainStepper<const S: usize, const N: usize, const KO: usize> {
     len: f64,
     /// By [`ChainMode::index`]; None until the mode is entered at this step size.
     maps: Vec<Option<PieceKernel<S, N, KO>>>,
+    /// By [`ChainMode::index`], filled with `maps`: each body's certificate over a piece (None
+    /// for a body without friction; empty without friction).
+    body_maps: Vec<Box<[Option<BodyKernel<N>>]>>,
     /// Some body has Coulomb friction: its modes are certified and located besides the stages'.
     friction: bool,
 }
@@ -294,6 +351,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             pieces: 0,
             len: 0.0,
             maps: vec![None; ChainMode::<S>::COUNT],
+            body_maps: vec![Box::default(); ChainMode::<S>::COUNT],
             friction: chain.has_friction(),
         }
     }
@@ -463,7 +521,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             let stages_clear = self.clear_by(&next.mode, &at_start, len, |i| {
                 PieceKernel::<S, N, KO>::certificate(&whole_piece, i)
             });
-            if stages_clear && (!self.friction || self.bodies_clear_at(&next, inputs, start, index)) {
+            if stages_clear && (!self.friction || self.bodies_clear_over_piece(&next.mode, &at_start, index)) {
                 for i in self.damped_stages() {
                     let (d2, c3) = PieceKernel::<S, N, KO>::certificate(&whole_piece, i);
                     let u_end = whole_piece[Layout::<S>::u(i)];
@@ -633,6 +691,7 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         self.pieces = pieces as usize;
         self.len = h / pieces;
         self.maps.iter_mut().for_each(|m| *m = None);
+        self.body_maps.iter_mut().for_each(|m| *m = Box::default());
     }
 
     #[cold]
@@ -641,9 +700,21 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         if self.modes[index].is_none() {
             self.build_mode(index);
         }
-        let ModeDynamics { m, sparse, u_rows, .. } = self.modes[index].as_deref().expect("built above");
+        let ModeDynamics {
+            m,
+            sparse,
+            u_rows,
+            bodies,
+        } = self.modes[index].as_deref().expect("built above");
         let remainder = std::array::from_fn(|i| u_rows[i].remainder_row(m, self.len));
         self.maps[index] = Some(PieceKernel::new(&exp_series(sparse, self.len), u_rows, &remainder));
+        self.body_maps[index] = bodies
+            .iter()
+            .map(|signal| {
+                let rows = &signal.as_ref()?.rows;
+                Some(BodyKernel::new(rows, &rows.remainder_row(m, self.len)))
+            })
+            .collect();
     }
 
     /// True when no stage's u can leave its mode's region within `span` after y (not a whole
@@ -655,11 +726,19 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         }) && (!self.friction || bodies_clear(&self.chain, mode, dynamics, y, span))
     }
 
-    /// The bodies' surfaces certified clear over the whole piece from its start (with friction).
-    fn bodies_clear_at(&self, state: &ChainState<S>, inputs: &Inputs, start: f64, index: usize) -> bool {
-        let y = augmented::<S, N>(state, inputs, start);
-        let dynamics = self.modes[index].as_deref().expect("filled with the maps");
-        bodies_clear(&self.chain, &state.mode, dynamics, &y, self.len)
+    /// The bodies' surfaces certified clear over the whole piece from its start (with friction),
+    /// by the bodies' kernels of mode `index`.
+    fn bodies_clear_over_piece(&self, mode: &ChainMode<S>, start: &PieceStart<S>, index: usize) -> bool {
+        self.body_maps[index].iter().enumerate().all(|(j, kernel)| {
+            let Some(kernel) = kernel else { return true };
+            let (d, c3, scale) = kernel.apply(start);
+            let breakaway = self.chain.body(j).friction.breakaway();
+            let tol = 8.0 * f64::EPSILON * (scale + breakaway);
+            body_sides(mode.body(j), breakaway, tol)
+                .into_iter()
+                .flatten()
+                .all(|(side, _)| derivatives_clear(side, d, c3, self.len))
+        })
     }
 
     /// The law of stiction at the step's start with its inputs: each body with friction slides by
@@ -1052,7 +1131,12 @@ fn body_floor<const N: usize>(signal: &BodySignal<N>, y: &SVector<f64, N>, break
 /// docs/model.md §2 on its derivatives).
 fn signal_clear<const N: usize>(rows: &SignalRows<N>, side: Side, y: &SVector<f64, N>, span: f64) -> bool {
     let d = [0, 1, 2].map(|k| rows.derivative(k, y));
-    let c3 = rows.third_bound(y, span);
+    derivatives_clear(side, d, rows.third_bound(y, span), span)
+}
+
+/// Whether a signal with [s, s′, s″] = `d` at the start and sup |s‴| ≤ `c3` stays on `side` over
+/// `span`.
+fn derivatives_clear(side: Side, d: [f64; 3], c3: f64, span: f64) -> bool {
     roots::cubic_clear(side.value(d[0]), side.sign * d[1], side.sign * d[2], c3, span, side.tol)
 }
 
