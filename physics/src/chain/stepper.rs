@@ -732,12 +732,14 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         self.body_maps[index].iter().enumerate().all(|(j, kernel)| {
             let Some(kernel) = kernel else { return true };
             let (d, c3, scale) = kernel.apply(start);
-            let breakaway = self.chain.body(j).friction.breakaway();
-            let tol = 8.0 * f64::EPSILON * (scale + breakaway);
-            body_sides(mode.body(j), breakaway, tol)
-                .into_iter()
-                .flatten()
-                .all(|(side, _)| derivatives_clear(side, d, c3, self.len))
+            body_keeps_mode(
+                mode.body(j),
+                self.chain.body(j).friction.breakaway(),
+                d,
+                c3,
+                scale,
+                self.len,
+            )
         })
     }
 
@@ -1124,7 +1126,22 @@ fn body_sides(mode: BodyMode, breakaway: f64, tol: f64) -> [Option<(Side, BodyEx
 /// Round-off floor of a body's signal at y: a few ulps of the magnitudes it sums, and of the
 /// breakaway torque it is compared with.
 fn body_floor<const N: usize>(signal: &BodySignal<N>, y: &SVector<f64, N>, breakaway: f64) -> f64 {
-    8.0 * f64::EPSILON * (signal.rows.row(0).abs().dot(&y.abs()) + breakaway)
+    floor_of(signal.rows.row(0).abs().dot(&y.abs()), breakaway)
+}
+
+/// The floor for a signal summing magnitudes of `scale`, compared with `breakaway`.
+fn floor_of(scale: f64, breakaway: f64) -> f64 {
+    8.0 * f64::EPSILON * (scale + breakaway)
+}
+
+/// Whether a body keeps its friction mode `mode` over `span`: its signal, with [s, s′, s″] = `d`
+/// at the start, sup |s‴| ≤ `c3` and magnitudes of `scale` summed, stays off every surface of
+/// the mode.
+fn body_keeps_mode(mode: BodyMode, breakaway: f64, d: [f64; 3], c3: f64, scale: f64, span: f64) -> bool {
+    body_sides(mode, breakaway, floor_of(scale, breakaway))
+        .into_iter()
+        .flatten()
+        .all(|(side, _)| derivatives_clear(side, d, c3, span))
 }
 
 /// Whether the signal of `rows` stays on `side` over `span` from y (the cubic test of
@@ -1150,12 +1167,17 @@ fn bodies_clear<const S: usize, const N: usize>(
 ) -> bool {
     dynamics.bodies.iter().enumerate().all(|(j, signal)| {
         let Some(signal) = signal else { return true };
-        let breakaway = chain.body(j).friction.breakaway();
-        let tol = body_floor(signal, y, breakaway);
-        body_sides(mode.body(j), breakaway, tol)
-            .into_iter()
-            .flatten()
-            .all(|(side, _)| signal_clear(&signal.rows, side, y, span))
+        let rows = &signal.rows;
+        let d = [0, 1, 2].map(|k| rows.derivative(k, y));
+        let scale = rows.row(0).abs().dot(&y.abs());
+        body_keeps_mode(
+            mode.body(j),
+            chain.body(j).friction.breakaway(),
+            d,
+            rows.third_bound(y, span),
+            scale,
+            span,
+        )
     })
 }
 

@@ -36,7 +36,7 @@ import numpy as np  # noqa: E402
 
 # A gearbox of two unequal meshes (SI units; angles in rad on each stage's input side), each
 # mesh damped (d_j, the law of docs/model.md §9 by default): without, the light intermediate
-# shaft rings so long that no PI on the motor speed damps the loop beyond a damping ratio of 0.001.
+# shaft rings on, and the best-damped rule's gains reach a smallest damping ratio of only 0.0018.
 GEARBOX = {"J_m": 0.6, "J_i": 0.04, "J_L": 5.0, "b_m": 0.02, "b_i": 0.05, "b_L": 0.4,
            "n_1": 4.0, "n_2": 2.5, "k_1": 600.0, "k_2": 3000.0, "d_1": 1.0, "d_2": 5.0,
            "Delta_1": 1.0e-3, "Delta_2": 0.5e-3}
