@@ -94,10 +94,9 @@ pub fn guard_in(
     // Pure arithmetic on the state (it cannot panic), tested here where `function` is a constant.
     let legal = component.instance.is_legal(function);
     match catch_unwind(AssertUnwindSafe(|| {
-        component.instance.run_judged(function, legal, body)
+        component.instance.run_status(function, legal, body)
     })) {
-        Ok(Ok(status)) => status,
-        Ok(Err(e)) => e.status(),
+        Ok(status) => status,
         Err(payload) => {
             let message = panic_message(payload.as_ref());
             // Logging calls back into the importer; it must not unwind into C either.
