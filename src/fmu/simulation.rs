@@ -264,6 +264,35 @@ impl Simulation {
         Err(rates_overflow(rates, inputs, plant.web().is_some(), what))
     }
 
+    /// [`Simulation::rates`] written into `out` (z′'s first `out.len()` entries, at most
+    /// [`adapter::MAX_STATES`]): Model Exchange's derivatives. The frictionless field goes from
+    /// registers to `out` element by element: handed back as an array it was stored in pieces
+    /// and copied on in wider ones, a store-forwarding stall on the solver's most frequent call.
+    #[inline]
+    pub fn write_rates(
+        &self,
+        state: &PlantState,
+        inputs: &Inputs,
+        out: &mut [f64],
+        what: std::fmt::Arguments<'_>,
+    ) -> Result<(), FmuError> {
+        if self.friction.is_some() {
+            let rates = self.rates(state, inputs, what)?;
+            out.copy_from_slice(&rates[..out.len()]);
+            return Ok(());
+        }
+        let plant = self.plant();
+        let [a, b, c, d] = plant.rates(state, inputs.tau_m, inputs.tau_l);
+        let e = plant.tension_rate(state, inputs.span);
+        if !(finite(b) & finite(d) & finite(e)) {
+            return Err(rates_overflow([a, b, c, d, e], inputs, plant.web().is_some(), what));
+        }
+        for (slot, x) in out.iter_mut().zip([a, b, c, d, e]) {
+            *slot = x;
+        }
+        Ok(())
+    }
+
     /// Advances the plant over `h` when the stepper's quiet path applies (see
     /// [`Stepper::quiet_step`]) and it stays finite; returns whether it did. When it did not,
     /// nothing changed and the general path does the step, or says why it cannot.
