@@ -64,7 +64,7 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 }
 
 /// Runs `body` on the instance behind `c`. `body` converts the C arguments (it runs after the
-/// legal-state check) and does the work; errors are logged and mapped in `Instance::run`. A
+/// legal-state check) and does the work; errors are logged and mapped in `Instance::run_status`. A
 /// panic is caught here and leaves the instance in state Error.
 #[inline]
 pub fn guard(

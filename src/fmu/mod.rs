@@ -1,7 +1,7 @@
 //! The FMU instance in safe Rust: the FMI 2.0 state machines of Model Exchange and
 //! Co-Simulation, value-reference dispatch over the generated variable table, stepping, the
 //! vector field for Model Exchange, and FMU states. No FFI here; the C
-//! ABI in `crate::ffi` converts pointers and calls [`Instance::run`].
+//! ABI in `crate::ffi` converts pointers and calls [`Instance::run_status`].
 
 pub mod adapter;
 pub mod bounds;
