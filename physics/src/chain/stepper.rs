@@ -137,9 +137,7 @@ impl<const S: usize> PieceStart<S> {
             },
         }
     }
-}
 
-impl<const S: usize> PieceStart<S> {
     /// Calls `add(j, y_j)` for the entries of the augmented vector that may be non-zero, in the
     /// column order of chain/linear.rs; the slopes of the inputs are skipped when both are 0
     /// (a zero-order hold), the span's entries without a web span (`web`).
@@ -1126,7 +1124,12 @@ fn body_sides(mode: BodyMode, breakaway: f64, tol: f64) -> [Option<(Side, BodyEx
 /// Round-off floor of a body's signal at y: a few ulps of the magnitudes it sums, and of the
 /// breakaway torque it is compared with.
 fn body_floor<const N: usize>(signal: &BodySignal<N>, y: &SVector<f64, N>, breakaway: f64) -> f64 {
-    floor_of(signal.rows.row(0).abs().dot(&y.abs()), breakaway)
+    floor_of(signal_scale(&signal.rows, y), breakaway)
+}
+
+/// The magnitudes a signal sums at y, Σ|row of s|·|y|: the scale of its round-off floor.
+fn signal_scale<const N: usize>(rows: &SignalRows<N>, y: &SVector<f64, N>) -> f64 {
+    rows.row(0).abs().dot(&y.abs())
 }
 
 /// The floor for a signal summing magnitudes of `scale`, compared with `breakaway`.
@@ -1169,13 +1172,12 @@ fn bodies_clear<const S: usize, const N: usize>(
         let Some(signal) = signal else { return true };
         let rows = &signal.rows;
         let d = [0, 1, 2].map(|k| rows.derivative(k, y));
-        let scale = rows.row(0).abs().dot(&y.abs());
         body_keeps_mode(
             mode.body(j),
             chain.body(j).friction.breakaway(),
             d,
             rows.third_bound(y, span),
-            scale,
+            signal_scale(rows, y),
             span,
         )
     })

@@ -193,11 +193,14 @@ impl Instance {
     /// a constant (behind the boundary `function` is read back from memory and its mask looked
     /// up in a jump table on every call).
     ///
-    /// The error is logged and dropped here. Handing the whole `Result` back instead (returned
-    /// in memory: it takes 56 bytes) made every call read it back whole right after storing
-    /// its two bytes, a store-forwarding stall that `perf annotate` showed as most of
-    /// fmi2DoStep's own time (event-free step 39.7 -> 34.8 ns, set(2) + get(1) 35.8 -> 30.1 ns
-    /// in benches/native_host.c's suite).
+    /// The error is logged and dropped here. Handing the whole `Result` back instead (wider
+    /// than two registers, so returned in memory) made every call read it back whole right
+    /// after storing its first bytes, a store-forwarding stall (BENCHMARKS.md, the runs before
+    /// and after: event-free `fmi2DoStep` 38.9 -> 33.7 ns, set(2) + get(1) 36.7 -> 31.3 ns).
+    ///
+    /// It repeats `run`'s legality check and success log inline: shared through two helpers
+    /// (even `#[inline(always)]`), every call measured 1 to 3 ns slower in each of four code
+    /// layouts (benches/native_host.c's suite, median of 7 runs each).
     #[inline]
     pub fn run_status(
         &mut self,
