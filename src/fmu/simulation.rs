@@ -264,7 +264,7 @@ impl Simulation {
     /// from registers to `out` value by value: merged with the friction's in one array (as in
     /// `rates`), it was stored in pieces and copied on in wider ones, a store-forwarding stall
     /// on the solver's most frequent call (BENCHMARKS.md, `me_get_derivatives`: 34.2 ns before,
-    /// 15.7 ns after).
+    /// 17.3 ns after).
     #[inline]
     pub fn write_rates(
         &self,
