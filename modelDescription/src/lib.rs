@@ -19,9 +19,9 @@ mod structure;
 pub mod xml;
 pub mod xml3;
 
-use backlash_physics::PlantParams;
+use backlash_physics::{ChainParams, PlantParams};
 
-pub use models::{default_plant_params, model, ModelDef, CONTROLLERS, MODELS};
+pub use models::{default_plant_params, model, ModelDef, CONTROLLERS, MODELS, PENDING_MODELS};
 
 /// The plants this crate describes, in a fixed order (that of the one list, [`MODELS`]).
 pub fn model_identifiers() -> &'static [&'static str] {
@@ -42,7 +42,17 @@ pub fn controller_identifiers() -> &'static [&'static str] {
 #[derive(Clone, Copy, Debug)]
 pub enum Kind {
     Plant(PlantMapping),
+    /// A plant of two stages in series (docs/model.md §10), made by its physics mapping.
+    TwoStage(TwoStageMapping),
     Controller,
+}
+
+impl Kind {
+    /// A plant of either form: Model Exchange and Co-Simulation, continuous states, event
+    /// indicators.
+    pub fn is_plant(&self) -> bool {
+        !matches!(self, Kind::Controller)
+    }
 }
 
 /// Scalar type of a variable.
@@ -124,6 +134,10 @@ impl Range {
 /// parameters, looked up by name.
 pub type PlantMapping = fn(&dyn Fn(&str) -> f64) -> PlantParams;
 
+/// A two-stage model's physics mapping: its chain (docs/model.md §10) from the values of its
+/// parameters, looked up by name.
+pub type TwoStageMapping = fn(&dyn Fn(&str) -> f64) -> ChainParams<2>;
+
 /// One scalar variable. `symbol` says what the variable is: here the name of a variant of the
 /// generated `Symbol` enum, in the library's generated tables that variant itself (which the
 /// library's model adapter maps to the physics).
@@ -198,6 +212,7 @@ impl SquareWave {
     }
 }
 
+#[derive(Clone)]
 pub struct Model {
     pub identifier: &'static str,
     /// A plant: how its parameters make it (its state nominals and model structure are computed

@@ -14,10 +14,10 @@
 //! shows as a changed value and independence as an identical one. A Real is changed by half its
 //! value; an Integer (`contact_law`) to another admissible value.
 
-use backlash_physics::{Plant, PlantState};
+use backlash_physics::{Chain, Plant, PlantState};
 
-use crate::common::{depends_on_time, vr_of, EVENT_INDICATORS};
-use crate::models::{parameters, plant_of};
+use crate::common::{depends_on_time, vr_of, CONTACT_INDICATORS, EVENT_INDICATORS};
+use crate::models::{parameters, physics_of, Physics};
 use crate::{Causality, Model, Range, Type, Var};
 
 /// The plant's input lines, in the order of the model's inputs by value reference: τ_m, τ_L,
@@ -55,22 +55,63 @@ fn perturbed(model: &Model, values: &[(&'static str, f64)], i: usize) -> Vec<(&'
     values
 }
 
-/// The generic states z = [θ_m, ω_m, θ_L, ω_L, T] of `plant`, in the units of the state
-/// nominals, each entry non-zero: one on the positive flank (u = 2.4 g), and where the plant has
-/// a damper the same angles with the speeds scaled so that the damper's force is four times the
-/// spring's, D u′ = 4 K (u − g) (where law 1 caps it).
-fn generic_states(plant: &Plant) -> Vec<[f64; 5]> {
-    let n = plant.state_nominals();
-    let z = [3.1 * n[0], 1.3 * n[1], 0.7 * n[2], -0.6 * n[3], 0.8 * n[4]];
-    if plant.damping() == 0.0 {
-        return vec![z];
+/// The generic states z of `physics`, in the units of the state nominals, each entry non-zero.
+///
+/// The single gap: z = [θ_m, ω_m, θ_L, ω_L, T] on the positive flank (u = 2.4 g), and where the
+/// plant has a damper the same angles with the speeds scaled so that the damper's force is four
+/// times the spring's, D u′ = 4 K (u − g) (where law 1 caps it).
+///
+/// A chain: z = [θ_0, ω_0, …, θ_S, ω_S, T] with every stage on its positive flank (u_i = 2.4 g_i
+/// from the load's angle up), closing with D_i u_i′ = K_i (u_i − g_i)/2 (a damped flank) and, at
+/// the second point, D_i u_i′ = 4 K_i (u_i − g_i) (capped); a stage without a damper closes at
+/// u_i′ = 0.9 ω₀ g_i.
+fn generic_states(physics: &Physics) -> Vec<Vec<f64>> {
+    match physics {
+        Physics::Gap(plant) => {
+            let n = plant.state_nominals();
+            let z = [3.1 * n[0], 1.3 * n[1], 0.7 * n[2], -0.6 * n[3], 0.8 * n[4]];
+            if plant.damping() == 0.0 {
+                return vec![z.to_vec()];
+            }
+            let state = gap_state(plant, &z);
+            let scale = 4.0 * plant.stiffness() * (state.u - plant.half_gap()) / (plant.damping() * state.du);
+            vec![z.to_vec(), vec![z[0], scale * z[1], z[2], scale * z[3], z[4]]]
+        }
+        Physics::TwoStage(chain) => {
+            let at = |spring_over_damper: f64| chain_generic_state(chain, spring_over_damper);
+            if (0..2).all(|i| chain.stage(i).d() == 0.0) {
+                vec![at(0.5)]
+            } else {
+                vec![at(0.5), at(4.0)]
+            }
+        }
     }
-    let state = state_of(plant, &z);
-    let scale = 4.0 * plant.stiffness() * (state.u - plant.half_gap()) / (plant.damping() * state.du);
-    vec![z, [z[0], scale * z[1], z[2], scale * z[3], z[4]]]
 }
 
-fn state_of(plant: &Plant, z: &[f64; 5]) -> PlantState {
+/// A chain's generic state whose damped stages close with D_i u_i′ = `ratio` K_i (u_i − g_i).
+fn chain_generic_state<const S: usize>(chain: &Chain<S>, ratio: f64) -> Vec<f64> {
+    let n = chain.state_nominals();
+    let omega0 = chain.contact_frequency();
+    let (mut theta, mut omega) = (vec![0.0; S + 1], vec![0.0; S + 1]);
+    theta[S] = 0.7 * n[2 * S];
+    omega[S] = -0.6 * n[2 * S + 1];
+    for i in (0..S).rev() {
+        let s = chain.stage(i);
+        let u = 2.4 * s.g;
+        let du = if s.d() > 0.0 {
+            ratio * s.k * (u - s.g) / s.d()
+        } else {
+            0.9 * omega0 * s.g
+        };
+        theta[i] = (u + s.c * theta[i + 1]) / s.a;
+        omega[i] = (du + s.c * omega[i + 1]) / s.a;
+    }
+    let mut z: Vec<f64> = (0..=S).flat_map(|j| [theta[j], omega[j]]).collect();
+    z.push(0.8 * n[2 * S + 2]);
+    z
+}
+
+fn gap_state(plant: &Plant, z: &[f64]) -> PlantState {
     PlantState::new(plant, z[0], z[1], z[2], z[3]).with_tension(z[4])
 }
 
@@ -82,31 +123,51 @@ const GENERIC_INPUTS: [f64; INPUT_LINES] = [0.37, -0.23, 0.41, 1.9];
 enum Quantity {
     /// The time derivative of the state entry (docs/model.md §1, §8).
     Rate(usize),
-    /// ψ, with a damper clipped by the contact law (docs/model.md §1).
-    Force,
-    /// The event indicator of that index (docs/model.md §6).
+    /// ψ of the stage, with a damper clipped by the contact law (docs/model.md §1).
+    Force(usize),
+    /// The contact event indicator of that index, the stages' in turn (docs/model.md §6).
     Indicator(usize),
-    /// The surfaces that decide the sign of ψ, the `contact` output: the event indicators u ∓ g
-    /// and those of the damped force (not the cap, which changes ψ's size, not its sign).
-    ContactSurfaces,
+    /// The surfaces that decide the sign of the stage's ψ, its `contact` output: the event
+    /// indicators u ∓ g and those of the damped force (not the cap, which changes ψ's size, not
+    /// its sign).
+    ContactSurfaces(usize),
 }
 
 impl Quantity {
-    fn of(self, plant: &Plant, z: &[f64; 5]) -> Vec<f64> {
-        let state = state_of(plant, z);
+    fn of(self, physics: &Physics, z: &[f64]) -> Vec<f64> {
         let [tau_m, tau_l, v_in, t_in] = GENERIC_INPUTS;
-        match self {
-            Quantity::Rate(i) => {
-                let span = plant.web().map_or(0.0, |w| w.forcing(v_in, t_in));
-                let rates = plant.rates(&state, tau_m, tau_l);
-                vec![rates
-                    .get(i)
-                    .copied()
-                    .unwrap_or_else(|| plant.tension_rate(&state, span))]
+        match physics {
+            Physics::Gap(plant) => {
+                let state = gap_state(plant, z);
+                match self {
+                    Quantity::Rate(i) => {
+                        let span = plant.web().map_or(0.0, |w| w.forcing(v_in, t_in));
+                        let rates = plant.rates(&state, tau_m, tau_l);
+                        vec![rates
+                            .get(i)
+                            .copied()
+                            .unwrap_or_else(|| plant.tension_rate(&state, span))]
+                    }
+                    Quantity::Force(_) => vec![plant.force(state.u, state.du)],
+                    Quantity::Indicator(i) => vec![plant.event_indicators(&state)[i]],
+                    Quantity::ContactSurfaces(_) => plant.event_indicators(&state)[..4].to_vec(),
+                }
             }
-            Quantity::Force => vec![plant.force(state.u, state.du)],
-            Quantity::Indicator(i) => vec![plant.event_indicators(&state)[i]],
-            Quantity::ContactSurfaces => plant.event_indicators(&state)[..4].to_vec(),
+            Physics::TwoStage(chain) => {
+                let state = chain.state_at(z);
+                match self {
+                    Quantity::Rate(i) => {
+                        let span = chain.web().map_or(0.0, |w| w.forcing(v_in, t_in));
+                        vec![chain.rates(&state, tau_m, tau_l, span)[i]]
+                    }
+                    Quantity::Force(stage) => vec![state.forces(chain)[stage]],
+                    Quantity::Indicator(i) => vec![chain.event_indicators(&state)[i]],
+                    Quantity::ContactSurfaces(stage) => {
+                        let first = stage * CONTACT_INDICATORS;
+                        chain.event_indicators(&state)[first..first + 4].to_vec()
+                    }
+                }
+            }
         }
     }
 }
@@ -118,20 +179,28 @@ fn in_vr_order(model: &Model, keep: impl Fn(&Var) -> bool) -> Vec<&Var> {
     vars
 }
 
+/// The names of the continuous states of `model`, in value-reference order (z's order).
+fn state_names(model: &Model) -> Vec<&'static str> {
+    in_vr_order(model, Var::is_continuous_state)
+        .iter()
+        .map(|v| v.name)
+        .collect()
+}
+
 /// The names of the parameters of `model` whose change changes `quantity` at a generic point.
 fn parameter_dependencies(model: &Model, quantity: Quantity) -> Vec<&'static str> {
     let values = generic_values(model);
-    let plant = plant_of(model, &values);
-    let states = generic_states(&plant);
-    let changed: Vec<Plant> = (0..values.len())
-        .map(|i| plant_of(model, &perturbed(model, &values, i)))
+    let physics = physics_of(model, &values);
+    let states = generic_states(&physics);
+    let changed: Vec<Physics> = (0..values.len())
+        .map(|i| physics_of(model, &perturbed(model, &values, i)))
         .collect();
     values
         .iter()
         .zip(&changed)
         .filter(|(_, other)| {
             // Exact: an independent quantity is the same arithmetic on the same numbers.
-            states.iter().any(|z| quantity.of(other, z) != quantity.of(&plant, z))
+            states.iter().any(|z| quantity.of(other, z) != quantity.of(&physics, z))
         })
         .map(|((name, _), _)| *name)
         .collect()
@@ -139,58 +208,75 @@ fn parameter_dependencies(model: &Model, quantity: Quantity) -> Vec<&'static str
 
 /// The names of the continuous states whose change changes `quantity` at a generic point.
 fn state_dependencies(model: &Model, quantity: Quantity) -> Vec<&'static str> {
-    let plant = plant_of(model, &generic_values(model));
-    let states = generic_states(&plant);
-    in_vr_order(model, Var::is_continuous_state)
-        .iter()
+    let physics = physics_of(model, &generic_values(model));
+    let states = generic_states(&physics);
+    state_names(model)
+        .into_iter()
         .enumerate()
         .filter(|&(j, _)| {
             states.iter().any(|z| {
-                let mut moved = *z;
+                let mut moved = z.clone();
                 moved[j] *= 1.5;
-                quantity.of(&plant, &moved) != quantity.of(&plant, z)
+                quantity.of(&physics, &moved) != quantity.of(&physics, z)
             })
         })
-        .map(|(_, v)| v.name)
+        .map(|(_, name)| name)
         .collect()
 }
 
-/// The states the output `v` depends on in Continuous-Time Mode (no output depends on an
-/// input: docs/model.md §1): ψ's computed from the plant, the others' as listed
-/// ([`crate::common::output_dependencies`]).
-pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
-    match v.name {
-        "psi" => state_dependencies(model, Quantity::Force),
-        name => crate::common::output_dependencies(name).to_vec(),
+/// The stage a per-stage name belongs to: `psi_2` is ψ of stage 2 (index 1); a name without a
+/// stage suffix belongs to the single gap (index 0).
+fn stage_of(name: &str) -> (&str, usize) {
+    match name.rsplit_once('_') {
+        Some((base, j)) if j.len() == 1 && j.as_bytes()[0].is_ascii_digit() && j != "0" => {
+            (base, usize::from(j.as_bytes()[0] - b'1'))
+        }
+        _ => (name, 0),
     }
 }
 
-/// The states the event indicator `name` (one of [`EVENT_INDICATORS`]) depends on in
-/// Continuous-Time Mode: u ∓ g on the angles, the damped force's and the cap's on the angles and
-/// the speeds (u and u′; docs/model.md §6).
+/// The states the output `v` depends on in Continuous-Time Mode (no output depends on an
+/// input: docs/model.md §1): ψ's computed from the plant, a two-stage `contact_j` from its
+/// stage's surfaces, the others' as listed ([`crate::common::output_dependencies`]).
+pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
+    let two_stage = matches!(model.kind, crate::Kind::TwoStage(_));
+    match stage_of(v.name) {
+        ("psi", stage) => state_dependencies(model, Quantity::Force(stage)),
+        ("contact", stage) if two_stage => state_dependencies(model, Quantity::ContactSurfaces(stage)),
+        _ if two_stage && v.is_continuous_state() => vec![v.name],
+        // A body's friction mode: the sign of its speed sliding, the law of stiction at rest
+        // (the torque on the body, from every state).
+        _ if two_stage && v.name.starts_with("sliding_") => state_names(model),
+        _ => crate::common::output_dependencies(v.name).to_vec(),
+    }
+}
+
+/// The states the event indicator `name` (one of `model`'s [`crate::common::event_indicators`])
+/// depends on in Continuous-Time Mode: u ∓ g on the angles, the damped force's and the cap's on
+/// the angles and the speeds (u and u′; docs/model.md §6); per stage on a chain.
 pub(crate) fn event_indicator_dependencies(model: &Model, name: &str) -> Vec<&'static str> {
     // A friction surface (docs/model.md §12): a sliding body's speed, or the torque on a stuck
-    // one, from every state of the drive and the body's own input.
-    let input = match name {
-        "stop_m" => return vec!["omega_m"],
-        "stop_L" => return vec!["omega_L"],
-        "breakaway_m" => "tau_m",
-        "breakaway_L" => "tau_L",
-        _ => "",
-    };
-    if !input.is_empty() {
-        let mut names: Vec<&'static str> = in_vr_order(model, Var::is_continuous_state)
-            .iter()
-            .map(|v| v.name)
-            .collect();
-        names.push(input);
+    // one, from every state of the drive and the body's own input (none on an intermediate
+    // body).
+    if let Some(body) = name.strip_prefix("stop_") {
+        let speed = format!("omega_{body}");
+        return state_names(model).into_iter().filter(|s| *s == speed).collect();
+    }
+    if let Some(body) = name.strip_prefix("breakaway_") {
+        let mut names = state_names(model);
+        names.extend(match body {
+            "m" => Some("tau_m"),
+            "L" => Some("tau_L"),
+            _ => None,
+        });
         return names;
     }
-    let i = EVENT_INDICATORS
+    let (base, stage) = stage_of(name);
+    let i = EVENT_INDICATORS[..CONTACT_INDICATORS]
         .iter()
-        .position(|n| *n == name)
+        .position(|n| *n == base)
         .unwrap_or_else(|| panic!("{name} is not an event indicator"));
-    state_dependencies(model, Quantity::Indicator(i))
+    state_dependencies(model, Quantity::Indicator(stage * CONTACT_INDICATORS + i))
 }
 
 /// The index in z of the state `der` is the derivative of: the continuous states in
@@ -205,14 +291,26 @@ fn state_index(model: &Model, der: &Var) -> usize {
         .expect("a derivative's state is a continuous state")
 }
 
+/// The Jacobian of `physics`' vector field at z in the mode in force there: ∂z′/∂z and
+/// ∂z′/∂(τ_m, τ_L, w), w the web span's forcing.
+fn jacobian(physics: &Physics, z: &[f64]) -> (Vec<Vec<f64>>, Vec<[f64; 3]>) {
+    match physics {
+        Physics::Gap(plant) => {
+            let (dz, dinputs) = plant.jacobian(&gap_state(plant, z));
+            (dz.iter().map(|row| row.to_vec()).collect(), dinputs.to_vec())
+        }
+        Physics::TwoStage(chain) => chain.jacobian(&chain.state_at(z)),
+    }
+}
+
 /// The states and inputs the state derivative `der` depends on in Continuous-Time Mode: the
 /// non-zero entries of its row of the plant's Jacobian in contact (where the compliant member
 /// couples both sides), with the web span's forcing w = (v_ref T_in − EA v_in)/L_w carried to
 /// v_in and T_in.
 pub(crate) fn derivative_dependencies(model: &Model, der: &Var) -> Vec<&'static str> {
-    let plant = plant_of(model, &generic_values(model));
+    let physics = physics_of(model, &generic_values(model));
     let i = state_index(model, der);
-    let (dv_in, dt_in) = plant
+    let (dv_in, dt_in) = physics
         .web()
         .map_or((0.0, 0.0), |w| (w.forcing(1.0, 0.0), w.forcing(0.0, 1.0)));
     let states = in_vr_order(model, Var::is_continuous_state);
@@ -225,15 +323,15 @@ pub(crate) fn derivative_dependencies(model: &Model, der: &Var) -> Vec<&'static 
     // The entries non-zero at any generic state (in any mode).
     let mut by_state = vec![false; states.len()];
     let mut by_input = vec![false; inputs.len()];
-    for z in generic_states(&plant) {
-        let (dz, dinputs) = plant.jacobian(&state_of(&plant, &z));
+    for z in generic_states(&physics) {
+        let (dz, dinputs) = jacobian(&physics, &z);
         let by_line = [
             dinputs[i][0],
             dinputs[i][1],
             dinputs[i][2] * dv_in,
             dinputs[i][2] * dt_in,
         ];
-        by_state.iter_mut().zip(dz[i]).for_each(|(b, d)| *b |= d != 0.0);
+        by_state.iter_mut().zip(&dz[i]).for_each(|(b, d)| *b |= *d != 0.0);
         by_input.iter_mut().zip(by_line).for_each(|(b, d)| *b |= d != 0.0);
     }
     let states = states.iter().zip(by_state).filter(|(_, b)| *b);
@@ -257,21 +355,24 @@ pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
         names.extend(parameter_dependencies(model, rate));
         // A body's bearing friction (docs/model.md §12): its sliding torque, and its breakaway
         // for the mode it starts in.
-        names.extend(match v.name {
-            "der(omega_m)" => &["tau_c_m", "peak_m"][..],
-            "der(omega_L)" => &["tau_c_L", "peak_L"][..],
-            _ => &[],
-        });
+        if let Some(speed) = v.name.strip_prefix("der(omega_") {
+            let body = speed.trim_end_matches(')');
+            for name in ["tau_c_", "peak_"] {
+                let friction = format!("{name}{body}");
+                let known = model.variables.iter().find(|p| p.name == friction);
+                names.extend(known.map(|p| p.name));
+            }
+        }
         names
     } else if v.causality == Causality::CalculatedParameter {
         generic_values(model).iter().map(|(name, _)| *name).collect()
     } else if depends_on_time(v.name) {
         vec![]
     } else {
-        let of = match v.name {
-            "psi" => Quantity::Force,
+        let of = match stage_of(v.name) {
+            ("psi", stage) => Quantity::Force(stage),
             // The mode exactly on ±g depends on the sign of u' as well (its states say so).
-            "contact" => Quantity::ContactSurfaces,
+            ("contact", stage) => Quantity::ContactSurfaces(stage),
             _ => return None,
         };
         let mut names = output_dependencies(model, v);
@@ -280,12 +381,14 @@ pub(crate) fn initial_dependencies(model: &Model, v: &Var) -> Option<Vec<u32>> {
     };
     let mut vrs: Vec<u32> = names.iter().map(|n| vr_of(model, n)).collect();
     vrs.sort_unstable();
+    vrs.dedup();
     Some(vrs)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::models::physics_of;
     use crate::{model, model_identifiers};
     use backlash_physics::ContactMode;
 
@@ -293,14 +396,15 @@ mod tests {
     fn the_generic_states_are_in_contact_with_and_without_the_cap_every_entry_non_zero() {
         for id in model_identifiers() {
             let m = model(id);
-            let plant = plant_of(&m, &generic_values(&m));
+            let plant = crate::models::plant_of(&m, &generic_values(&m));
             assert!(plant.damping() > 0.0, "{id}: the generic point has a damper");
-            let modes: Vec<ContactMode> = generic_states(&plant)
+            let physics = Physics::Gap(plant);
+            let modes: Vec<ContactMode> = generic_states(&physics)
                 .iter()
-                .map(|z| state_of(&plant, z).mode)
+                .map(|z| gap_state(&plant, z).mode)
                 .collect();
             assert_eq!(modes, [ContactMode::Positive, ContactMode::CappedPositive], "{id}");
-            for z in generic_states(&plant) {
+            for z in generic_states(&physics) {
                 assert!(z.iter().all(|x| *x != 0.0), "{id}: {z:?}");
             }
         }
@@ -403,9 +507,12 @@ mod tests {
             params("BacklashShaft", Quantity::Indicator(4)),
             ["Delta", "contact_law", "d", "k"]
         );
-        assert_eq!(params("BacklashShaft", Quantity::ContactSurfaces), ["Delta", "d", "k"]);
         assert_eq!(
-            params("BacklashShaft", Quantity::Force),
+            params("BacklashShaft", Quantity::ContactSurfaces(0)),
+            ["Delta", "d", "k"]
+        );
+        assert_eq!(
+            params("BacklashShaft", Quantity::Force(0)),
             ["Delta", "contact_law", "d", "k"]
         );
 
@@ -438,5 +545,110 @@ mod tests {
                 assert_eq!(sorted(event_indicator_dependencies(&m, name)), expected, "{id} {name}");
             }
         }
+    }
+
+    /// BacklashTwoStage's structure against docs/model.md §10's equations with a = 1, c = n_j,
+    /// written out: J_m ω_m′ = τ_m − b_m ω_m − ψ_1, J_i ω_i′ = −b_i ω_i + n_1 ψ_1 − ψ_2,
+    /// J_L ω_L′ = τ_L − b_L ω_L + n_2 ψ_2, ψ_j of u_j = θ_{j−1} − n_j θ_j and u_j′ (each body
+    /// sliding with friction at the generic point, τ_c = 1 there).
+    #[test]
+    fn the_two_stage_dependencies_are_those_of_its_equations() {
+        let m = model("BacklashTwoStage");
+        let sorted = |mut names: Vec<&'static str>| {
+            names.sort_unstable();
+            names
+        };
+        let var = |name: &str| *m.variables.iter().find(|v| v.name == name).unwrap();
+        let deps = |name: &str| sorted(derivative_dependencies(&m, &var(name)));
+        assert_eq!(deps("der(theta_m)"), ["omega_m"]);
+        assert_eq!(deps("der(theta_i)"), ["omega_i"]);
+        assert_eq!(deps("der(theta_L)"), ["omega_L"]);
+        assert_eq!(
+            deps("der(omega_m)"),
+            ["omega_i", "omega_m", "tau_m", "theta_i", "theta_m"]
+        );
+        assert_eq!(
+            deps("der(omega_i)"),
+            ["omega_L", "omega_i", "omega_m", "theta_L", "theta_i", "theta_m"]
+        );
+        assert_eq!(
+            deps("der(omega_L)"),
+            ["omega_L", "omega_i", "tau_L", "theta_L", "theta_i"]
+        );
+
+        let params = |q: Quantity| sorted(parameter_dependencies(&m, q));
+        assert_eq!(
+            params(Quantity::Rate(1)),
+            ["Delta_1", "J_m", "b_m", "contact_law", "d_1", "k_1", "n_1", "tau_c_m"]
+        );
+        assert_eq!(
+            params(Quantity::Rate(3)),
+            [
+                "Delta_1",
+                "Delta_2",
+                "J_i",
+                "b_i",
+                "contact_law",
+                "d_1",
+                "d_2",
+                "k_1",
+                "k_2",
+                "n_1",
+                "n_2",
+                "tau_c_i"
+            ]
+        );
+        assert_eq!(
+            params(Quantity::Force(1)),
+            ["Delta_2", "contact_law", "d_2", "k_2", "n_2"]
+        );
+        assert_eq!(params(Quantity::Indicator(0)), ["Delta_1", "n_1"]);
+        assert_eq!(params(Quantity::Indicator(CONTACT_INDICATORS)), ["Delta_2", "n_2"]);
+        assert_eq!(params(Quantity::ContactSurfaces(1)), ["Delta_2", "d_2", "k_2", "n_2"]);
+
+        let outputs = |name: &str| sorted(output_dependencies(&m, &var(name)));
+        assert_eq!(outputs("psi_1"), ["omega_i", "omega_m", "theta_i", "theta_m"]);
+        assert_eq!(outputs("contact_2"), ["omega_L", "omega_i", "theta_L", "theta_i"]);
+        let indicators = |name: &str| sorted(event_indicator_dependencies(&m, name));
+        assert_eq!(indicators("u_minus_g_1"), ["theta_i", "theta_m"]);
+        assert_eq!(indicators("u_plus_g_2"), ["theta_L", "theta_i"]);
+        assert_eq!(indicators("cap_lower_2"), ["omega_L", "omega_i", "theta_L", "theta_i"]);
+        assert_eq!(indicators("stop_i"), ["omega_i"]);
+        assert_eq!(indicators("breakaway_i").len(), 6, "every state, no input");
+
+        // The event indicators: each mesh's six contact surfaces, then the bodies' friction.
+        let names: Vec<&str> = crate::common::event_indicators(&m).iter().map(|v| v.name).collect();
+        let mut expected: Vec<String> = (1..=2)
+            .flat_map(|j| {
+                EVENT_INDICATORS[..CONTACT_INDICATORS]
+                    .iter()
+                    .map(move |n| format!("{n}_{j}"))
+            })
+            .collect();
+        expected.extend(
+            ["m", "i", "L"]
+                .iter()
+                .flat_map(|b| [format!("stop_{b}"), format!("breakaway_{b}")]),
+        );
+        assert_eq!(names, expected);
+    }
+
+    /// The generic points of a chain: every stage on its positive flank, damped (then capped
+    /// under law 1), every entry non-zero.
+    #[test]
+    fn the_two_stage_generic_states_are_on_both_flanks_damped_and_capped() {
+        use backlash_physics::ContactMode::{CappedPositive, Positive};
+        let m = model("BacklashTwoStage");
+        let Physics::TwoStage(chain) = physics_of(&m, &generic_values(&m)) else {
+            panic!("a chain")
+        };
+        let modes: Vec<[ContactMode; 2]> = generic_states(&Physics::TwoStage(chain))
+            .iter()
+            .map(|z| {
+                assert!(z.iter().all(|x| *x != 0.0), "{z:?}");
+                *chain.state_at(z).mode.stages()
+            })
+            .collect();
+        assert_eq!(modes, [[Positive; 2], [CappedPositive; 2]]);
     }
 }

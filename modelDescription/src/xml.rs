@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, hash_name, initial_attribute, variability_name, vr_of, write_type_attributes,
-    write_units_categories_and_experiment, EVENT_INDICATORS,
+    causality_name, event_indicators, hash_name, initial_attribute, variability_name, vr_of, write_type_attributes,
+    write_units_categories_and_experiment,
 };
 use crate::structure::{derivative_dependencies, initial_dependencies, output_dependencies};
 use crate::{model, Causality, Kind, Model, Type};
@@ -35,12 +35,12 @@ fn xml_with_guid(model: &Model, guid: &str) -> String {
         guid,
         escape(model.description),
         match model.kind {
-            Kind::Plant(_) => EVENT_INDICATORS.len(),
+            Kind::Plant(_) | Kind::TwoStage(_) => event_indicators(model).len(),
             Kind::Controller => 0,
         }
     );
     match model.kind {
-        Kind::Plant(_) => {
+        Kind::Plant(_) | Kind::TwoStage(_) => {
             // Event indicators: the contact surfaces of docs/model.md §6; no event needs an iteration,
             // so completed integrator steps need not be reported.
             let _ = writeln!(

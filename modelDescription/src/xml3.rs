@@ -13,8 +13,8 @@
 use std::fmt::Write as _;
 
 use crate::common::{
-    causality_name, depends_on_time, escape, hash_name, initial_attribute, is_initial_unknown, variability_name, vr_of,
-    write_type_attributes, write_units_categories_and_experiment, EVENT_INDICATORS,
+    causality_name, depends_on_time, escape, event_indicators, hash_name, initial_attribute, is_initial_unknown,
+    variability_name, vr_of, write_type_attributes, write_units_categories_and_experiment,
 };
 use crate::structure::{
     derivative_dependencies, event_indicator_dependencies, initial_dependencies, output_dependencies,
@@ -50,7 +50,7 @@ fn xml_with_token(model: &Model, token: &str) -> String {
         escape(model.description)
     );
     match model.kind {
-        Kind::Plant(_) => {
+        Kind::Plant(_) | Kind::TwoStage(_) => {
             // As FMI 2.0: no event needs an iteration, so completed integrator steps need not be
             // reported; the exact Jacobian for Model Exchange only. Co-Simulation may return early at a
             // contact switch and offers Event Mode there (docs/model.md §7); FMI 3.0 has no input
@@ -173,12 +173,12 @@ fn write_model_structure(x: &mut String, model: &Model) {
             }
         }
     }
-    for name in EVENT_INDICATORS {
-        let mut deps = name_list(&event_indicator_dependencies(model, name));
+    for v in event_indicators(model) {
+        let mut deps = name_list(&event_indicator_dependencies(model, v.name));
         let _ = writeln!(
             x,
             "    <EventIndicator valueReference=\"{}\" dependencies=\"{}\"/>",
-            vr_of(model, name),
+            v.vr,
             vr_list(&mut deps)
         );
     }

@@ -11,7 +11,7 @@ use super::params::{ContactLaw, Plant};
 
 /// Scale of an angle state when there is no gap to measure it by [rad] (the default of the
 /// Modelica Standard Library's ElastoBacklash).
-const ANGLE_SCALE_WITHOUT_GAP: f64 = 1e-4;
+pub(crate) const ANGLE_SCALE_WITHOUT_GAP: f64 = 1e-4;
 
 /// How many event indicators every plant has ([`Plant::event_indicators`]); the descriptions
 /// declare as many (a test of `fmu` ties them).
@@ -95,30 +95,14 @@ impl Plant {
     /// state is on that surface's flank; elsewhere a sign change switches nothing.
     #[inline]
     pub fn event_indicators(&self, state: &PlantState) -> [f64; EVENT_INDICATORS] {
-        let g = self.half_gap();
-        let (k, d) = (self.stiffness(), self.damping());
-        if d == 0.0 {
-            return [state.u - g, state.u + g, 1.0, 1.0, 1.0, 1.0];
-        }
-        let damper = d * state.du;
-        let (upper, lower) = (k * (state.u - g), k * (state.u + g));
-        let (cap_upper, cap_lower) = match self.contact_law() {
-            ContactLaw::ElastoBacklash => (damper - upper, damper - lower),
-            ContactLaw::ElastoBacklash2 => (1.0, 1.0),
-        };
-        if g == 0.0 {
-            // Without a gap each lower surface is its upper one: declared once, so that an
-            // importer sees one crossing, not two at the same instant.
-            return [state.u, 1.0, upper + damper, 1.0, cap_upper, 1.0];
-        }
-        [
-            state.u - g,
-            state.u + g,
-            upper + damper,
-            lower + damper,
-            cap_upper,
-            cap_lower,
-        ]
+        contact_surfaces(
+            self.stiffness(),
+            self.damping(),
+            self.half_gap(),
+            self.contact_law(),
+            state.u,
+            state.du,
+        )
     }
 
     /// The rate of each event indicator, from the rates of u and u′.
@@ -159,6 +143,29 @@ impl Plant {
             .map_or(1.0, |w| self.stiffness() * theta_l * self.r_l() * self.r_l() / w.r_w);
         [theta_m, omega0 * theta_m, theta_l, omega0 * theta_l, tension]
     }
+}
+
+/// The contact surfaces of one member (stiffness `k`, damping `d`, half gap `g`, law `law`) at
+/// its coordinate `u` and rate `du`, in the order of [`Plant::event_indicators`] (which says what
+/// each is, and why a surface the member does not have reads 1); a chain's stages each have them
+/// (`Chain::event_indicators`).
+#[inline(always)]
+pub(crate) fn contact_surfaces(k: f64, d: f64, g: f64, law: ContactLaw, u: f64, du: f64) -> [f64; EVENT_INDICATORS] {
+    if d == 0.0 {
+        return [u - g, u + g, 1.0, 1.0, 1.0, 1.0];
+    }
+    let damper = d * du;
+    let (upper, lower) = (k * (u - g), k * (u + g));
+    let (cap_upper, cap_lower) = match law {
+        ContactLaw::ElastoBacklash => (damper - upper, damper - lower),
+        ContactLaw::ElastoBacklash2 => (1.0, 1.0),
+    };
+    if g == 0.0 {
+        // Without a gap each lower surface is its upper one: declared once, so that an
+        // importer sees one crossing, not two at the same instant.
+        return [u, 1.0, upper + damper, 1.0, cap_upper, 1.0];
+    }
+    [u - g, u + g, upper + damper, lower + damper, cap_upper, cap_lower]
 }
 
 #[cfg(test)]

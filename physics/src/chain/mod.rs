@@ -28,6 +28,7 @@ mod linear;
 mod params;
 mod state;
 mod stepper;
+mod vector_field;
 
 pub use bound::{
     chain_loop, disturbance_column, friction_column, loop_poles, ChainBound, FrictionBound, LoopLayout, OneStageBound,

@@ -327,15 +327,23 @@ impl<const S: usize> Chain<S> {
         }
     }
 
+    /// a_i²/J_i + c_i²/J_{i+1}: how stage i's stiffness accelerates its two bodies apart.
+    fn kappa(&self, i: usize) -> f64 {
+        let s = self.stage(i);
+        s.a * s.a / self.body(i).j + s.c * s.c / self.body(i + 1).j
+    }
+
+    /// The bound √(Σ_i K_i (a_i²/J_i + c_i²/J_{i+1})) on the undamped contact frequencies
+    /// [rad/s] (for one stage exactly docs/model.md §2's ω_0, `Plant::contact_frequency`).
+    pub fn contact_frequency(&self) -> f64 {
+        let stiff: f64 = (0..S).map(|i| self.stage(i).k * self.kappa(i)).sum();
+        stiff.sqrt()
+    }
+
     /// The drive's fastest rate without the span, and the contact frequency it took (√2 times
     /// it with a capped stage).
     fn drive_rate(&self) -> (f64, f64) {
-        let kappa = |i: usize| {
-            let s = self.stage(i);
-            s.a * s.a / self.body(i).j + s.c * s.c / self.body(i + 1).j
-        };
-        let stiff: f64 = (0..S).map(|i| self.stage(i).k * kappa(i)).sum();
-        let mut omega0 = stiff.sqrt();
+        let mut omega0 = self.contact_frequency();
         let bodies = (0..=S).map(|j| self.body(j).b / self.body(j).j).fold(omega0, f64::max);
         if (0..S).all(|i| self.stage(i).d() == 0.0) {
             return (bodies, omega0);
@@ -344,7 +352,7 @@ impl<const S: usize> Chain<S> {
             omega0 *= std::f64::consts::SQRT_2;
         }
         let rate = (0..S)
-            .map(|i| self.stage(i).d() * kappa(i))
+            .map(|i| self.stage(i).d() * self.kappa(i))
             .fold(bodies.max(omega0), f64::max);
         (rate, omega0)
     }
