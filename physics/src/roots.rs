@@ -180,7 +180,8 @@ pub fn first_exit(p: &Poly, side: Side, w: f64, budget: &mut usize) -> Result<Op
     let allowed = MAX_INTERVALS.min(*budget);
     let mut left = allowed;
     // Depth first, left to right: a crossing found before the work ran out is the first.
-    let found = search(p, side, 0.0, w, RESOLUTION * w, &mut left);
+    // p.shifted(0) is p.
+    let found = search(p, Some(p), side, 0.0, w, RESOLUTION * w, &mut left);
     *budget -= allowed - left;
     match found {
         None if left == 0 => Err(Undecided),
@@ -204,13 +205,31 @@ pub fn abs_integral_bound(p: &Poly, w: f64) -> f64 {
 /// range would take ~1000 levels of slow arithmetic per search.
 const RESOLUTION: f64 = f64::EPSILON / 4.0;
 
-fn search(p: &Poly, side: Side, lo: f64, hi: f64, resolution: f64, budget: &mut usize) -> Option<f64> {
+/// The first crossing in [lo, hi], depth first; `shifted` is p.shifted(lo) when the caller has it
+/// (the left half of a split starts where its parent did, so it reads the parent's: the same
+/// coefficients, not computed twice).
+fn search(
+    p: &Poly,
+    shifted: Option<&Poly>,
+    side: Side,
+    lo: f64,
+    hi: f64,
+    resolution: f64,
+    budget: &mut usize,
+) -> Option<f64> {
     if *budget == 0 {
         return None;
     }
     *budget -= 1;
     let w = hi - lo;
-    let q = p.shifted(lo);
+    let own;
+    let q = match shifted {
+        Some(q) => q,
+        None => {
+            own = p.shifted(lo);
+            &own
+        }
+    };
     let s = side.sign;
     let f0 = side.value(q.coef[0]);
     if f0 < -side.tol {
@@ -233,24 +252,25 @@ fn search(p: &Poly, side: Side, lo: f64, hi: f64, resolution: f64, budget: &mut 
         // f' ≤ f₁ + f₂σ + c₃σ²/2, convex: if negative at both ends, f falls through one root.
         let slope_end = f1 + w * (f2 + 0.5 * c3 * w);
         if f1 < 0.0 && slope_end < 0.0 {
-            return Some(lo + refine(&q, side, w));
+            return Some(lo + refine(q, side, w, f_hi));
         }
     }
     let mid = lo + 0.5 * w;
     if w <= resolution || mid <= lo || mid >= hi {
         // At the resolution of the span: the crossing, if any, is here.
         return if f_hi < -side.tol {
-            Some(lo + refine(&q, side, w))
+            Some(lo + refine(q, side, w, f_hi))
         } else {
             None
         };
     }
-    search(p, side, lo, mid, resolution, budget).or_else(|| search(p, side, mid, hi, resolution, budget))
+    search(p, Some(q), side, lo, mid, resolution, budget).or_else(|| search(p, None, side, mid, hi, resolution, budget))
 }
 
-/// The root of side.value(q(σ)) on [0, w], given f(0) ≥ −tol and f(w) < −tol: Newton
-/// safeguarded by the bracket, until the step is below one ulp. σ = 0 when f(0) ≤ 0.
-fn refine(q: &Poly, side: Side, w: f64) -> f64 {
+/// The root of side.value(q(σ)) on [0, w], given f(0) ≥ −tol and f(w) = `f_w` < −tol (the
+/// search has it: `q.eval(w)` is the value `q.eval_d(w)` computes, operation for operation):
+/// Newton safeguarded by the bracket, until the step is below one ulp. σ = 0 when f(0) ≤ 0.
+fn refine(q: &Poly, side: Side, w: f64, f_w: f64) -> f64 {
     let f = |x: f64| {
         let (v, d) = q.eval_d(x);
         (side.value(v), side.sign * d)
@@ -260,8 +280,7 @@ fn refine(q: &Poly, side: Side, w: f64) -> f64 {
     if fa <= 0.0 {
         return 0.0;
     }
-    let (fb, _) = f(b);
-    let mut x = a + (b - a) * (fa / (fa - fb)).clamp(0.0, 1.0);
+    let mut x = a + (b - a) * (fa / (fa - f_w)).clamp(0.0, 1.0);
     for _ in 0..200 {
         let (fx, dx) = f(x);
         if fx == 0.0 {
@@ -302,7 +321,7 @@ mod tests {
     /// Intervals one search examines, and what it found.
     fn work(p: &Poly, side: Side, w: f64) -> (Option<f64>, usize) {
         let mut budget = MAX_INTERVALS;
-        let found = search(p, side, 0.0, w, RESOLUTION * w, &mut budget);
+        let found = search(p, Some(p), side, 0.0, w, RESOLUTION * w, &mut budget);
         (found, MAX_INTERVALS - budget)
     }
 
