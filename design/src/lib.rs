@@ -61,8 +61,8 @@ pub fn described_params(identifier: &'static str) -> Result<PlantParams, DesignE
 
 /// The default drive of each single-gap form: the paper's rig (shaft, Δ = 0.775 mm read as
 /// rad), BacklashBelt.fmu's parameter start values (belt), and BacklashWeb.fmu's drive (the same
-/// belt drive; its span is [`web::film_line`]). The two-stage form's is
-/// [`backlash_physics::ChainParams::two_stage_rig`].
+/// belt drive; its span is [`web::film_line`]). The two-stage form's is BacklashTwoStage's
+/// parameter start values ([`two_stage::default_values`]).
 pub fn default_params(form: Form) -> Result<PlantParams, DesignError> {
     Ok(match form {
         Form::TwoStage => return Err(DesignError::NotSingleGap { form: form.name() }),

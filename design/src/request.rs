@@ -5,7 +5,7 @@
 //! `J_m`), which the reasons quote.
 
 use backlash_physics::chain::Coulomb;
-use backlash_physics::{ChainParams, ContactLaw, Geometry, PiGains, PlantParams};
+use backlash_physics::{ContactLaw, Geometry, PiGains, PlantParams};
 
 use crate::{default_params, speed, study, two_stage, web, Form};
 
@@ -60,10 +60,11 @@ const SINGLE_GAP: &[Form] = &[Form::Shaft, Form::Belt, Form::Web];
 /// bounds with friction are +∞, and the two-stage design shares the accuracy among the gaps.
 const SPEED_SINGLE_GAP: &[Form] = &[Form::Shaft, Form::Belt];
 
-/// The drive a request is for: one gap, or the two stages of docs/model.md §10.
+/// The drive a request is for: one gap, or the two stages of docs/model.md §10 (as
+/// `BacklashTwoStage`'s parameter values by name, mapped to the chain by its description).
 enum Drive {
     Plant(PlantParams),
-    TwoStage(ChainParams<2>),
+    TwoStage(Vec<(&'static str, f64)>),
 }
 
 impl Drive {
@@ -71,30 +72,12 @@ impl Drive {
     fn set(&mut self, name: &str, value: f64) {
         match self {
             Drive::Plant(params) => set_plant(params, name, value),
-            Drive::TwoStage(chain) if name == "contact_law" => {
-                let law = ContactLaw::from_code(value as i32).expect("checked by its range");
-                chain.stages.iter_mut().for_each(|s| s.damper.law = law);
-            }
-            Drive::TwoStage(chain) => {
-                let (motor, [shaft, load], [first, second]) = (&mut chain.motor, &mut chain.driven, &mut chain.stages);
-                let slot = match name {
-                    "J_m" => &mut motor.j,
-                    "b_m" => &mut motor.b,
-                    "J_i" => &mut shaft.j,
-                    "b_i" => &mut shaft.b,
-                    "J_L" => &mut load.j,
-                    "b_L" => &mut load.b,
-                    "n_1" => &mut first.c,
-                    "k_1" => &mut first.k,
-                    "Delta_1" => &mut first.g,
-                    "n_2" => &mut second.c,
-                    "k_2" => &mut second.k,
-                    "Delta_2" => &mut second.g,
-                    "d_1" => &mut first.damper.d,
-                    "d_2" => &mut second.damper.d,
-                    other => unreachable!("setting `{other}` is refused for the two-stage form"),
-                };
-                *slot = value;
+            Drive::TwoStage(values) => {
+                let slot = values
+                    .iter_mut()
+                    .find(|(n, _)| *n == name)
+                    .unwrap_or_else(|| unreachable!("setting `{name}` is no parameter of {}", two_stage::MODEL));
+                slot.1 = value;
             }
         }
     }
@@ -215,7 +198,7 @@ pub fn form_named(name: &str) -> Option<Form> {
 pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result<Request, Refusal> {
     let refuse = |message: String| Refusal::new(message);
     let mut drive = match form {
-        Form::TwoStage => Drive::TwoStage(ChainParams::two_stage_rig()),
+        Form::TwoStage => Drive::TwoStage(two_stage::default_values().map_err(|e| refuse(e.to_string()))?),
         _ => Drive::Plant(default_params(form).map_err(|e| refuse(e.to_string()))?),
     };
     let mut line = web::film_line().map_err(|e| refuse(e.to_string()))?;
@@ -295,9 +278,9 @@ pub fn build(form: Form, settings: &[Setting], vocabulary: Vocabulary) -> Result
             gains,
             friction,
         }),
-        (_, Drive::TwoStage(drive)) => Request::TwoStage(two_stage::Request {
+        (_, Drive::TwoStage(values)) => Request::TwoStage(two_stage::Request {
             accuracy: accuracy.ok_or_else(|| missing("accuracy"))?,
-            drive,
+            drive: two_stage::drive_of(&values).map_err(|e| refuse(e.to_string()))?,
             gains,
         }),
     })
@@ -341,4 +324,108 @@ pub fn design_json(model: &str, settings: &[Setting]) -> Result<String, String> 
     build(form, settings, Vocabulary::Arguments)
         .map_err(|r| r.message)?
         .answer_json()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model_description::Range as Admits;
+
+    /// Values a design setting of `range` may take, at its edges and beyond.
+    fn samples(range: Range) -> Vec<f64> {
+        match range {
+            Range::Positive => vec![f64::MIN_POSITIVE, 1e-9, 1.0, 1e9],
+            Range::NonNegative => vec![0.0, 1e-9, 1.0, 1e9],
+            Range::Any => vec![-1e9, -1.0, 0.0, 1.0, 1e9],
+            Range::Law => vec![1.0, 2.0],
+            Range::AtLeastOne => vec![1.0, 1.5, 1e9],
+        }
+    }
+
+    /// The two-stage form's settings are BacklashTwoStage's parameters, each admitting no value
+    /// the FMU refuses; the parameters it does not take are the bearings' friction (the
+    /// two-stage design shares the accuracy among the gaps and refuses friction, docs/model.md
+    /// §10).
+    #[test]
+    fn the_two_stage_settings_are_its_fmu_parameters() {
+        let description = model_description::model(two_stage::MODEL);
+        let mut taken = Vec::new();
+        for (name, forms, range) in SETTINGS {
+            if name == "accuracy" || !(forms.is_empty() || forms.contains(&Form::TwoStage)) {
+                continue;
+            }
+            let v = description
+                .variables
+                .iter()
+                .find(|v| v.name == name)
+                .unwrap_or_else(|| panic!("{name} is no variable of {}", two_stage::MODEL));
+            for x in samples(range) {
+                assert!(
+                    v.range.admits(x),
+                    "{name} = {x}: the design takes it, the FMU refuses it"
+                );
+            }
+            assert!(
+                !matches!(v.range, Admits::Integers { .. }) || range == Range::Law,
+                "{name}"
+            );
+            taken.push(name);
+        }
+        let mut untaken: Vec<&str> = two_stage::default_values()
+            .unwrap()
+            .iter()
+            .map(|(n, _)| *n)
+            .filter(|n| !taken.contains(n))
+            .collect();
+        untaken.sort_unstable();
+        assert_eq!(untaken, ["peak_L", "peak_i", "peak_m", "tau_c_L", "tau_c_i", "tau_c_m"]);
+    }
+
+    /// A setting reaches the chain through the description's mapping, and `named` reads each
+    /// back: the two are inverse on every drive-train parameter.
+    #[test]
+    fn settings_reach_the_drive_and_named_reads_them_back() {
+        let given = [
+            ("J_i", 0.3),
+            ("n_2", 2.5),
+            ("Delta_1", 1e-3),
+            ("d_2", 4.0),
+            ("contact_law", 2.0),
+        ];
+        let settings: Vec<Setting> = given
+            .iter()
+            .map(|(name, value)| Setting {
+                name,
+                label: name,
+                text: value.to_string(),
+                value: *value,
+            })
+            .chain([Setting {
+                name: "accuracy",
+                label: "accuracy",
+                text: "0.1".into(),
+                value: 0.1,
+            }])
+            .collect();
+        let Ok(Request::TwoStage(request)) = build(Form::TwoStage, &settings, Vocabulary::Arguments) else {
+            panic!("a two-stage request")
+        };
+        let named = two_stage::named(&request.drive);
+        for (name, value) in given {
+            assert_eq!(named.iter().find(|(n, _)| *n == name).unwrap().1, value, "{name}");
+        }
+        // Every other drive-train parameter keeps its start value.
+        let defaults = two_stage::default_values().unwrap();
+        for (name, value) in named {
+            if given.iter().all(|(n, _)| *n != name) {
+                let start = defaults.iter().find(|(n, _)| *n == name).unwrap().1;
+                assert_eq!(value, start, "{name}");
+            }
+        }
+        let mut values = defaults.clone();
+        for (name, value) in named {
+            values.iter_mut().find(|(n, _)| *n == name).unwrap().1 = value;
+        }
+        assert_eq!(two_stage::drive_of(&values).unwrap(), request.drive);
+    }
 }

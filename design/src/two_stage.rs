@@ -10,7 +10,7 @@ use backlash_physics::PiGains;
 use nalgebra::Complex;
 use serde_json::{json, Value};
 
-use crate::study::{self, damping_ratio};
+use crate::study::{self, damping_ratio, DesignError};
 
 /// The inputs of one two-stage design.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,7 +65,23 @@ impl Answer {
     }
 }
 
-/// The drive's parameters by their names in docs/model.md §10.
+/// The FMU whose drive this form designs: its parameters' names, start values and mapping to
+/// the chain are its description's (`modelDescription/src/models/two_stage.rs`).
+pub const MODEL: &str = "BacklashTwoStage";
+
+/// [`MODEL`]'s parameters by name at their start values: the default drive, before settings.
+pub fn default_values() -> Result<Vec<(&'static str, f64)>, DesignError> {
+    model_description::default_parameters(MODEL).ok_or(DesignError::NoModel { identifier: MODEL })
+}
+
+/// The drive of [`MODEL`] at the parameter `values` (as [`default_values`] lists them, each
+/// admitted by its setting's range), by the model's own mapping.
+pub fn drive_of(values: &[(&'static str, f64)]) -> Result<ChainParams<2>, DesignError> {
+    model_description::two_stage_params(MODEL, values).ok_or(DesignError::NoModel { identifier: MODEL })
+}
+
+/// The drive's parameters by their names in docs/model.md §10 (the inverse of [`drive_of`]: a
+/// test maps them back).
 pub fn named(drive: &ChainParams<2>) -> [(&'static str, f64); 15] {
     let [first, second] = drive.stages;
     let [shaft, load] = drive.driven;

@@ -10,7 +10,7 @@ mod shaft;
 mod two_stage;
 mod web;
 
-use backlash_physics::{Chain, ContactLaw, Damping, Geometry, Plant, PlantParams, WebSpan};
+use backlash_physics::{Chain, ChainParams, ContactLaw, Damping, Geometry, Plant, PlantParams, WebSpan};
 
 use crate::{Causality, Initial, Kind, Model, PlantMapping, Range, Type, Var, Variability};
 
@@ -569,6 +569,34 @@ pub fn default_plant_params(identifier: &str) -> Option<PlantParams> {
         .map(|m| (m.describe)())
         .find(|m| m.identifier == identifier)
         .map(|m| *default_plant(&m).params())
+}
+
+/// The parameters of the model `identifier` by name, at their start values (its default
+/// parameters, docs/model.md §4), or `None` if no model has that identifier.
+pub fn default_parameters(identifier: &str) -> Option<Vec<(&'static str, f64)>> {
+    described(identifier).map(|m| parameters(&m))
+}
+
+/// The two-stage chain (docs/model.md §10) of the model `identifier` at the parameter `values`
+/// (by name, as [`default_parameters`] lists them), by the model's own mapping; `None` if no
+/// two-stage model has that identifier. Panics on values the model's parameters do not admit
+/// (a `contact_law` other than 1 or 2): the caller checks them.
+pub fn two_stage_params(identifier: &str, values: &[(&'static str, f64)]) -> Option<ChainParams<2>> {
+    let model = described(identifier)?;
+    let Kind::TwoStage(mapping) = model.kind else {
+        return None;
+    };
+    Some(mapping(&|name| lookup(&model, values, name)))
+}
+
+/// The description of `identifier`, of a plant served or pending, or `None`.
+fn described(identifier: &str) -> Option<Model> {
+    MODELS
+        .iter()
+        .map(|m| m.describe)
+        .chain(PENDING_MODELS)
+        .map(|describe| describe())
+        .find(|m| m.identifier == identifier)
 }
 
 /// The parameters of `model` by name, at their start values.
