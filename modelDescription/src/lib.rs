@@ -21,9 +21,7 @@ pub mod xml3;
 
 use backlash_physics::{ChainParams, PlantParams};
 
-pub use models::{
-    default_parameters, default_plant_params, model, two_stage_params, ModelDef, CONTROLLERS, MODELS, PENDING_MODELS,
-};
+pub use models::{default_parameters, default_plant_params, model, two_stage_params, ModelDef, CONTROLLERS, MODELS};
 
 /// The plants this crate describes, in a fixed order (that of the one list, [`MODELS`]).
 pub fn model_identifiers() -> &'static [&'static str] {

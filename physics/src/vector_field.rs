@@ -107,19 +107,14 @@ impl Plant {
 
     /// The rate of each event indicator, from the rates of u and u′.
     pub fn event_indicator_rates(&self, du: f64, ddu: f64) -> [f64; EVENT_INDICATORS] {
-        let (k, d) = (self.stiffness(), self.damping());
-        if d == 0.0 {
-            return [du, du, 0.0, 0.0, 0.0, 0.0];
-        }
-        let force = k * du + d * ddu;
-        let cap = match self.contact_law() {
-            ContactLaw::ElastoBacklash => d * ddu - k * du,
-            ContactLaw::ElastoBacklash2 => 0.0,
-        };
-        if self.half_gap() == 0.0 {
-            return [du, 0.0, force, 0.0, cap, 0.0];
-        }
-        [du, du, force, force, cap, cap]
+        contact_surface_rates(
+            self.stiffness(),
+            self.damping(),
+            self.half_gap(),
+            self.contact_law(),
+            du,
+            ddu,
+        )
     }
 
     /// The scale each state moves on (docs/model.md §6): each angle at the gap it must resolve,
@@ -166,6 +161,24 @@ pub(crate) fn contact_surfaces(k: f64, d: f64, g: f64, law: ContactLaw, u: f64, 
         return [u, 1.0, upper + damper, 1.0, cap_upper, 1.0];
     }
     [u - g, u + g, upper + damper, lower + damper, cap_upper, cap_lower]
+}
+
+/// The rates of [`contact_surfaces`] from the rates of u and u′ (each surface is linear in u and
+/// u′; the constant ones do not move).
+#[inline(always)]
+pub fn contact_surface_rates(k: f64, d: f64, g: f64, law: ContactLaw, du: f64, ddu: f64) -> [f64; EVENT_INDICATORS] {
+    if d == 0.0 {
+        return [du, du, 0.0, 0.0, 0.0, 0.0];
+    }
+    let force = k * du + d * ddu;
+    let cap = match law {
+        ContactLaw::ElastoBacklash => d * ddu - k * du,
+        ContactLaw::ElastoBacklash2 => 0.0,
+    };
+    if g == 0.0 {
+        return [du, 0.0, force, 0.0, cap, 0.0];
+    }
+    [du, du, force, force, cap, cap]
 }
 
 #[cfg(test)]

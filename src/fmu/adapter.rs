@@ -37,7 +37,10 @@ pub enum Source {
     Derivative(StateEntry),
     /// The `contact` output: the sign of ψ in the mode in force (Integer; docs/model.md §4).
     Contact,
-    /// A body's `sliding` output (Integer; docs/model.md §12): 0 the motor, 1 the load.
+    /// A stage's `contact_j` output on a chain of stages (0 the first; docs/model.md §10).
+    StageContact(usize),
+    /// A body's `sliding` output (Integer; docs/model.md §12): 0 the motor, 1 the load, 2 a
+    /// chain's intermediate shaft.
     Sliding(usize),
     /// A controller's input, stored; read at each sample (docs/model.md §9).
     Sampled,
@@ -47,7 +50,8 @@ pub enum Source {
 }
 
 /// The entries of the state z = [θ_m, ω_m, θ_L, ω_L] (docs/model.md §1), and T on a web line
-/// (§8).
+/// (§8); a two-stage chain's intermediate shaft θ_i, ω_i (§10), whose z is [θ_m, ω_m, θ_i, ω_i,
+/// θ_L, ω_L] ([`StateEntry::chain_index`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StateEntry {
     ThetaM,
@@ -55,6 +59,8 @@ pub enum StateEntry {
     ThetaL,
     OmegaL,
     Tension,
+    ThetaI,
+    OmegaI,
 }
 
 /// The most state entries of any model: z with a web span's tension.
@@ -92,6 +98,24 @@ pub enum Calculated {
     /// `bound_T`, `bound_T_sup` of a web line (docs/model.md §8).
     BoundT,
     BoundTSup,
+    /// A two-stage chain's (docs/model.md §10): each stage's ψ, its contact surfaces (as the
+    /// single gap's, stage by stage) and the intermediate shaft's friction surfaces.
+    Psi1,
+    Psi2,
+    UMinusG1,
+    UPlusG1,
+    ForceUpper1,
+    ForceLower1,
+    CapUpper1,
+    CapLower1,
+    UMinusG2,
+    UPlusG2,
+    ForceUpper2,
+    ForceLower2,
+    CapUpper2,
+    CapLower2,
+    StopI,
+    BreakawayI,
 }
 
 impl StateEntry {
@@ -103,8 +127,34 @@ impl StateEntry {
             StateEntry::ThetaL => Symbol::ThetaL,
             StateEntry::OmegaL => Symbol::OmegaL,
             StateEntry::Tension => Symbol::Tension,
+            StateEntry::ThetaI => Symbol::ThetaI,
+            StateEntry::OmegaI => Symbol::OmegaI,
         }
     }
+
+    /// Its index in a two-stage chain's z = [θ_m, ω_m, θ_i, ω_i, θ_L, ω_L] (body by body, angle
+    /// then speed: `Chain::STATES`' order).
+    pub fn chain_index(self) -> usize {
+        match self {
+            StateEntry::ThetaM => 0,
+            StateEntry::OmegaM => 1,
+            StateEntry::ThetaI => 2,
+            StateEntry::OmegaI => 3,
+            StateEntry::ThetaL => 4,
+            StateEntry::OmegaL => 5,
+            StateEntry::Tension => 6,
+        }
+    }
+
+    /// The entries of a two-stage chain's z, in order.
+    pub const CHAIN: [StateEntry; 6] = [
+        StateEntry::ThetaM,
+        StateEntry::OmegaM,
+        StateEntry::ThetaI,
+        StateEntry::OmegaI,
+        StateEntry::ThetaL,
+        StateEntry::OmegaL,
+    ];
 
     /// Its index in z = [θ_m, ω_m, θ_L, ω_L, T].
     pub fn index(self) -> usize {
@@ -126,7 +176,7 @@ impl StateEntry {
         &StateEntry::ALL[..model.states]
     }
 
-    /// Its value in `state`.
+    /// Its value in `state` (a single gap's: a chain's intermediate shaft is not there, NaN).
     #[inline]
     pub fn of(self, state: &PlantState) -> f64 {
         match self {
@@ -135,6 +185,7 @@ impl StateEntry {
             StateEntry::ThetaL => state.theta_l,
             StateEntry::OmegaL => state.omega_l,
             StateEntry::Tension => state.tension,
+            StateEntry::ThetaI | StateEntry::OmegaI => f64::NAN,
         }
     }
 }
@@ -182,11 +233,28 @@ impl Calculated {
             Calculated::Bound | Calculated::BoundSup | Calculated::BoundT | Calculated::BoundTSup if !sim.bounded() => {
                 f64::INFINITY
             }
-            Calculated::Bound => sim.bound.bound(sim.trajectory()),
-            Calculated::BoundPaper => sim.bound.bound_paper(),
+            Calculated::Bound => sim.clock.bound.bound(sim.trajectory()),
+            Calculated::BoundPaper => sim.clock.bound.bound_paper(),
             Calculated::BoundSup => sim.bound_sup_value(),
-            Calculated::BoundT => sim.bound.bound_t(sim.trajectory()),
+            Calculated::BoundT => sim.clock.bound.bound_t(sim.trajectory()),
             Calculated::BoundTSup => sim.bound_t_sup_value(),
+            // A gearbox's: read from its chain (`crate::fmu::geared`), never from a single gap.
+            Calculated::Psi1
+            | Calculated::Psi2
+            | Calculated::UMinusG1
+            | Calculated::UPlusG1
+            | Calculated::ForceUpper1
+            | Calculated::ForceLower1
+            | Calculated::CapUpper1
+            | Calculated::CapLower1
+            | Calculated::UMinusG2
+            | Calculated::UPlusG2
+            | Calculated::ForceUpper2
+            | Calculated::ForceLower2
+            | Calculated::CapUpper2
+            | Calculated::CapLower2
+            | Calculated::StopI
+            | Calculated::BreakawayI => f64::NAN,
         }
     }
 
@@ -210,10 +278,26 @@ impl Calculated {
             // Locals, not outputs: no output derivative.
             Calculated::StopM | Calculated::BreakawayM | Calculated::StopL | Calculated::BreakawayL => None,
             Calculated::Bound | Calculated::BoundT if !sim.bounded() => None,
-            Calculated::Bound => Some(sim.bound.bound_rate(sim.trajectory())),
-            Calculated::BoundPaper => Some(sim.bound.bound_paper_rate()),
-            Calculated::BoundT => Some(sim.bound.bound_t_rate(sim.trajectory())),
+            Calculated::Bound => Some(sim.clock.bound.bound_rate(sim.trajectory())),
+            Calculated::BoundPaper => Some(sim.clock.bound.bound_paper_rate()),
+            Calculated::BoundT => Some(sim.clock.bound.bound_t_rate(sim.trajectory())),
             Calculated::BoundSup | Calculated::BoundTSup => None,
+            Calculated::Psi1
+            | Calculated::Psi2
+            | Calculated::UMinusG1
+            | Calculated::UPlusG1
+            | Calculated::ForceUpper1
+            | Calculated::ForceLower1
+            | Calculated::CapUpper1
+            | Calculated::CapLower1
+            | Calculated::UMinusG2
+            | Calculated::UPlusG2
+            | Calculated::ForceUpper2
+            | Calculated::ForceLower2
+            | Calculated::CapUpper2
+            | Calculated::CapLower2
+            | Calculated::StopI
+            | Calculated::BreakawayI => None,
         }
     }
 }

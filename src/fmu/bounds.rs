@@ -296,3 +296,50 @@ impl Bounds {
         }
     }
 }
+
+/// A two-stage gearbox's bound (docs/model.md §10) as FMU-state words: each stage's term, then
+/// each body's friction term (zeros for a body without friction), each `2N + 4` words.
+pub mod two_stage {
+    use super::{put, take, words};
+    use crate::physics::chain::TwoStageBound;
+    use crate::physics::BoundError;
+
+    /// The loop's size (the two-stage chain's loop state, docs/model.md §10).
+    const N: usize = 7;
+
+    /// How many words: two stages and three bodies.
+    pub const WORDS: usize = 5 * words::<N>();
+
+    pub fn words_of(bound: &TwoStageBound) -> Vec<f64> {
+        let mut out = Vec::with_capacity(WORDS);
+        for term in bound.states() {
+            match term {
+                Some(s) => put(&mut out, &s),
+                None => out.resize(out.len() + words::<N>(), 0.0),
+            }
+        }
+        out
+    }
+
+    /// Restores [`words_of`]: refused unless every term's room is a state where the bound has that
+    /// term and zeros where it has none, all at one elapsed time.
+    pub fn restore(bound: &mut TwoStageBound, saved: &[f64]) -> Result<(), BoundError> {
+        if saved.len() != WORDS {
+            return Err(BoundError::BadState);
+        }
+        let built = bound.states();
+        let mut states = Vec::with_capacity(built.len());
+        for (term, w) in built.iter().zip(saved.chunks(words::<N>())) {
+            match term {
+                Some(_) => states.push(Some(take::<N>(w))),
+                None if w.iter().all(|x| *x == 0.0) => states.push(None),
+                None => return Err(BoundError::BadState),
+            }
+        }
+        let elapsed = states[0].as_ref().map(|s| s.elapsed);
+        if states.iter().flatten().any(|s| Some(s.elapsed) != elapsed) {
+            return Err(BoundError::BadState);
+        }
+        bound.restore(&states)
+    }
+}

@@ -7,6 +7,7 @@ pub mod adapter;
 pub mod bounds;
 pub mod error;
 pub mod friction;
+pub mod geared;
 pub mod instance;
 pub mod logging;
 pub mod simulation;

@@ -17,19 +17,10 @@ pub struct Simulation {
     /// With Coulomb friction on a body (docs/model.md §12): the chain that steps the plant.
     /// None without: the single-gap stepper steps it.
     pub friction: Option<Box<Friction>>,
-    pub bound: Bounds,
+    /// The bounds and how far they lag behind the plant.
+    pub clock: BoundClock<Bounds>,
     /// The longest step accepted ([`max_step`]).
     pub max_step: f64,
-    /// How far the bounds lag behind the plant [s]. Co-Simulation steps advance the plant only
-    /// and add their length here; the bounds, functions of elapsed time alone, are brought up
-    /// to date when read ([`Simulation::bounds_current`]). 0 in Model Exchange.
-    pub bounds_behind: f64,
-    /// The lag at which a step brings the bounds along: the longest step, or the longest advance
-    /// the bounds accept if that is shorter.
-    lag_limit: f64,
-    /// The last attempt to bring the bounds up to date failed (they overflow): steps no longer
-    /// try, reads do (and report it).
-    bounds_refused: bool,
     /// Model Exchange with a damper: the trajectory's terms of the bound, gathered at the
     /// importer's events and completed steps.
     pub events: EventTerms,
@@ -330,56 +321,15 @@ impl Simulation {
         true
     }
 
-    /// The plant advanced by `h`: the bounds lag behind by that much more. Once they lag by the
-    /// longest step they are brought along, so that reading them after any number of unread
-    /// steps costs at most that much work (an error there is the one a read reports, and the
-    /// steps after it do not try again).
+    /// The plant advanced by `h` ([`BoundClock::lag`]).
     #[inline]
     pub fn bounds_lag(&mut self, h: f64) {
-        self.bounds_behind += h;
-        if self.bounds_behind >= self.lag_limit && !self.bounds_refused {
-            self.bounds_current().ok();
-        }
+        self.clock.lag(h);
     }
 
-    /// Brings the bounds up to the plant (Co-Simulation): advances them by the time they lag
-    /// behind, in one advance when they accept it (so that bounds read after every step are
-    /// exactly those advanced step by step), else in the longest advances they accept. On error
-    /// they stay at some time between, and still lag behind by the rest. Out of line: the
-    /// steps' hot path calls it only once the bounds lag by the longest step.
-    #[inline(never)]
+    /// Brings the bounds up to the plant ([`BoundClock::current`]).
     pub fn bounds_current(&mut self) -> Result<(), BoundError> {
-        let result = self.catch_up();
-        self.bounds_refused = result.is_err();
-        result
-    }
-
-    /// At most [`MAX_BOUND_ADVANCES`] advances, as [`Simulation::bound_at`]: a lag the bounds
-    /// cannot follow within them (extreme parameters, where their longest advance is far shorter
-    /// than a step) is refused rather than followed for ever.
-    fn catch_up(&mut self) -> Result<(), BoundError> {
-        for _ in 0..MAX_BOUND_ADVANCES {
-            let h = self.bounds_behind;
-            if h <= 0.0 {
-                return Ok(());
-            }
-            match self.bound.advance(h) {
-                Ok(()) => self.bounds_behind = 0.0,
-                Err(BoundError::AdvanceTooLong { max_h, .. }) => {
-                    self.bound.advance(max_h)?;
-                    self.bounds_behind = h - max_h;
-                }
-                Err(e) => return Err(e),
-            }
-        }
-        if self.bounds_behind <= 0.0 {
-            return Ok(());
-        }
-        let reached = self.bound.elapsed();
-        Err(BoundError::TooFar {
-            elapsed: reached + self.bounds_behind,
-            reached,
-        })
+        self.clock.current()
     }
 
     /// Rebuilds from saved values and continues from a saved plant and bound state, the bounds
@@ -402,49 +352,15 @@ impl Simulation {
         if let Some(f) = &mut sim.friction {
             f.restore(&state, bodies);
         }
-        sim.bound.restore(bound)?;
-        if !(bounds_behind.is_finite() && bounds_behind >= 0.0) {
-            return Err(FmuError::StateRefused(format!(
-                "the bounds' lag {bounds_behind} s must be finite and >= 0"
-            )));
-        }
-        sim.bounds_behind = bounds_behind;
+        sim.clock.bound.restore(bound)?;
+        sim.clock.set_behind(bounds_behind)?;
         sim.events = events;
         Ok(sim)
     }
 
-    /// Brings the bound to `elapsed` seconds after the start time (Model Exchange, where time
-    /// is whatever the importer's solver sets): forward by advancing, backward by starting over,
-    /// the bound being a function of elapsed time alone. Once the loop's response has decayed
-    /// (settled) an advance of any length is one step; before, advances are cut to the longest
-    /// the bound accepts, a bounded number of them per call, so that a time far out on a loop
-    /// that never settles (or settles only after a very long time) is refused rather than
-    /// computed for ever. On error the bound is left at some time between its old one and
-    /// `elapsed`.
+    /// Brings the bound to `elapsed` seconds after the start time ([`BoundClock::at`]).
     pub fn bound_at(&mut self, elapsed: f64) -> Result<(), BoundError> {
-        if elapsed < self.bound.elapsed() {
-            self.bound.reset();
-        }
-        for _ in 0..MAX_BOUND_ADVANCES {
-            let now = self.bound.elapsed();
-            let left = elapsed - now;
-            if left <= 0.0 || left.is_nan() {
-                return Ok(());
-            }
-            match self.bound.advance(left) {
-                Ok(()) => {}
-                Err(BoundError::AdvanceTooLong { max_h, .. }) => self.bound.advance(max_h)?,
-                Err(e) => return Err(e),
-            }
-            // A remainder below the resolution of `now` changes nothing: done.
-            if self.bound.elapsed() == now {
-                return Ok(());
-            }
-        }
-        Err(BoundError::TooFar {
-            elapsed,
-            reached: self.bound.elapsed(),
-        })
+        self.clock.at(elapsed)
     }
 
     pub fn plant(&self) -> &Plant {
@@ -475,12 +391,12 @@ impl Simulation {
 
     /// bound_sup, +∞ when unbounded (docs/model.md §3).
     pub fn bound_sup_value(&self) -> f64 {
-        self.bound.sup().unwrap_or(f64::INFINITY)
+        self.clock.bound.sup().unwrap_or(f64::INFINITY)
     }
 
     /// bound_T_sup of a web line, +∞ when unbounded (docs/model.md §8).
     pub fn bound_t_sup_value(&self) -> f64 {
-        self.bound.sup_t().unwrap_or(f64::INFINITY)
+        self.clock.bound.sup_t().unwrap_or(f64::INFINITY)
     }
 }
 
@@ -505,6 +421,172 @@ fn rates_overflow(rates: StateVector, inputs: &Inputs, web: bool, what: std::fmt
          the inputs, start values or parameters",
         rates[1], rates[3], inputs.tau_m, inputs.tau_l
     ))
+}
+
+/// What a bound does with time: advance by h (refusing an advance longer than it accepts in one
+/// call with [`BoundError::AdvanceTooLong`]), say its elapsed time, start over.
+pub trait Advancing {
+    fn advance(&mut self, h: f64) -> Result<(), BoundError>;
+    fn elapsed(&self) -> f64;
+    fn reset(&mut self);
+    fn max_advance(&self) -> f64;
+}
+
+impl Advancing for Bounds {
+    fn advance(&mut self, h: f64) -> Result<(), BoundError> {
+        Bounds::advance(self, h)
+    }
+    fn elapsed(&self) -> f64 {
+        Bounds::elapsed(self)
+    }
+    fn reset(&mut self) {
+        Bounds::reset(self)
+    }
+    fn max_advance(&self) -> f64 {
+        Bounds::max_advance(self)
+    }
+}
+
+impl Advancing for crate::physics::chain::TwoStageBound {
+    fn advance(&mut self, h: f64) -> Result<(), BoundError> {
+        crate::physics::chain::TwoStageBound::advance(self, h)
+    }
+    fn elapsed(&self) -> f64 {
+        crate::physics::chain::TwoStageBound::elapsed(self)
+    }
+    fn reset(&mut self) {
+        crate::physics::chain::TwoStageBound::reset(self)
+    }
+    fn max_advance(&self) -> f64 {
+        crate::physics::chain::TwoStageBound::max_advance(self)
+    }
+}
+
+/// A bound and how far it lags behind the plant. Co-Simulation steps advance the plant only
+/// and add their length to the lag; the bound, a function of elapsed time alone, is brought up
+/// to date when read ([`BoundClock::current`]), or by a step once it lags by the longest step,
+/// so that reading it after any number of unread steps costs at most that much work. In Model
+/// Exchange it is brought to the time the importer sets ([`BoundClock::at`]).
+#[derive(Clone, Debug)]
+pub struct BoundClock<B> {
+    pub bound: B,
+    /// How far the bound lags behind the plant [s] (0 in Model Exchange).
+    pub behind: f64,
+    /// The lag at which a step brings the bound along: the longest step, or the longest advance
+    /// the bound accepts if that is shorter.
+    limit: f64,
+    /// The last attempt to bring the bound up to date failed (it overflows): steps no longer
+    /// try, reads do (and report it).
+    refused: bool,
+}
+
+impl<B: Advancing> BoundClock<B> {
+    /// `bound` at elapsed time 0, for a plant whose longest step is `longest`.
+    pub fn new(bound: B, longest: f64) -> Self {
+        let limit = longest.min(bound.max_advance());
+        BoundClock {
+            bound,
+            behind: 0.0,
+            limit,
+            refused: false,
+        }
+    }
+
+    /// The plant advanced by `h`: the bound lags behind by that much more. Once it lags by the
+    /// longest step it is brought along (an error there is the one a read reports, and the steps
+    /// after it do not try again).
+    #[inline]
+    pub fn lag(&mut self, h: f64) {
+        self.behind += h;
+        if self.behind >= self.limit && !self.refused {
+            self.current().ok();
+        }
+    }
+
+    /// Brings the bound up to the plant: advances it by the time it lags behind, in one advance
+    /// when it accepts it (so that a bound read after every step is exactly one advanced step by
+    /// step), else in the longest advances it accepts. On error it stays at some time between,
+    /// and still lags behind by the rest. Out of line: the steps' hot path calls it only once
+    /// the bound lags by the longest step.
+    #[inline(never)]
+    pub fn current(&mut self) -> Result<(), BoundError> {
+        let result = self.catch_up();
+        self.refused = result.is_err();
+        result
+    }
+
+    /// At most [`MAX_BOUND_ADVANCES`] advances, as [`BoundClock::at`]: a lag the bound cannot
+    /// follow within them (extreme parameters, where its longest advance is far shorter than a
+    /// step) is refused rather than followed for ever.
+    fn catch_up(&mut self) -> Result<(), BoundError> {
+        for _ in 0..MAX_BOUND_ADVANCES {
+            let h = self.behind;
+            if h <= 0.0 {
+                return Ok(());
+            }
+            match self.bound.advance(h) {
+                Ok(()) => self.behind = 0.0,
+                Err(BoundError::AdvanceTooLong { max_h, .. }) => {
+                    self.bound.advance(max_h)?;
+                    self.behind = h - max_h;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if self.behind <= 0.0 {
+            return Ok(());
+        }
+        let reached = self.bound.elapsed();
+        Err(BoundError::TooFar {
+            elapsed: reached + self.behind,
+            reached,
+        })
+    }
+
+    /// Sets the lag of a restored state, refused unless finite and >= 0.
+    pub fn set_behind(&mut self, behind: f64) -> Result<(), FmuError> {
+        if !(behind.is_finite() && behind >= 0.0) {
+            return Err(FmuError::StateRefused(format!(
+                "the bounds' lag {behind} s must be finite and >= 0"
+            )));
+        }
+        self.behind = behind;
+        Ok(())
+    }
+
+    /// Brings the bound to `elapsed` seconds after the start time (Model Exchange, where time
+    /// is whatever the importer's solver sets): forward by advancing, backward by starting over,
+    /// the bound being a function of elapsed time alone. Once the loop's response has decayed
+    /// (settled) an advance of any length is one step; before, advances are cut to the longest
+    /// the bound accepts, a bounded number of them per call, so that a time far out on a loop
+    /// that never settles (or settles only after a very long time) is refused rather than
+    /// computed for ever. On error the bound is left at some time between its old one and
+    /// `elapsed`.
+    pub fn at(&mut self, elapsed: f64) -> Result<(), BoundError> {
+        if elapsed < self.bound.elapsed() {
+            self.bound.reset();
+        }
+        for _ in 0..MAX_BOUND_ADVANCES {
+            let now = self.bound.elapsed();
+            let left = elapsed - now;
+            if left <= 0.0 || left.is_nan() {
+                return Ok(());
+            }
+            match self.bound.advance(left) {
+                Ok(()) => {}
+                Err(BoundError::AdvanceTooLong { max_h, .. }) => self.bound.advance(max_h)?,
+                Err(e) => return Err(e),
+            }
+            // A remainder below the resolution of `now` changes nothing: done.
+            if self.bound.elapsed() == now {
+                return Ok(());
+            }
+        }
+        Err(BoundError::TooFar {
+            elapsed,
+            reached: self.bound.elapsed(),
+        })
+    }
 }
 
 /// Advances of the longest length (the bound's `MAX_PIECES` pieces) allowed in one
@@ -558,16 +640,12 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let longest = friction
         .as_ref()
         .map_or(max_step(&plant), |f| max_step(&plant).min(f.max_step()));
-    let lag_limit = longest.min(bound.max_advance());
     let sim = Simulation {
         max_step: longest,
         stepper: Stepper::new(plant),
         state,
         friction: friction.map(Box::new),
-        bound,
-        bounds_behind: 0.0,
-        lag_limit,
-        bounds_refused: false,
+        clock: BoundClock::new(bound, longest),
         events: EventTerms::UNTRACKED,
     };
     let mut cache = lock();

@@ -42,6 +42,7 @@ pub const FORMAT_VERSION: u16 = 5;
 /// The plant and bound state of an initialized instance.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PhysicsSnapshot {
+    /// A single gap's plant state ([`NO_PLANT`] on a gearbox).
     pub plant: PlantState,
     /// The friction mode of the motor and of the load (`Forward` without friction).
     pub bodies: [BodyMode; 2],
@@ -51,7 +52,22 @@ pub struct PhysicsSnapshot {
     pub bounds_behind: f64,
     /// The damped bound's terms gathered at events (Model Exchange).
     pub events: EventTerms,
+    /// A gearbox's chain state ([`crate::fmu::geared::Geared::words`]); empty on a single gap.
+    pub geared: Vec<f64>,
 }
+
+/// The plant field of a gearbox's snapshot, which has none.
+pub const NO_PLANT: PlantState = PlantState {
+    theta_m: 0.0,
+    omega_m: 0.0,
+    theta_l: 0.0,
+    omega_l: 0.0,
+    tension: 0.0,
+    u: 0.0,
+    du: 0.0,
+    variation: 0.0,
+    mode: ContactMode::Free,
+};
 
 /// Everything needed to continue an instance bit-identically; derived objects (plant
 /// matrices, exponentials) are rebuilt from the values on restore.
@@ -78,8 +94,19 @@ const FLAG_FMI3: u8 = 16;
 /// Bytes after the guid of a state of `model`: phase, flags, count, 4 times, values, slopes,
 /// plant, bounds, their lag, the time marks, checksum.
 fn body_len(model: &ModelInfo) -> usize {
-    let bounds = Bounds::word_count(model.web);
-    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + (8 * 8 + 1) + 2 + 8 * bounds + 8 + 8 * 5 + 8 * 3 + 8
+    let (plant, bounds) = plant_and_bound_words(model);
+    1 + 1 + 2 + 8 * 4 + 8 * Symbol::COUNT + 8 * MAX_INPUTS + plant + 8 * bounds + 8 + 8 * 5 + 8 * 3 + 8
+}
+
+/// The bytes of `model`'s plant state and the words of its bounds: a single gap's z, T, u, u',
+/// V, its mode and the bodies' friction modes, and [`Bounds::words`]; a gearbox's chain words
+/// ([`crate::fmu::geared::Geared::WORDS`]: z, each stage's u, u', V and mode code, each body's
+/// friction mode) and its bound's ([`super::bounds::two_stage::WORDS`]).
+fn plant_and_bound_words(model: &ModelInfo) -> (usize, usize) {
+    match model.is_geared() {
+        true => (8 * crate::fmu::geared::Geared::WORDS, super::bounds::two_stage::WORDS),
+        false => ((8 * 8 + 1) + 2, Bounds::word_count(model.web)),
+    }
 }
 
 fn fnv1a_64(bytes: &[u8]) -> u64 {
@@ -128,6 +155,13 @@ impl Snapshot {
         put(self.experiment.tolerance.unwrap_or(0.0));
         self.values.iter().for_each(|x| put(*x));
         self.input_slopes.iter().for_each(|x| put(*x));
+        if self.model.is_geared() {
+            let words = self
+                .physics
+                .as_ref()
+                .map_or(vec![0.0; crate::fmu::geared::Geared::WORDS], |p| p.geared.clone());
+            words.iter().for_each(|x| put(*x));
+        }
         let plant = self.physics.as_ref().map(|p| p.plant);
         let z = plant
             .map(|s| {
@@ -143,13 +177,15 @@ impl Snapshot {
                 ]
             })
             .unwrap_or([0.0; 8]);
-        z.iter().for_each(|x| put(*x));
-        b.push(plant.map(|s| s.mode.code() as i8).unwrap_or(0) as u8);
-        let bodies = self.physics.as_ref().map_or([BodyMode::Forward; 2], |p| p.bodies);
-        for body in bodies {
-            b.push(body.sliding() as i8 as u8);
+        if !self.model.is_geared() {
+            z.iter().for_each(|x| put(*x));
+            b.push(plant.map(|s| s.mode.code() as i8).unwrap_or(0) as u8);
+            let bodies = self.physics.as_ref().map_or([BodyMode::Forward; 2], |p| p.bodies);
+            for body in bodies {
+                b.push(body.sliding() as i8 as u8);
+            }
         }
-        let no_bounds = vec![0.0; Bounds::word_count(self.model.web)];
+        let no_bounds = vec![0.0; plant_and_bound_words(self.model).1];
         let bound = self.physics.as_ref().map_or(&no_bounds, |p| &p.bound);
         bound.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
         let behind = self.physics.as_ref().map_or(0.0, |p| p.bounds_behind);
@@ -179,9 +215,22 @@ impl Snapshot {
         let (phase, flags, flavour) = r.state_machine()?;
         let (time, experiment) = r.times(flags)?;
         let (values, input_slopes) = r.values(model)?;
-        let plant = r.plant()?;
-        let bodies = [r.body_mode("the motor")?, r.body_mode("the load")?];
-        let mut bound = vec![0.0; Bounds::word_count(model.web)];
+        let (plant, bodies, geared) = match model.is_geared() {
+            true => {
+                let mut words = vec![0.0; crate::fmu::geared::Geared::WORDS];
+                for (x, name) in words.iter_mut().zip(crate::fmu::geared::Geared::WORD_NAMES) {
+                    *x = r.finite(name)?;
+                }
+                crate::fmu::geared::Geared::check_words(&words)?;
+                (NO_PLANT, [BodyMode::Forward; 2], words)
+            }
+            false => (
+                r.plant()?,
+                [r.body_mode("the motor")?, r.body_mode("the load")?],
+                Vec::new(),
+            ),
+        };
+        let mut bound = vec![0.0; plant_and_bound_words(model).1];
         for x in bound.iter_mut() {
             *x = r.finite("a bound's state")?;
         }
@@ -216,6 +265,7 @@ impl Snapshot {
             bound,
             bounds_behind,
             events,
+            geared,
         });
         Ok(Snapshot {
             model,

@@ -74,6 +74,11 @@ impl ModelInfo {
     pub fn is_controller(&self) -> bool {
         matches!(self.kind, Kind::Controller)
     }
+
+    /// Whether it is a two-stage gearbox ([`Kind::TwoStage`], `crate::fmu::geared`).
+    pub fn is_geared(&self) -> bool {
+        matches!(self.kind, Kind::TwoStage(_))
+    }
 }
 
 /// Every model this library serves: the plants, then the controllers.
@@ -149,22 +154,30 @@ mod tests {
     fn every_model_declares_the_physics_event_indicators() {
         use crate::fmu::adapter::{Calculated, Source};
         for m in &MODELS {
+            let index = |c: Calculated| match m.is_geared() {
+                true => crate::fmu::instance::gear_indicator(c),
+                false => c.indicator(),
+            };
             let declared: Vec<usize> = m
                 .variables
                 .iter()
                 .filter_map(|v| match v.symbol.source() {
-                    Source::Calculated(c) => c.indicator(),
+                    Source::Calculated(c) => index(c),
                     _ => None,
                 })
                 .collect();
-            let all: Vec<usize> = (0..crate::fmu::adapter::EVENT_INDICATORS).collect();
+            let count = match m.is_geared() {
+                true => crate::fmu::geared::INDICATORS,
+                false => crate::fmu::adapter::EVENT_INDICATORS,
+            };
+            let all: Vec<usize> = (0..count).collect();
             assert_eq!(declared, all, "{}", m.identifier);
-            assert_eq!(Calculated::INDICATORS.len(), all.len());
-            assert_eq!(
-                Calculated::INDICATORS[crate::physics::vector_field::EVENT_INDICATORS],
-                Calculated::StopM
-            );
         }
+        assert_eq!(Calculated::INDICATORS.len(), crate::fmu::adapter::EVENT_INDICATORS);
+        assert_eq!(
+            Calculated::INDICATORS[crate::physics::vector_field::EVENT_INDICATORS],
+            Calculated::StopM
+        );
     }
 
     #[test]

@@ -11,7 +11,7 @@ use crate::{DefaultExperiment, Kind, Model, Range, SquareWave, Var};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
-    plant_params,
+    kind: Kind::Plant(plant_params),
 };
 
 /// The belt drive's plant (paper eqs. 20–21): r_m = R_1, r_L = alpha_1, K = K_b,

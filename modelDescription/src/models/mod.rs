@@ -12,7 +12,7 @@ mod web;
 
 use backlash_physics::{Chain, ChainParams, ContactLaw, Damping, Geometry, Plant, PlantParams, WebSpan};
 
-use crate::{Causality, Initial, Kind, Model, PlantMapping, Range, Type, Var, Variability};
+use crate::{Causality, Initial, Kind, Model, Range, Type, Var, Variability};
 
 /// What a model's drive says of its transmission coordinate u, of the force ψ in its compliant
 /// member and of the damper in that member: their units, ψ's quantity and text, and the
@@ -567,7 +567,7 @@ pub fn default_plant_params(identifier: &str) -> Option<PlantParams> {
     MODELS
         .iter()
         .map(|m| (m.describe)())
-        .find(|m| m.identifier == identifier)
+        .find(|m| m.identifier == identifier && matches!(m.kind, Kind::Plant(_)))
         .map(|m| *default_plant(&m).params())
 }
 
@@ -589,12 +589,11 @@ pub fn two_stage_params(identifier: &str, values: &[(&'static str, f64)]) -> Opt
     Some(mapping(&|name| lookup(&model, values, name)))
 }
 
-/// The description of `identifier`, of a plant served or pending, or `None`.
+/// The description of the plant `identifier`, or `None`.
 fn described(identifier: &str) -> Option<Model> {
     MODELS
         .iter()
         .map(|m| m.describe)
-        .chain(PENDING_MODELS)
         .map(|describe| describe())
         .find(|m| m.identifier == identifier)
 }
@@ -702,34 +701,28 @@ fn contact_law(value: f64) -> ContactLaw {
     }
 }
 
-/// One plant: the function that describes it and its physics mapping (also in its description,
-/// [`Model::kind`]; here for the library's static tables).
+/// One plant: the function that describes it and its kind with its physics mapping (also in its
+/// description, [`Model::kind`]; here for the library's static tables).
 #[derive(Clone, Copy)]
 pub struct ModelDef {
     pub describe: fn() -> Model,
-    pub plant_params: PlantMapping,
+    pub kind: Kind,
 }
 
 /// Every model, in a fixed order. A new model is a module here and a line in this list; its
 /// identifier is in its description, nowhere else.
-pub const MODELS: [ModelDef; 3] = [shaft::MODEL, belt::MODEL, web::MODEL];
+pub const MODELS: [ModelDef; 4] = [shaft::MODEL, belt::MODEL, web::MODEL, two_stage::MODEL];
 
 /// Every controller, in a fixed order: a module here and a line in this list, as a plant.
 pub const CONTROLLERS: [fn() -> Model; 1] = [controller::model];
 
-/// Plants described whose physics the library does not serve yet: not in [`MODELS`], so no
-/// archive, table or tool sees them; their descriptions (variables, nominals, model structure)
-/// are built and checked by this crate's tests.
-pub const PENDING_MODELS: [fn() -> Model; 1] = [two_stage::model];
-
-/// The description of `identifier`. Panics on an identifier of no model in [`MODELS`],
-/// [`CONTROLLERS`] or [`PENDING_MODELS`].
+/// The description of `identifier`. Panics on an identifier of no model in [`MODELS`] or
+/// [`CONTROLLERS`].
 pub fn model(identifier: &str) -> Model {
     MODELS
         .iter()
         .map(|m| m.describe)
         .chain(CONTROLLERS)
-        .chain(PENDING_MODELS)
         .map(|describe| describe())
         .find(|m| m.identifier == identifier)
         .unwrap_or_else(|| {

@@ -12,7 +12,7 @@ use crate::{DefaultExperiment, Kind, Model, Range, SquareWave};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
-    plant_params,
+    kind: Kind::Plant(plant_params),
 };
 
 /// The shaft's plant (paper eqs. 11–12): r_m = r_L = 1, K = k, g = Delta, D = d

@@ -12,9 +12,14 @@ use backlash_physics::{ChainParams, Damping};
 
 use super::{
     contact_law, continuous_local, input, parameter, sign_output, state_derivative, state_output, var,
-    with_state_nominals,
+    with_state_nominals, ModelDef,
 };
 use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWave, Type, Var, Variability};
+
+pub(super) const MODEL: ModelDef = ModelDef {
+    describe: model,
+    kind: Kind::TwoStage(chain_params),
+};
 
 /// The chain of the parameters `at` reads (docs/model.md §10): stage j joins body j − 1 to
 /// body j with a = 1, c = n_j, K = k_j, g = Delta_j and its damper d_j under `contact_law`;

@@ -9,7 +9,7 @@ use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWav
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
-    plant_params,
+    kind: Kind::Plant(plant_params),
 };
 
 /// BacklashBelt's plant, its damper included, whose load pulls the web span (docs/model.md §8).

@@ -400,6 +400,53 @@ impl<const S: usize, const N: usize, const BA: usize, const KO: usize, const R: 
             .map(|s| s.max_advance())
             .fold(self.friction.max_advance(), f64::min)
     }
+
+    /// The time derivative of [`Self::bound`]: Σ_i K_i g_i |h_i(t)| + Σ_b 2 peak_b τ_c,b |h_b(t)|.
+    pub fn bound_rate(&self) -> f64 {
+        self.stages.iter().map(|s| s.bound_rate()).sum::<f64>() + self.friction.bound_rate()
+    }
+
+    /// Back to the start (elapsed = 0).
+    pub fn reset(&mut self) {
+        self.stages.iter_mut().for_each(|s| s.reset());
+        self.friction.reset();
+    }
+
+    /// The largest relative slack of the terms' suprema (see `LoopBound::sup_slack`).
+    pub fn sup_slack(&self) -> f64 {
+        self.stages
+            .iter()
+            .filter_map(|s| s.sup_slack())
+            .fold(self.friction.sup_slack(), f64::max)
+    }
+
+    /// Each term's state: the stages', then each body's (None for a body without friction).
+    pub fn states(&self) -> Vec<Option<BoundState<N>>> {
+        let stages = self.stages.iter().map(|s| Some(s.state()));
+        stages.chain(self.friction.states()).collect()
+    }
+
+    /// Continues from [`Self::states`]; refused ([`BoundError::BadState`]) unless they are those of
+    /// the same terms and each is one a term could have. On error nothing changes.
+    pub fn restore(&mut self, states: &[Option<BoundState<N>>]) -> Result<(), BoundError> {
+        if states.len() != S + S + 1 {
+            return Err(BoundError::BadState);
+        }
+        let before = self.clone();
+        for (stage, state) in self.stages.iter_mut().zip(states) {
+            let result = match state {
+                Some(s) => stage.restore(s),
+                None => Err(BoundError::BadState),
+            };
+            if let Err(e) = result {
+                *self = before;
+                return Err(e);
+            }
+        }
+        self.friction
+            .restore(&states[S..])
+            .inspect_err(|_| *self = before.clone())
+    }
 }
 
 /// The reduced coordinates of the chain's loop: every stage's gap a θ_i − c θ_{i+1}, every

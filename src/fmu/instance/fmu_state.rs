@@ -4,8 +4,10 @@
 use super::lifecycle::Lifecycle;
 use super::Instance;
 use crate::fmu::error::{FmuError, Status};
+use crate::fmu::geared::Geared;
+use crate::fmu::simulation::EventTerms;
 use crate::fmu::simulation::Simulation;
-use crate::fmu::snapshot::{check_values, PhysicsSnapshot, Snapshot};
+use crate::fmu::snapshot::{check_values, PhysicsSnapshot, Snapshot, NO_PLANT};
 use crate::fmu::state_machine::Function;
 use crate::physics::chain::BodyMode;
 
@@ -22,13 +24,25 @@ impl Instance {
             experiment: self.experiment,
             values: self.values,
             input_slopes: self.input_slopes,
-            physics: self.life.sim().map(|sim| PhysicsSnapshot {
-                plant: sim.state,
-                bodies: sim.friction.as_ref().map_or([BodyMode::Forward; 2], |f| f.bodies()),
-                bound: sim.bound.words(),
-                bounds_behind: sim.bounds_behind,
-                events: sim.events,
-            }),
+            physics: match (self.life.sim(), self.life.geared()) {
+                (Some(sim), _) => Some(PhysicsSnapshot {
+                    plant: sim.state,
+                    bodies: sim.friction.as_ref().map_or([BodyMode::Forward; 2], |f| f.bodies()),
+                    bound: sim.clock.bound.words(),
+                    bounds_behind: sim.clock.behind,
+                    events: sim.events,
+                    geared: Vec::new(),
+                }),
+                (None, Some(g)) => Some(PhysicsSnapshot {
+                    plant: NO_PLANT,
+                    bodies: [BodyMode::Forward; 2],
+                    bound: crate::fmu::bounds::two_stage::words_of(&g.clock.bound),
+                    bounds_behind: g.clock.behind,
+                    events: EventTerms::UNTRACKED,
+                    geared: g.words(),
+                }),
+                (None, None) => None,
+            },
         })
     }
 
@@ -56,6 +70,31 @@ impl Instance {
         }
         // A snapshot read from bytes was checked so; one built in Rust is checked here.
         check_values(self.model, &snapshot.values)?;
+        if self.model.is_geared() {
+            let geared = match &snapshot.physics {
+                Some(p) => Some(Box::new(Geared::restore(
+                    self.model,
+                    &snapshot.values,
+                    &p.geared,
+                    &p.bound,
+                    p.bounds_behind,
+                )?)),
+                None => None,
+            };
+            self.life = match geared {
+                Some(sim) => Lifecycle::Geared {
+                    phase: snapshot.phase,
+                    sim,
+                },
+                None => Lifecycle::Setup {
+                    phase: snapshot.phase,
+                    preview: None,
+                    geared: None,
+                },
+            };
+            self.restore_clock_and_values(snapshot);
+            return Ok(Status::Ok);
+        }
         let sim = match &snapshot.physics {
             Some(p) => Some(Simulation::restore(
                 self.model,
@@ -76,13 +115,19 @@ impl Instance {
             None => Lifecycle::Setup {
                 phase: snapshot.phase,
                 preview: None,
+                geared: None,
             },
         };
+        self.restore_clock_and_values(snapshot);
+        Ok(Status::Ok)
+    }
+
+    /// The time, its marks, the experiment, the values and the input slopes of `snapshot`.
+    fn restore_clock_and_values(&mut self, snapshot: &Snapshot) {
         self.time = snapshot.time;
         self.time_marks = snapshot.time_marks;
         self.experiment = snapshot.experiment;
         self.values = snapshot.values;
         self.input_slopes = snapshot.input_slopes;
-        Ok(Status::Ok)
     }
 }

@@ -7,6 +7,7 @@
 //! failure one place that logs the reason and (for fmi2Error) enters state Error.
 
 mod fmu_state;
+mod gearbox;
 mod lifecycle;
 mod model_exchange;
 mod sampling;
@@ -59,6 +60,8 @@ pub enum StatusKind {
     Terminated,
 }
 
+#[cfg(test)]
+pub(crate) use gearbox::indicator as gear_indicator;
 pub use model_exchange::{EventInfo, TimeMarks};
 pub(crate) use sampling::NO_FMU_STATE;
 pub use stepping::StepOutcome;
@@ -455,9 +458,12 @@ impl Instance {
         if self.model.is_controller() {
             return self.exit_sampling_initialization();
         }
+        if self.model.is_geared() {
+            return self.gear_exit_initialization();
+        }
         let preview = match &mut self.life {
             Lifecycle::Setup { preview, .. } => preview.take(),
-            Lifecycle::Running { .. } | Lifecycle::Sampling { .. } => None,
+            Lifecycle::Running { .. } | Lifecycle::Sampling { .. } | Lifecycle::Geared { .. } => None,
         };
         let sim = match preview {
             Some(sim) => sim,
@@ -466,7 +472,7 @@ impl Instance {
         // Every output, the state derivatives included, must be finite from here on.
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         sim.rates(&sim.state, &inputs, format_args!("the initial accelerations overflow"))?;
-        let unbounded = match (sim.bound.sup(), sim.bound.sup_t()) {
+        let unbounded = match (sim.clock.bound.sup(), sim.clock.bound.sup_t()) {
             _ if !sim.bounded() => Some((
                 "bound, bound_sup, bound_T and bound_T_sup",
                 FRICTION_UNBOUNDED.to_string(),
@@ -476,7 +482,7 @@ impl Instance {
             (_, Err(why)) => Some(("bound_T_sup", why.to_string())),
             _ => None,
         };
-        let slack = sim.bound.sup_slack();
+        let slack = sim.clock.bound.sup_slack();
         let mut sim = sim;
         if self.flavour.interface == Interface::ModelExchange && sim.plant().damping() > 0.0 {
             sim.events = EventTerms::start(&sim.state);
@@ -486,6 +492,12 @@ impl Instance {
             phase: self.initialized_phase(),
             sim,
         };
+        self.initialization_warnings(unbounded, slack)
+    }
+
+    /// The end of fmi2ExitInitializationMode: a warning naming the bounds that are +∞ and why,
+    /// or one on suprema that may exceed their integral by more than [`SUP_SLACK_WARNING`].
+    fn initialization_warnings(&mut self, unbounded: Option<(&str, String)>, slack: f64) -> Result<Status, FmuError> {
         match unbounded {
             None if slack > SUP_SLACK_WARNING => {
                 self.log.emit(Status::Warning, LogCategory::Warnings, || {

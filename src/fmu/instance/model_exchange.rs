@@ -97,7 +97,10 @@ impl Instance {
     /// The number of event indicators: u ∓ g, the damped force's and the cap's surfaces
     /// (docs/model.md §6), and the bodies' friction surfaces (§12).
     pub(crate) fn event_indicator_count(&self) -> usize {
-        EVENT_INDICATORS
+        match self.model.is_geared() {
+            true => crate::fmu::geared::INDICATORS,
+            false => EVENT_INDICATORS,
+        }
     }
 
     /// The contact modes follow the state; in Model Exchange each body with friction takes its
@@ -110,6 +113,8 @@ impl Instance {
             if let Some(sim) = self.life.sim_mut() {
                 let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
                 values_changed = sim.settle_friction(&inputs);
+            } else if self.model.is_geared() {
+                values_changed = self.gear_settle();
             }
         }
         Ok(EventInfo {
@@ -178,6 +183,11 @@ impl Instance {
     }
 
     pub(crate) fn set_continuous_states_body(&mut self, x: &[f64]) -> Result<Status, FmuError> {
+        if self.model.is_geared() {
+            self.checked_states(x, &StateEntry::CHAIN)?;
+            self.gear_set_continuous_states(&super::gearbox::six(x))?;
+            return Ok(Status::Ok);
+        }
         let z = self.state_vector(x)?;
         let sim = self.life.running()?;
         let state = adapter::state_of(sim.plant(), &z);
@@ -189,19 +199,23 @@ impl Instance {
     /// x as z = [θ_m, ω_m, θ_L, ω_L, T] (T = 0 for the drive trains), refused unless of the
     /// model's length and finite.
     fn state_vector(&self, x: &[f64]) -> Result<StateVector, FmuError> {
-        Self::same_length("continuous states", x.len(), self.continuous_state_count())?;
+        self.checked_states(x, &StateEntry::ALL)?;
         let mut z = [0.0; MAX_STATES];
         z[..x.len()].copy_from_slice(x);
+        Ok(z)
+    }
+
+    /// Refused unless x has the model's number of states, each finite (`entries` name them).
+    fn checked_states(&self, x: &[f64], entries: &[StateEntry]) -> Result<(), FmuError> {
+        Self::same_length("continuous states", x.len(), self.continuous_state_count())?;
         if let Some((i, value)) = x.iter().enumerate().find(|(_, x)| !x.is_finite()) {
             return Err(FmuError::InvalidArgument(format!(
                 "continuous state {} ({}) is {value}; states must be finite",
                 i + 1,
-                self.model
-                    .by_symbol(StateEntry::ALL[i].symbol())
-                    .map_or("?", |v| v.name)
+                self.model.by_symbol(entries[i].symbol()).map_or("?", |v| v.name)
             )));
         }
-        Ok(z)
+        Ok(())
     }
 
     fn fill(out: &mut [f64], what: &'static str, values: &[f64]) -> Result<Status, FmuError> {
@@ -214,6 +228,10 @@ impl Instance {
     }
 
     pub(crate) fn get_continuous_states_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
+        if self.model.is_geared() {
+            let z = self.gear_z()?;
+            return Self::fill(out, "continuous states", &z);
+        }
         let n = self.continuous_state_count();
         let z = adapter::entries_of(&self.physics()?.state);
         Self::fill(out, "continuous states", &z[..n])
@@ -224,7 +242,12 @@ impl Instance {
     pub(crate) fn get_derivatives_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
         let n = self.continuous_state_count();
         Self::same_length("derivatives", out.len(), n)?;
-        self.physics()?;
+        if let Err(e) = self.physics() {
+            return match self.model.is_geared() {
+                true => Self::fill(out, "derivatives", &self.gear_rates()?),
+                false => Err(e),
+            };
+        }
         let sim = self.built();
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         sim.write_rates(&sim.state, &inputs, out, format_args!("the state derivatives overflow"))?;
@@ -232,7 +255,12 @@ impl Instance {
     }
 
     pub(crate) fn get_event_indicators_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
-        self.physics()?;
+        if let Err(e) = self.physics() {
+            return match self.model.is_geared() {
+                true => Self::fill(out, "event indicators", &self.gear_event_indicators()?),
+                false => Err(e),
+            };
+        }
         let sim = self.built();
         let contact = sim.plant().event_indicators(&sim.state);
         let friction = match &sim.friction {
@@ -248,6 +276,10 @@ impl Instance {
 
     pub(crate) fn get_nominals_body(&mut self, out: &mut [f64]) -> Result<Status, FmuError> {
         let n = self.continuous_state_count();
+        if self.model.is_geared() {
+            let nominals = self.gear_nominals()?;
+            return Self::fill(out, "nominals of the continuous states", &nominals);
+        }
         let nominals = self.physics()?.plant().state_nominals();
         Self::fill(out, "nominals of the continuous states", &nominals[..n])
     }
@@ -280,6 +312,9 @@ impl Instance {
             dv_unknown.len(),
             unknowns.len(),
         )?;
+        if self.model.is_geared() {
+            return self.gear_directional_derivative(unknowns, knowns, dv_known, dv_unknown);
+        }
         // The seed as a change of z and of the input lines.
         let mut dz = [0.0; MAX_STATES];
         let mut dinput = [0.0; MAX_INPUTS];
@@ -299,6 +334,7 @@ impl Instance {
                 | Source::Calculated(_)
                 | Source::Derivative(_)
                 | Source::Contact
+                | Source::StageContact(_)
                 | Source::Sliding(_)
                 | Source::Sampled
                 | Source::Command => {
@@ -407,11 +443,30 @@ impl Unknown {
                 | Calculated::StopL
                 | Calculated::BreakawayL => quantity.indicator().map(Unknown::Indicator),
                 Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
-                Calculated::BoundSup | Calculated::BoundTSup => None,
+                // A gearbox's (`super::gearbox`), none a single gap's.
+                Calculated::BoundSup
+                | Calculated::BoundTSup
+                | Calculated::Psi1
+                | Calculated::Psi2
+                | Calculated::UMinusG1
+                | Calculated::UPlusG1
+                | Calculated::ForceUpper1
+                | Calculated::ForceLower1
+                | Calculated::CapUpper1
+                | Calculated::CapLower1
+                | Calculated::UMinusG2
+                | Calculated::UPlusG2
+                | Calculated::ForceUpper2
+                | Calculated::ForceLower2
+                | Calculated::CapUpper2
+                | Calculated::CapLower2
+                | Calculated::StopI
+                | Calculated::BreakawayI => None,
             },
             Source::Input(_)
             | Source::Parameter
             | Source::Contact
+            | Source::StageContact(_)
             | Source::Sliding(_)
             | Source::Sampled
             | Source::Command => None,

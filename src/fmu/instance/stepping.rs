@@ -51,6 +51,7 @@ impl Instance {
         let sim = match self.life.running() {
             Ok(sim) => sim,
             Err(_) if self.model.is_controller() => return self.sample_step(communication_point, h),
+            Err(_) if self.model.is_geared() => return self.geared_step_body(communication_point, h, early_return),
             Err(e) => return Err(e),
         };
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
@@ -85,6 +86,46 @@ impl Instance {
         // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
         self.time = end;
         Ok(false)
+    }
+
+    /// `step_body` of a gearbox (`super::gearbox`): the same argument checks, the chain's step,
+    /// the input lines and the time moved as there.
+    #[cold]
+    #[inline(never)]
+    fn geared_step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
+        let end = communication_point + h;
+        let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
+        let max_step = self.max_step();
+        let lines = adapter::input_values(&self.values);
+        let lines_end: [f64; MAX_INPUTS] = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
+        let accepted = finite(communication_point)
+            & (h > 0.0)
+            & (h <= max_step)
+            & at_time
+            & (end > communication_point)
+            & (end <= limit)
+            & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
+        if !accepted {
+            return Err(self.step_refusal(communication_point, h, &lines_end));
+        }
+        if let Some(offset) = self.gear_step(communication_point, h, early_return)? {
+            let at_switch = std::array::from_fn(|i| lines[i] + offset * self.input_slopes[i]);
+            adapter::store_inputs(&mut self.values, &at_switch);
+            self.time = communication_point + offset;
+            return Ok(true);
+        }
+        adapter::store_inputs(&mut self.values, &lines_end);
+        self.time = end;
+        Ok(false)
+    }
+
+    /// The longest step the physics accepts (NaN before there is any).
+    fn max_step(&self) -> f64 {
+        match (self.life.sim(), self.life.geared()) {
+            (Some(sim), _) => sim.max_step,
+            (None, Some(g)) => g.max_step,
+            (None, None) => f64::NAN,
+        }
     }
 
     /// Where steps must end: the stop time (to [`TIME_TOLERANCE`]), or anywhere finite, so that
@@ -146,7 +187,7 @@ impl Instance {
                 lines_end[i]
             ));
         }
-        let max_step = self.life.sim().map_or(f64::NAN, |sim| sim.max_step);
+        let max_step = self.max_step();
         bad(format!(
             "communicationStepSize {h} exceeds {max_step:e} s ({MAX_PERIODS_PER_STEP:e} periods of the contact \
              oscillation); split it into smaller steps"
@@ -308,7 +349,7 @@ impl Instance {
 /// Whether the switch a step stopped at (its offset in `stopped`) does not move time: on the
 /// step's start, or at its end to round-off. That is no reason to return early; the whole step
 /// is taken instead.
-fn without_progress(communication_point: f64, h: f64, stopped: Option<f64>) -> bool {
+pub(super) fn without_progress(communication_point: f64, h: f64, stopped: Option<f64>) -> bool {
     stopped.is_some_and(|offset| {
         let t = communication_point + offset;
         t <= communication_point || t >= communication_point + h

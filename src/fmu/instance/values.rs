@@ -73,6 +73,8 @@ impl Instance {
                 "{} is a controller: it has no plant",
                 self.model.identifier
             ))),
+            Lifecycle::Geared { .. } => Err(self.no_single_gap()),
+            Lifecycle::Setup { .. } if self.model.is_geared() => Err(self.no_single_gap()),
             Lifecycle::Setup { preview, .. } => {
                 if preview.is_none() {
                     *preview = Some(Simulation::build(self.model, &self.values)?);
@@ -82,12 +84,18 @@ impl Instance {
         }
     }
 
+    /// The refusal of a single gap's physics to a gearbox, whose own is `gearbox`.
+    #[cold]
+    fn no_single_gap(&self) -> FmuError {
+        FmuError::InvalidArgument(format!("{} is a gearbox: it has no single gap", self.model.identifier))
+    }
+
     /// The physics [`Instance::physics`] has built (after a successful call of it).
     pub(super) fn built(&self) -> &Simulation {
         match &self.life {
             Lifecycle::Running { sim, .. } => sim,
             Lifecycle::Setup { preview: Some(sim), .. } => sim,
-            Lifecycle::Setup { preview: None, .. } | Lifecycle::Sampling { .. } => {
+            Lifecycle::Setup { preview: None, .. } | Lifecycle::Sampling { .. } | Lifecycle::Geared { .. } => {
                 unreachable!("Instance::physics builds the simulation or refuses")
             }
         }
@@ -124,8 +132,10 @@ impl Instance {
             },
             Source::State(entry) => match self.life.sim() {
                 Some(sim) => entry.of(&sim.state),
+                None if self.model.is_geared() => self.gear_real(v)?,
                 None => self.values[v.symbol.index()],
             },
+            Source::Calculated(_) | Source::Derivative(_) if self.model.is_geared() => self.gear_real(v)?,
             Source::Calculated(quantity) => {
                 if matches!(
                     quantity,
@@ -137,7 +147,7 @@ impl Instance {
                 quantity.of(self.built(), &self.values, &self.input_slopes)
             }
             Source::Derivative(entry) => self.rates()?[entry.index()],
-            Source::Contact | Source::Sliding(_) => return Err(Self::wrong_type(v, "Real")),
+            Source::Contact | Source::StageContact(_) | Source::Sliding(_) => return Err(Self::wrong_type(v, "Real")),
         })
     }
 
@@ -171,7 +181,10 @@ impl Instance {
             let x = self.real_value(v)?;
             // The suprema are +∞ by definition when the loop is unstable (docs/model.md §4), and
             // every bound with Coulomb friction (§12); nothing else may leave the FMU as ∞ or NaN.
-            let unbounded = |s: &mut Self| s.physics().is_ok_and(|sim| !sim.bounded());
+            let unbounded = |s: &mut Self| match s.model.is_geared() {
+                true => s.gear_unbounded(),
+                false => s.physics().is_ok_and(|sim| !sim.bounded()),
+            };
             let supremum = match v.symbol.source() {
                 Source::Calculated(Calculated::BoundSup | Calculated::BoundTSup) => true,
                 Source::Calculated(Calculated::Bound | Calculated::BoundT) => x == f64::INFINITY && unbounded(self),
@@ -196,6 +209,8 @@ impl Instance {
                     let sim = self.physics()?;
                     contact_indicator(&sim.state, sim.plant())
                 }
+                Source::StageContact(_) => self.gear_integer(v.symbol.source())?,
+                Source::Sliding(_) if self.model.is_geared() => self.gear_integer(v.symbol.source())?,
                 Source::Sliding(j) => self.physics()?.sliding(j),
                 Source::Parameter => self.values[v.symbol.index()] as i32,
                 _ => return Err(Self::wrong_type(v, "Integer")),
@@ -335,8 +350,10 @@ impl Instance {
             }
             return Ok(Status::Ok);
         }
-        // The plant's state with the states set here, once one is (after initialization).
+        // The plant's state with the states set here, once one is (after initialization); a
+        // gearbox's states set, by entry.
         let mut z: Option<adapter::StateVector> = None;
+        let mut gear_states = Vec::new();
         // All or nothing: every element is checked before any is stored.
         for (vr, value) in vrs.iter().zip(values) {
             if self.is_time(*vr) && ty == VarType::Real {
@@ -358,6 +375,13 @@ impl Instance {
             if let (Source::State(entry), Some(sim)) = (v.symbol.source(), self.life.sim()) {
                 z.get_or_insert_with(|| adapter::entries_of(&sim.state))[entry.index()] = *value;
             }
+            if let (Source::State(entry), Some(_)) = (v.symbol.source(), self.life.geared()) {
+                gear_states.push((entry, *value));
+            }
+        }
+        if !gear_states.is_empty() {
+            // Checked and made the gearbox's before any value is stored: a refusal changes nothing.
+            self.gear_set_states(&gear_states)?;
         }
         let state = match (self.life.sim(), z) {
             (Some(sim), Some(z)) => {
@@ -370,7 +394,8 @@ impl Instance {
         for (vr, value) in vrs.iter().zip(values) {
             let v = self.typed_variable(*vr, ty)?;
             // After initialization a state's slot keeps its start value; the plant holds the state.
-            if !(self.life.sim().is_some() && matches!(v.symbol.source(), Source::State(_))) {
+            let physics = self.life.sim().is_some() || self.life.geared().is_some();
+            if !(physics && matches!(v.symbol.source(), Source::State(_))) {
                 self.values[v.symbol.index()] = *value;
             }
         }
@@ -384,8 +409,11 @@ impl Instance {
                     sim.set_state(state, &inputs)
                 }
             },
-            (Lifecycle::Running { .. }, None) | (Lifecycle::Sampling { .. }, _) => {}
-            (Lifecycle::Setup { preview, .. }, _) => *preview = None,
+            (Lifecycle::Running { .. }, None) | (Lifecycle::Sampling { .. }, _) | (Lifecycle::Geared { .. }, _) => {}
+            (Lifecycle::Setup { preview, geared, .. }, _) => {
+                *preview = None;
+                *geared = None;
+            }
         }
         Ok(Status::Ok)
     }
@@ -453,6 +481,9 @@ impl Instance {
         if bounds {
             self.bound_to_time()?;
         }
+        if self.model.is_geared() {
+            return self.gear_output_derivatives(vrs, orders, out);
+        }
         // Before initialization has ended (state Error entered then) there is nothing to derive;
         // the bounds above are brought to time only when there is a simulation.
         let sim = self
@@ -483,6 +514,7 @@ impl Instance {
                 Source::Input(_)
                 | Source::Parameter
                 | Source::Contact
+                | Source::StageContact(_)
                 | Source::Sliding(_)
                 | Source::Derivative(_)
                 | Source::Sampled

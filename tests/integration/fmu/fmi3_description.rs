@@ -376,20 +376,27 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
             assert_eq!(deps.as_ref(), Some(&expected), "{id} {name}");
         }
 
-        // Derivatives 24..27 (and 33 of T on the web line), in the order of their states, with
-        // the FMI 2.0 dependencies.
-        let web = id == "BacklashWeb";
+        // The derivatives (24..27, and 33 of T on the web line; a gearbox's 38..43), in the order
+        // of their states, with the FMI 2.0 dependencies.
         let found = unknowns(&d, "ContinuousStateDerivative");
-        let derivatives = [24, 25, 26, 27, 33];
-        let state_names = ["theta_m", "omega_m", "theta_L", "omega_L", "T"];
-        let n = if web { 5 } else { 4 };
-        assert_eq!(found.iter().map(|u| u.0).collect::<Vec<_>>(), derivatives[..n], "{id}");
+        let (derivatives, state_names): (&[u32], &[&str]) = match id {
+            "BacklashWeb" => (
+                &[24, 25, 26, 27, 33],
+                &["theta_m", "omega_m", "theta_L", "omega_L", "T"],
+            ),
+            "BacklashTwoStage" => (
+                &[38, 39, 40, 41, 42, 43],
+                &["theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L"],
+            ),
+            _ => (&[24, 25, 26, 27], &["theta_m", "omega_m", "theta_L", "omega_L"]),
+        };
+        assert_eq!(found.iter().map(|u| u.0).collect::<Vec<_>>(), derivatives, "{id}");
         assert_eq!(found, fmi2["Derivatives"], "{id}");
         let states: Vec<u32> = found
             .iter()
             .map(|(vr, _)| model.by_vr(*vr).unwrap().derivative_of.unwrap())
             .collect();
-        let expected_states: Vec<u32> = state_names[..n].iter().map(|n| model.vr(n)).collect();
+        let expected_states: Vec<u32> = state_names.iter().map(|n| model.vr(n)).collect();
         assert_eq!(states, expected_states, "{id}");
 
         // Initial unknowns: FMI 2.0's, without the event indicators (FMI 3.0 §2.4.8).
@@ -413,6 +420,53 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
         // friction's (docs/model.md §12): a body's speed, and the torque on it at rest, from
         // every state and the body's own input.
         let found = unknowns(&d, "EventIndicator");
+        if model.is_geared() {
+            // Each stage's surfaces on its two bodies' angles (u_j ∓ g_j) or angles and speeds,
+            // then each body's friction surfaces as above (the intermediate shaft has no input).
+            let bodies = |names: &[&str]| {
+                let mut vrs: Vec<u32> = names.iter().map(|n| model.vr(n)).collect();
+                vrs.sort_unstable();
+                Some(vrs)
+            };
+            let states = ["theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L"];
+            let with = |input: Option<&str>| bodies(&states.iter().copied().chain(input).collect::<Vec<_>>());
+            let mut expected = Vec::new();
+            for (angles, all) in [
+                (["theta_m", "theta_i"], ["theta_m", "omega_m", "theta_i", "omega_i"]),
+                (["theta_i", "theta_L"], ["theta_i", "omega_i", "theta_L", "omega_L"]),
+            ] {
+                expected.extend([bodies(&angles), bodies(&angles)]);
+                expected.extend([bodies(&all), bodies(&all), bodies(&all), bodies(&all)]);
+            }
+            for (body, input) in [("m", Some("tau_m")), ("i", None), ("L", Some("tau_L"))] {
+                expected.extend([bodies(&[&format!("omega_{body}")]), with(input)]);
+            }
+            let deps: Vec<Option<Vec<u32>>> = found.iter().map(|(_, d)| d.clone()).collect();
+            assert_eq!(deps, expected, "{id}");
+            let vrs: Vec<u32> = found.iter().map(|(vr, _)| *vr).collect();
+            assert_eq!(vrs, (47..=64).collect::<Vec<u32>>(), "{id}");
+        } else {
+            single_gap_indicators(model, &found);
+        }
+
+        // Every value reference the structure names is a variable of the description.
+        let known: Vec<u32> = std::iter::once(0).chain(model.variables.iter().map(|v| v.vr)).collect();
+        for n in &d.structure {
+            for vr in numbers(n.attribute("valueReference").unwrap())
+                .into_iter()
+                .chain(n.attribute("dependencies").map(numbers).unwrap_or_default())
+            {
+                assert!(known.contains(&vr), "{id}: {vr} in <{}>", n.tag_name().name());
+            }
+        }
+        assert!(d.root.attribute("fmiVersion") == Some("3.0"));
+    });
+}
+
+/// A single gap's event indicators (value reference, dependencies) against the equations.
+fn single_gap_indicators(model: &ModelInfo, found: &[(u32, Option<Vec<u32>>)]) {
+    let id = model.identifier;
+    {
         let angles = vec![model.vr("theta_m"), model.vr("theta_L")];
         let all: Vec<u32> = (3..=6).collect();
         let at_rest = |input: &str| {
@@ -454,17 +508,5 @@ fn model_structure_has_the_fmi2_dependencies_by_value_reference() {
         for ((vr, _), name) in found.iter().zip(names) {
             assert_eq!(model.by_vr(*vr).unwrap().name, name);
         }
-
-        // Every value reference the structure names is a variable of the description.
-        let known: Vec<u32> = std::iter::once(0).chain(model.variables.iter().map(|v| v.vr)).collect();
-        for n in &d.structure {
-            for vr in numbers(n.attribute("valueReference").unwrap())
-                .into_iter()
-                .chain(n.attribute("dependencies").map(numbers).unwrap_or_default())
-            {
-                assert!(known.contains(&vr), "{id}: {vr} in <{}>", n.tag_name().name());
-            }
-        }
-        assert!(d.root.attribute("fmiVersion") == Some("3.0"));
-    });
+    }
 }

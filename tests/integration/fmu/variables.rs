@@ -94,8 +94,9 @@ fn xml_and_rust_table_describe_the_same_variables() {
             .map(|c| c.attribute("name").unwrap())
             .collect();
         display_units.sort_unstable();
-        // Shaft angles have no length: no mm.
-        let expected: &[&str] = if *id != "BacklashShaft" {
+        // Shaft angles have no length: no mm where no variable is in m.
+        let lengths = model_by_identifier(id).unwrap().variables.iter().any(|v| v.unit == "m");
+        let expected: &[&str] = if lengths {
             &["deg", "mm", "rpm"]
         } else {
             &["deg", "rpm"]
@@ -114,7 +115,9 @@ fn states_derivatives_and_nominals_agree_with_the_running_fmu() {
         let text = xml::model_description(id);
         let doc = roxmltree::Document::parse(&text).unwrap();
         let root = doc.root_element();
-        assert_eq!(root.attribute("numberOfEventIndicators"), Some("10"), "{id}");
+        let model = model_by_identifier(id).unwrap();
+        let indicators = if model.is_geared() { "18" } else { "10" };
+        assert_eq!(root.attribute("numberOfEventIndicators"), Some(indicators), "{id}");
         let reals: Vec<_> = doc.descendants().filter(|n| n.has_tag_name("ScalarVariable")).collect();
         let name_at = |index: &str| reals[index.parse::<usize>().unwrap() - 1].attribute("name").unwrap();
         let derivatives: Vec<_> = doc
@@ -125,9 +128,19 @@ fn states_derivatives_and_nominals_agree_with_the_running_fmu() {
             .filter(|n| n.has_tag_name("Unknown"))
             .map(|n| name_at(n.attribute("index").unwrap()))
             .collect();
-        let web = *id == "BacklashWeb";
-        let expected = ["der(theta_m)", "der(omega_m)", "der(theta_L)", "der(omega_L)", "der(T)"];
-        assert_eq!(derivatives, expected[..if web { 5 } else { 4 }], "{id}");
+        let expected: &[&str] = match *id {
+            "BacklashWeb" => &["der(theta_m)", "der(omega_m)", "der(theta_L)", "der(omega_L)", "der(T)"],
+            "BacklashTwoStage" => &[
+                "der(theta_m)",
+                "der(omega_m)",
+                "der(theta_i)",
+                "der(omega_i)",
+                "der(theta_L)",
+                "der(omega_L)",
+            ],
+            _ => &["der(theta_m)", "der(omega_m)", "der(theta_L)", "der(omega_L)"],
+        };
+        assert_eq!(derivatives, expected, "{id}");
         let mut nominals = Vec::new();
         for der in &derivatives {
             let var = reals.iter().find(|v| v.attribute("name") == Some(der)).unwrap();
@@ -141,7 +154,6 @@ fn states_derivatives_and_nominals_agree_with_the_running_fmu() {
                 .unwrap();
             nominals.push(state_real.attribute("nominal").unwrap().parse::<f64>().unwrap());
         }
-        let model = model_by_identifier(id).unwrap();
         let mut inst = Instance::new_for(model, Interface::ModelExchange, None, false);
         let mut reported = vec![0.0; derivatives.len()];
         inst.get_nominals_of_continuous_states(&mut reported).unwrap();
@@ -354,24 +366,34 @@ fn derivative_dependencies_are_the_jacobians_sparsity() {
         let mut found: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
         for u_over_g in [-3.0, 0.3, 2.5] {
             let mut inst = Instance::new_for(model, Interface::ModelExchange, None, false);
-            let damping = match model.by_name("d") {
-                Some(d) => (d.vr, 0.05),
-                None => (model.vr("D_b"), 100.0),
+            let dampers: &[(&str, f64)] = match (model.by_name("d"), model.is_geared()) {
+                (_, true) => &[("d_1", 0.05), ("d_2", 0.05)],
+                (Some(_), false) => &[("d", 0.05)],
+                (None, false) => &[("D_b", 100.0)],
             };
-            inst.set_real(&[damping.0], &[damping.1]).unwrap();
+            for (name, d) in dampers {
+                inst.set_real(&[model.vr(name)], &[*d]).unwrap();
+            }
             inst.setup_experiment(None, 0.0, None).unwrap();
             inst.enter_initialization_mode().unwrap();
             inst.exit_initialization_mode().unwrap();
             inst.enter_continuous_time_mode().unwrap();
-            // u = r_m θ_m with θ_L = 0: r_m and g from the event indicators' values and slope.
-            let [minus, plus] = [model.vr("u_minus_g"), model.vr("u_plus_g")];
+            // u = r_m θ_m with θ_L = 0: r_m and g from the event indicators' values and slope (a
+            // gearbox's first stage; its second at the same u/g, its ratios and gaps those of
+            // its defaults, 1 and equal).
+            let stage = if model.is_geared() { "_1" } else { "" };
+            let [minus, plus] = [format!("u_minus_g{stage}"), format!("u_plus_g{stage}")].map(|n| model.vr(&n));
             let mut z = [0.0; 2];
             inst.get_real(&[minus, plus], &mut z).unwrap();
             let g = (z[1] - z[0]) / 2.0;
             let mut r_m = [0.0];
             inst.get_directional_derivative(&[minus], &[model.vr("theta_m")], &[1.0], &mut r_m)
                 .unwrap();
-            let mut x: Vec<f64> = vec![u_over_g * g / r_m[0], 0.7, 0.0, -0.4, 3.0];
+            let u = u_over_g * g / r_m[0];
+            let mut x: Vec<f64> = match model.is_geared() {
+                true => vec![2.0 * u, 0.7, u, 0.2, 0.0, -0.4],
+                false => vec![u, 0.7, 0.0, -0.4, 3.0],
+            };
             x.truncate(states.len());
             inst.set_continuous_states(&x).unwrap();
             for der in declared.keys() {

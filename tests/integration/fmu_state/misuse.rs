@@ -217,18 +217,46 @@ fn invalid_fields_are_refused(model: usize) {
         }
     }
     edit(values, &f64::NEG_INFINITY.to_le_bytes(), "not finite");
-    for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt", "V"]
-        .iter()
-        .enumerate()
-    {
-        edit(plant + 8 * i, &f64::NAN.to_le_bytes(), &format!("{name} = NaN"));
+    if m.is_geared() {
+        // A gearbox's chain words: z, each stage's u, u', V and mode code, each body's mode.
+        for (i, name) in backlash_fmu::fmu::geared::Geared::WORD_NAMES.iter().enumerate() {
+            edit(plant + 8 * i, &f64::NAN.to_le_bytes(), &format!("{name} = NaN"));
+        }
+        edit(plant + 8 * 8, &(-1.0f64).to_le_bytes(), "V_1 = -1 must be >= 0");
+        edit(
+            plant + 8 * 9,
+            &4.0f64.to_le_bytes(),
+            "unknown contact mode 4 of stage 1",
+        );
+        edit(
+            plant + 8 * 13,
+            &0.5f64.to_le_bytes(),
+            "unknown contact mode 0.5 of stage 2",
+        );
+        edit(
+            plant + 8 * 14,
+            &2.0f64.to_le_bytes(),
+            "unknown friction mode 2 of the motor",
+        );
+        edit(
+            plant + 8 * 16,
+            &(-0.5f64).to_le_bytes(),
+            "unknown friction mode -0.5 of the load",
+        );
+    } else {
+        for (i, name) in ["theta_m", "omega_m", "theta_L", "omega_L", "T", "u", "du/dt", "V"]
+            .iter()
+            .enumerate()
+        {
+            edit(plant + 8 * i, &f64::NAN.to_le_bytes(), &format!("{name} = NaN"));
+        }
+        edit(plant + 8 * 7, &(-1.0f64).to_le_bytes(), "V = -1 must be >= 0");
+        let mode = mode_offset(&bytes);
+        edit(mode, &[4], "unknown contact mode 4");
+        edit(mode, &[0x80], "unknown contact mode");
+        edit(mode + 1, &[2], "unknown friction mode 2 of the motor");
+        edit(mode + 2, &[0x80], "unknown friction mode -128 of the load");
     }
-    edit(plant + 8 * 7, &(-1.0f64).to_le_bytes(), "V = -1 must be >= 0");
-    let mode = mode_offset(&bytes);
-    edit(mode, &[4], "unknown contact mode 4");
-    edit(mode, &[0x80], "unknown contact mode");
-    edit(mode + 1, &[2], "unknown friction mode 2 of the motor");
-    edit(mode + 2, &[0x80], "unknown friction mode -128 of the load");
     // The first and the last word of the bound part.
     let bound = bound_offset(&bytes);
     edit(bound, &f64::NAN.to_le_bytes(), "a bound's state");

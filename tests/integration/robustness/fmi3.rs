@@ -17,7 +17,7 @@
 //! eventModeUsed = true) are checked with their reasons. The fuzz draws plants only (the FMI 2.0
 //! fuzz draws the controller).
 
-use crate::robustness_common::{admissible, model_at, nx, CONTROLLER, NI};
+use crate::robustness_common::{admissible, model_at, ni, nx, CONTROLLER};
 use backlash_fmu::ffi::fmi3::*;
 use backlash_fmu::fmu::variables::VarType;
 use backlash_fmu::fmu::MODELS;
@@ -98,11 +98,14 @@ impl Inst {
         self.log.lock().unwrap()[n..].to_vec()
     }
     fn vr(&self, name: &str) -> u32 {
-        model_at(self.model).vr(name)
+        crate::robustness_common::named(model_at(self.model), name)
     }
     /// Number of continuous states of its model.
     fn nx(&self) -> usize {
         nx(self.model)
+    }
+    fn ni(&self) -> usize {
+        ni(self.model)
     }
     /// `plant` on a plant, `controller` on the controller: a variable of the same kind in each.
     fn named(&self, plant: &'static str, controller: &'static str) -> &'static str {
@@ -230,7 +233,7 @@ fn table() -> Vec<(&'static str, Call, Option<[bool; 6]>, Option<[bool; 6]>)> {
             }, None, only(3)),
             ("fmi3GetContinuousStateDerivatives", |f| fmi3GetContinuousStateDerivatives(f.c, vec![0.0; f.nx()].as_mut_ptr(), f.nx()),
                 None, Some([false, true, true, true, true, true])),
-            ("fmi3GetEventIndicators", |f| fmi3GetEventIndicators(f.c, [0.0; NI].as_mut_ptr(), NI),
+            ("fmi3GetEventIndicators", |f| fmi3GetEventIndicators(f.c, vec![0.0; f.ni()].as_mut_ptr(), f.ni()),
                 None, Some([false, true, true, true, true, true])),
             ("fmi3CompletedIntegratorStep", |f| fmi3CompletedIntegratorStep(f.c, true, &mut false, &mut false), None, only(3)),
             ("fmi3Terminate", |f| fmi3Terminate(f.c), Some([false, false, true, true, false, false]), Some([false, false, true, true, false, false])),
@@ -806,14 +809,14 @@ impl Fuzz {
         };
         let x = if careful { r.below(11) as f64 - 5.0 } else { r.real() };
         let n_x = r.length(nx);
-        let n_i = r.length(NI);
+        let n_i = r.length(ni(model));
         let mut buf = vec![x; 1001];
         let mut vrs: Vec<u32> = MODELS[model].variables.iter().map(|v| v.vr).collect();
         vrs.push(9999);
         let pick = |r: &mut Prng| vrs[r.below(vrs.len() as u64) as usize];
         let vr1 = [pick(&mut self.rng), pick(&mut self.rng)];
         let n_vr = self.rng.length(1);
-        let (n_x, n_i, n_vr) = if careful { (nx, NI, 1) } else { (n_x, n_i, n_vr) };
+        let (n_x, n_i, n_vr) = if careful { (nx, ni(model), 1) } else { (n_x, n_i, n_vr) };
         let bp = if careful { buf.as_mut_ptr() } else { self.ptr(&mut buf) };
         let vp = if !careful && self.rng.chance(5) {
             null()

@@ -580,12 +580,18 @@ fn me_table() -> Vec<MeCase> {
                 assert_eq!(s, OK);
                 assert_eq!(bits(&dx), bits(&read_by_name(f, |state| format!("der({state})"))));
             })),
-            case("fmi2GetEventIndicators", |f| fmi2GetEventIndicators(f.c, [0.0; NI].as_mut_ptr(), NI), READ, OK, Some(|f, _| {
-                // [u - g, u + g] with u = r_m theta_m - r_L theta_L, and g > 0.
+            case("fmi2GetEventIndicators", |f| fmi2GetEventIndicators(f.c, vec![0.0; f.ni()].as_mut_ptr(), f.ni()), READ, OK, Some(|f, _| {
+                // [u - g, u + g] with u = r_m theta_m - r_L theta_L, and g > 0 (a gearbox's first
+                // stage: u_1 = theta_m - n_1 theta_i).
                 let (s, z) = f.event_indicators();
                 assert_eq!(s, OK);
-                let (r_m, r_l) = transmission(f.model, |name| f.get_value(name).1);
-                let u = r_m * f.get_real("theta_m").1 - r_l * f.get_real("theta_L").1;
+                let u = match f.model.is_geared() {
+                    true => f.get_real("theta_m").1 - f.get_value("n_1").1 * f.get_real("theta_i").1,
+                    false => {
+                        let (r_m, r_l) = transmission(f.model, |name| f.get_value(name).1);
+                        r_m * f.get_real("theta_m").1 - r_l * f.get_real("theta_L").1
+                    }
+                };
                 assert!(z[0] < z[1], "{z:?}");
                 assert!(((z[0] + z[1]) / 2.0 - u).abs() <= 1e-15, "{z:?}, u = {u}");
             })),

@@ -185,7 +185,7 @@ fn me_scenario(i: usize, start: Option<&Barrier>) -> Vec<u64> {
         }
         let (s, z) = f.event_indicators();
         assert_eq!(s, OK);
-        trace.extend(z.map(f64::to_bits));
+        trace.extend(z.into_iter().map(f64::to_bits));
     };
     for round in 0..2 {
         assert_eq!(fmi2EnterInitializationMode(f.c), OK);

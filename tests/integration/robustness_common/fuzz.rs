@@ -750,7 +750,7 @@ impl<S: Source> Driver<S> {
                 }
                 GET_CONTINUOUS_STATES | GET_DERIVATIVES | GET_EVENT_INDICATORS | GET_NOMINALS => {
                     let expected = if op == GET_EVENT_INDICATORS {
-                        NI
+                        self.slots[i].f.ni()
                     } else {
                         self.slots[i].x.len()
                     };
@@ -773,7 +773,8 @@ impl<S: Source> Driver<S> {
                         match op {
                             GET_CONTINUOUS_STATES => self.slots[i].x = out,
                             GET_DERIVATIVES => self.slots[i].dx = out,
-                            // [u − g, u + g] with g ≥ 0: ordered after rounding too (monotonic).
+                            // [u − g, u + g] with g ≥ 0 (each stage's, first): ordered after
+                            // rounding too (monotonic).
                             GET_EVENT_INDICATORS => assert!(out[0] <= out[1], "indicators {out:?}"),
                             _ => assert!(out.iter().all(|x| *x > 0.0), "nominals {out:?}"),
                         }
