@@ -64,6 +64,31 @@ const fn var(
     }
 }
 
+/// A Real output computed from the state (ψ, the bounds).
+fn calculated_output(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Causality::Output,
+        Variability::Continuous,
+        Initial::Calculated,
+        None,
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
 fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
     quantity_input(name, symbol, vr, "N.m", "Torque", description)
 }
@@ -485,37 +510,25 @@ fn common_head(transmission: &Transmission) -> Vec<Var> {
         state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
         state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
         state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
-        var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
+        calculated_output("psi", "Psi", 7, psi_unit, psi_quantity, psi_text),
         sign_output(
             "contact",
             "Contact",
             8,
             "Contact at the communication point, the sign of psi: +1 positive flank, 0 free (inside the gap, or the damped force would pull), -1 negative flank",
         ),
-        var(
+        calculated_output(
             "bound",
             "Bound",
             9,
-            Type::Real,
-            Output,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             "rad/s",
             "AngularVelocity",
             "Rigorous bound on |omega_L with backlash - omega_L without backlash| since the start time: K*g*integral of |h|",
         ),
-        var(
+        calculated_output(
             "bound_paper",
             "BoundPaper",
             10,
-            Type::Real,
-            Output,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             "rad/s",
             "AngularVelocity",
             "Paper eq. (37)/(41) as printed: K*g*norm of the integral of exp(A s)*D_1; reproduction only, not a guarantee",

@@ -11,10 +11,10 @@ use backlash_physics::chain::{Body, Coulomb, Stage};
 use backlash_physics::{ChainParams, Damping};
 
 use super::{
-    contact_law, continuous_local, input, parameter, sign_output, state_derivative, state_output, var,
-    with_state_nominals,
+    calculated_output, contact_law, continuous_local, input, parameter, shaft, sign_output, state_derivative,
+    state_output, var, with_state_nominals,
 };
-use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWave, Type, Var, Variability};
+use crate::{Causality, Initial, Kind, Model, Range, Type, Var, Variability};
 
 /// The chain of the parameters `at` reads (docs/model.md §10): stage j joins body j − 1 to
 /// body j with a = 1, c = n_j, K = k_j, g = Delta_j and its damper d_j under `contact_law`;
@@ -49,31 +49,6 @@ pub(super) fn chain_params(at: &dyn Fn(&str) -> f64) -> ChainParams<2> {
 
 /// The bodies, by the letter their names carry, and their words.
 const BODIES: [(&str, &str); 3] = [("m", "motor"), ("i", "intermediate shaft"), ("L", "load")];
-
-/// A Real output computed from the state.
-fn calculated_output(
-    name: &'static str,
-    symbol: &'static str,
-    vr: u32,
-    unit: &'static str,
-    quantity: &'static str,
-    description: &'static str,
-) -> Var {
-    var(
-        name,
-        symbol,
-        vr,
-        Type::Real,
-        Causality::Output,
-        Variability::Continuous,
-        Initial::Calculated,
-        None,
-        Range::Finite,
-        unit,
-        quantity,
-        description,
-    )
-}
 
 /// The description, built once per process (its generated names are kept for the process's life).
 pub(super) fn model() -> Model {
@@ -291,17 +266,10 @@ fn describe() -> Model {
         identifier: "BacklashTwoStage",
         kind: Kind::TwoStage(chain_params),
         description: "Two gear meshes in series, each a compliant member and a backlash, with an intermediate shaft between them; exact stepping with the switches of both meshes located; defaults are the paper's rig with its compliance and gap split over the two meshes",
-        default_experiment: DefaultExperiment {
-            start_time: 0.0,
-            stop_time: 10.0,
-            step_size: 1e-2,
-        },
-        // As the shaft's: the motor torque reverses every second, so both meshes cross their
-        // gaps again and again; a load torque from t = 5 s.
-        reference_inputs: &[
-            SquareWave { input: "tau_m", level: 0.0, amplitude: 3.0, half_period: 100 },
-            SquareWave { input: "tau_L", level: -0.25, amplitude: 0.25, half_period: 500 },
-        ],
+        // The shaft's: the motor torque reverses every second, so both meshes cross their gaps
+        // again and again; a load torque from t = 5 s.
+        default_experiment: shaft::EXPERIMENT,
+        reference_inputs: shaft::REFERENCE_INPUTS,
         variables: v,
     })
 }
