@@ -89,6 +89,31 @@ fn calculated_output(
     )
 }
 
+/// A bound's supremum over all times: a calculated parameter (`bound_sup`, `bound_T_sup`).
+fn supremum(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Causality::CalculatedParameter,
+        Variability::Fixed,
+        Initial::Calculated,
+        None,
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
 fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
     quantity_input(name, symbol, vr, "N.m", "Torque", description)
 }
@@ -496,7 +521,6 @@ fn state_derivatives(v: &[Var]) -> [Var; 4] {
 
 /// Inputs, the state outputs and the calculated outputs.
 fn common_head(transmission: &Transmission) -> Vec<Var> {
-    use Causality::*;
     let Transmission {
         psi_unit,
         psi_quantity,
@@ -533,16 +557,10 @@ fn common_head(transmission: &Transmission) -> Vec<Var> {
             "AngularVelocity",
             "Paper eq. (37)/(41) as printed: K*g*norm of the integral of exp(A s)*D_1; reproduction only, not a guarantee",
         ),
-        var(
+        supremum(
             "bound_sup",
             "BoundSup",
             11,
-            Type::Real,
-            CalculatedParameter,
-            Variability::Fixed,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             "rad/s",
             "AngularVelocity",
             "Supremum of bound over all times: K*g*integral of |h| to infinity; +inf (with a warning) if the loop is not asymptotically stable",

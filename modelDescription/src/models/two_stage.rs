@@ -12,7 +12,7 @@ use backlash_physics::{ChainParams, Damping};
 
 use super::{
     calculated_output, contact_law, continuous_local, input, parameter, shaft, sign_output, state_derivative,
-    state_output, var, with_state_nominals,
+    state_output, supremum, var, with_state_nominals,
 };
 use crate::{Causality, Initial, Kind, Model, Range, Type, Var, Variability};
 
@@ -72,7 +72,7 @@ fn describe() -> Model {
         sign_output("contact_1", "Contact1", 11, "Contact of the first mesh at the communication point, the sign of psi_1: +1 positive flank, 0 free, -1 negative flank"),
         sign_output("contact_2", "Contact2", 12, "Contact of the second mesh at the communication point, the sign of psi_2: +1 positive flank, 0 free, -1 negative flank"),
         calculated_output("bound", "Bound", 13, "rad/s", "AngularVelocity", "Rigorous bound on |omega_L with backlash - omega_L without backlash| since the start time: sum over the meshes of k_j*Delta_j*integral of |h_j|"),
-        var("bound_sup", "BoundSup", 14, Type::Real, Causality::CalculatedParameter, Variability::Fixed, Initial::Calculated, None, Finite, "rad/s", "AngularVelocity", "Supremum of bound over all times; +inf (with a warning) if the loop is not asymptotically stable"),
+        supremum("bound_sup", "BoundSup", 14, "rad/s", "AngularVelocity", "Supremum of bound over all times; +inf (with a warning) if the loop is not asymptotically stable"),
     ];
     let mut vr = 15;
     let mut next = || {
