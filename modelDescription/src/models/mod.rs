@@ -519,6 +519,63 @@ fn state_derivatives(v: &[Var]) -> [Var; 4] {
     ]
 }
 
+/// The torque inputs `tau_m`, `tau_L` (value references 1, 2) and the motor's states
+/// `theta_m`, `omega_m` (3, 4): the first variables of every plant.
+fn inputs_and_motor() -> [Var; 4] {
+    [
+        input(
+            "tau_m",
+            "TauM",
+            1,
+            "Motor torque, held over each communication step, or along a line where input derivatives are set",
+        ),
+        input(
+            "tau_L",
+            "TauL",
+            2,
+            "Load torque, held over each communication step, or along a line where input derivatives are set",
+        ),
+        state_output(
+            "theta_m",
+            "ThetaM",
+            3,
+            "rad",
+            "Angle",
+            "Motor angle; its start value is the initial state",
+        ),
+        state_output(
+            "omega_m",
+            "OmegaM",
+            4,
+            "rad/s",
+            "AngularVelocity",
+            "Motor speed; its start value is the initial state",
+        ),
+    ]
+}
+
+/// The load's states `theta_L`, `omega_L`, value references `vr` and `vr + 1`.
+fn load_states(vr: u32) -> [Var; 2] {
+    [
+        state_output(
+            "theta_L",
+            "ThetaL",
+            vr,
+            "rad",
+            "Angle",
+            "Load angle; its start value is the initial state",
+        ),
+        state_output(
+            "omega_L",
+            "OmegaL",
+            vr + 1,
+            "rad/s",
+            "AngularVelocity",
+            "Load speed; its start value is the initial state",
+        ),
+    ]
+}
+
 /// Inputs, the state outputs and the calculated outputs.
 fn common_head(transmission: &Transmission) -> Vec<Var> {
     let Transmission {
@@ -527,13 +584,15 @@ fn common_head(transmission: &Transmission) -> Vec<Var> {
         psi_description: psi_text,
         ..
     } = *transmission;
+    let [tau_m, tau_l, theta_m, omega_m] = inputs_and_motor();
+    let [theta_l, omega_l] = load_states(5);
     vec![
-        input("tau_m", "TauM", 1, "Motor torque, held over each communication step, or along a line where input derivatives are set"),
-        input("tau_L", "TauL", 2, "Load torque, held over each communication step, or along a line where input derivatives are set"),
-        state_output("theta_m", "ThetaM", 3, "rad", "Angle", "Motor angle; its start value is the initial state"),
-        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
-        state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
-        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
+        tau_m,
+        tau_l,
+        theta_m,
+        omega_m,
+        theta_l,
+        omega_l,
         calculated_output("psi", "Psi", 7, psi_unit, psi_quantity, psi_text),
         sign_output(
             "contact",
