@@ -64,6 +64,56 @@ const fn var(
     }
 }
 
+/// A Real output computed from the state (ψ, the bounds).
+fn calculated_output(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Causality::Output,
+        Variability::Continuous,
+        Initial::Calculated,
+        None,
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
+/// A bound's supremum over all times: a calculated parameter (`bound_sup`, `bound_T_sup`).
+fn supremum(
+    name: &'static str,
+    symbol: &'static str,
+    vr: u32,
+    unit: &'static str,
+    quantity: &'static str,
+    description: &'static str,
+) -> Var {
+    var(
+        name,
+        symbol,
+        vr,
+        Type::Real,
+        Causality::CalculatedParameter,
+        Variability::Fixed,
+        Initial::Calculated,
+        None,
+        Range::Finite,
+        unit,
+        quantity,
+        description,
+    )
+}
+
 fn input(name: &'static str, symbol: &'static str, vr: u32, description: &'static str) -> Var {
     quantity_input(name, symbol, vr, "N.m", "Torque", description)
 }
@@ -469,67 +519,107 @@ fn state_derivatives(v: &[Var]) -> [Var; 4] {
     ]
 }
 
+/// The torque inputs `tau_m`, `tau_L` (value references 1, 2) and the motor's states
+/// `theta_m`, `omega_m` (3, 4): the first variables of every plant.
+fn inputs_and_motor() -> [Var; 4] {
+    [
+        input(
+            "tau_m",
+            "TauM",
+            1,
+            "Motor torque, held over each communication step, or along a line where input derivatives are set",
+        ),
+        input(
+            "tau_L",
+            "TauL",
+            2,
+            "Load torque, held over each communication step, or along a line where input derivatives are set",
+        ),
+        state_output(
+            "theta_m",
+            "ThetaM",
+            3,
+            "rad",
+            "Angle",
+            "Motor angle; its start value is the initial state",
+        ),
+        state_output(
+            "omega_m",
+            "OmegaM",
+            4,
+            "rad/s",
+            "AngularVelocity",
+            "Motor speed; its start value is the initial state",
+        ),
+    ]
+}
+
+/// The load's states `theta_L`, `omega_L`, value references `vr` and `vr + 1`.
+fn load_states(vr: u32) -> [Var; 2] {
+    [
+        state_output(
+            "theta_L",
+            "ThetaL",
+            vr,
+            "rad",
+            "Angle",
+            "Load angle; its start value is the initial state",
+        ),
+        state_output(
+            "omega_L",
+            "OmegaL",
+            vr + 1,
+            "rad/s",
+            "AngularVelocity",
+            "Load speed; its start value is the initial state",
+        ),
+    ]
+}
+
 /// Inputs, the state outputs and the calculated outputs.
 fn common_head(transmission: &Transmission) -> Vec<Var> {
-    use Causality::*;
     let Transmission {
         psi_unit,
         psi_quantity,
         psi_description: psi_text,
         ..
     } = *transmission;
+    let [tau_m, tau_l, theta_m, omega_m] = inputs_and_motor();
+    let [theta_l, omega_l] = load_states(5);
     vec![
-        input("tau_m", "TauM", 1, "Motor torque, held over each communication step, or along a line where input derivatives are set"),
-        input("tau_L", "TauL", 2, "Load torque, held over each communication step, or along a line where input derivatives are set"),
-        state_output("theta_m", "ThetaM", 3, "rad", "Angle", "Motor angle; its start value is the initial state"),
-        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
-        state_output("theta_L", "ThetaL", 5, "rad", "Angle", "Load angle; its start value is the initial state"),
-        state_output("omega_L", "OmegaL", 6, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
-        var("psi", "Psi", 7, Type::Real, Output, Variability::Continuous, Initial::Calculated, None, Range::Finite, psi_unit, psi_quantity, psi_text),
+        tau_m,
+        tau_l,
+        theta_m,
+        omega_m,
+        theta_l,
+        omega_l,
+        calculated_output("psi", "Psi", 7, psi_unit, psi_quantity, psi_text),
         sign_output(
             "contact",
             "Contact",
             8,
             "Contact at the communication point, the sign of psi: +1 positive flank, 0 free (inside the gap, or the damped force would pull), -1 negative flank",
         ),
-        var(
+        calculated_output(
             "bound",
             "Bound",
             9,
-            Type::Real,
-            Output,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             "rad/s",
             "AngularVelocity",
             "Rigorous bound on |omega_L with backlash - omega_L without backlash| since the start time: K*g*integral of |h|",
         ),
-        var(
+        calculated_output(
             "bound_paper",
             "BoundPaper",
             10,
-            Type::Real,
-            Output,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             "rad/s",
             "AngularVelocity",
             "Paper eq. (37)/(41) as printed: K*g*norm of the integral of exp(A s)*D_1; reproduction only, not a guarantee",
         ),
-        var(
+        supremum(
             "bound_sup",
             "BoundSup",
             11,
-            Type::Real,
-            CalculatedParameter,
-            Variability::Fixed,
-            Initial::Calculated,
-            None,
-            Range::Finite,
             "rad/s",
             "AngularVelocity",
             "Supremum of bound over all times: K*g*integral of |h| to infinity; +inf (with a warning) if the loop is not asymptotically stable",

@@ -38,6 +38,30 @@ const SHAFT: Transmission = Transmission {
     damping_description: "Shaft damping, in parallel with its stiffness k (>= 0; 0: no damper)",
 };
 
+/// The shaft's default experiment.
+pub(super) const EXPERIMENT: DefaultExperiment = DefaultExperiment {
+    start_time: 0.0,
+    stop_time: 10.0,
+    step_size: 1e-2,
+};
+
+/// The inputs of its reference experiment: the motor torque reverses every second, so the motor
+/// crosses the gap and takes up the other flank again and again; a load torque from t = 5 s.
+pub(super) const REFERENCE_INPUTS: &[SquareWave] = &[
+    SquareWave {
+        input: "tau_m",
+        level: 0.0,
+        amplitude: 3.0,
+        half_period: 100,
+    },
+    SquareWave {
+        input: "tau_L",
+        level: -0.25,
+        amplitude: 0.25,
+        half_period: 500,
+    },
+];
+
 fn model() -> Model {
     use Range::*;
     let mut v = common_head(&SHAFT);
@@ -113,17 +137,8 @@ fn model() -> Model {
         identifier: "BacklashShaft",
         kind: Kind::Plant(plant_params),
         description: "Compliant shaft and gear backlash in series (paper Fig. 5, eqs. 11-12), exact stepping with located contact switches; defaults are the paper's rig",
-        default_experiment: DefaultExperiment {
-            start_time: 0.0,
-            stop_time: 10.0,
-            step_size: 1e-2,
-        },
-        // The motor torque reverses every second, so the motor crosses the gap and takes up
-        // the other flank again and again; a load torque from t = 5 s.
-        reference_inputs: &[
-            SquareWave { input: "tau_m", level: 0.0, amplitude: 3.0, half_period: 100 },
-            SquareWave { input: "tau_L", level: -0.25, amplitude: 0.25, half_period: 500 },
-        ],
+        default_experiment: EXPERIMENT,
+        reference_inputs: REFERENCE_INPUTS,
         variables: v,
     })
 }

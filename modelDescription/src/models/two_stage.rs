@@ -11,10 +11,10 @@ use backlash_physics::chain::{Body, Coulomb, Stage};
 use backlash_physics::{ChainParams, Damping};
 
 use super::{
-    contact_law, continuous_local, input, parameter, sign_output, state_derivative, state_output, var,
-    with_state_nominals, ModelDef,
+    calculated_output, contact_law, continuous_local, inputs_and_motor, load_states, parameter, shaft, sign_output,
+    state_derivative, state_output, supremum, var, with_state_nominals, ModelDef,
 };
-use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWave, Type, Var, Variability};
+use crate::{Causality, Initial, Kind, Model, Range, Type, Var, Variability};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -55,31 +55,6 @@ pub(super) fn chain_params(at: &dyn Fn(&str) -> f64) -> ChainParams<2> {
 /// The bodies, by the letter their names carry, and their words.
 const BODIES: [(&str, &str); 3] = [("m", "motor"), ("i", "intermediate shaft"), ("L", "load")];
 
-/// A Real output computed from the state.
-fn calculated_output(
-    name: &'static str,
-    symbol: &'static str,
-    vr: u32,
-    unit: &'static str,
-    quantity: &'static str,
-    description: &'static str,
-) -> Var {
-    var(
-        name,
-        symbol,
-        vr,
-        Type::Real,
-        Causality::Output,
-        Variability::Continuous,
-        Initial::Calculated,
-        None,
-        Range::Finite,
-        unit,
-        quantity,
-        description,
-    )
-}
-
 /// The description, built once per process (its generated names are kept for the process's life).
 pub(super) fn model() -> Model {
     static MODEL: std::sync::OnceLock<Model> = std::sync::OnceLock::new();
@@ -88,22 +63,34 @@ pub(super) fn model() -> Model {
 
 fn describe() -> Model {
     use Range::*;
-    let mut v = vec![
-        input("tau_m", "TauM", 1, "Motor torque, held over each communication step, or along a line where input derivatives are set"),
-        input("tau_L", "TauL", 2, "Load torque, held over each communication step, or along a line where input derivatives are set"),
-        state_output("theta_m", "ThetaM", 3, "rad", "Angle", "Motor angle; its start value is the initial state"),
-        state_output("omega_m", "OmegaM", 4, "rad/s", "AngularVelocity", "Motor speed; its start value is the initial state"),
-        state_output("theta_i", "ThetaI", 5, "rad", "Angle", "Intermediate shaft angle; its start value is the initial state"),
-        state_output("omega_i", "OmegaI", 6, "rad/s", "AngularVelocity", "Intermediate shaft speed; its start value is the initial state"),
-        state_output("theta_L", "ThetaL", 7, "rad", "Angle", "Load angle; its start value is the initial state"),
-        state_output("omega_L", "OmegaL", 8, "rad/s", "AngularVelocity", "Load speed; its start value is the initial state"),
+    let mut v = inputs_and_motor().to_vec();
+    v.extend([
+        state_output(
+            "theta_i",
+            "ThetaI",
+            5,
+            "rad",
+            "Angle",
+            "Intermediate shaft angle; its start value is the initial state",
+        ),
+        state_output(
+            "omega_i",
+            "OmegaI",
+            6,
+            "rad/s",
+            "AngularVelocity",
+            "Intermediate shaft speed; its start value is the initial state",
+        ),
+    ]);
+    v.extend(load_states(7));
+    v.extend([
         calculated_output("psi_1", "Psi1", 9, "N.m", "Torque", "Torque psi_1 in the first mesh's compliant member: k_1*dz(theta_m - n_1*theta_i, Delta_1), with a damper (d_1 > 0) clipped by contact_law so that it never pulls"),
         calculated_output("psi_2", "Psi2", 10, "N.m", "Torque", "Torque psi_2 in the second mesh's compliant member: k_2*dz(theta_i - n_2*theta_L, Delta_2), with a damper (d_2 > 0) clipped by contact_law so that it never pulls"),
         sign_output("contact_1", "Contact1", 11, "Contact of the first mesh at the communication point, the sign of psi_1: +1 positive flank, 0 free, -1 negative flank"),
         sign_output("contact_2", "Contact2", 12, "Contact of the second mesh at the communication point, the sign of psi_2: +1 positive flank, 0 free, -1 negative flank"),
         calculated_output("bound", "Bound", 13, "rad/s", "AngularVelocity", "Rigorous bound on |omega_L with backlash - omega_L without backlash| since the start time: sum over the meshes of k_j*Delta_j*integral of |h_j|"),
-        var("bound_sup", "BoundSup", 14, Type::Real, Causality::CalculatedParameter, Variability::Fixed, Initial::Calculated, None, Finite, "rad/s", "AngularVelocity", "Supremum of bound over all times; +inf (with a warning) if the loop is not asymptotically stable"),
-    ];
+        supremum("bound_sup", "BoundSup", 14, "rad/s", "AngularVelocity", "Supremum of bound over all times; +inf (with a warning) if the loop is not asymptotically stable"),
+    ]);
     let mut vr = 15;
     let mut next = || {
         vr += 1;
@@ -296,17 +283,10 @@ fn describe() -> Model {
         identifier: "BacklashTwoStage",
         kind: Kind::TwoStage(chain_params),
         description: "Two gear meshes in series, each a compliant member and a backlash, with an intermediate shaft between them; exact stepping with the switches of both meshes located; defaults are the paper's rig with its compliance and gap split over the two meshes",
-        default_experiment: DefaultExperiment {
-            start_time: 0.0,
-            stop_time: 10.0,
-            step_size: 1e-2,
-        },
-        // As the shaft's: the motor torque reverses every second, so both meshes cross their
-        // gaps again and again; a load torque from t = 5 s.
-        reference_inputs: &[
-            SquareWave { input: "tau_m", level: 0.0, amplitude: 3.0, half_period: 100 },
-            SquareWave { input: "tau_L", level: -0.25, amplitude: 0.25, half_period: 500 },
-        ],
+        // The shaft's: the motor torque reverses every second, so both meshes cross their gaps
+        // again and again; a load torque from t = 5 s.
+        default_experiment: shaft::EXPERIMENT,
+        reference_inputs: shaft::REFERENCE_INPUTS,
         variables: v,
     })
 }

@@ -4,8 +4,11 @@
 use backlash_physics::{PlantParams, WebSpan};
 
 use super::belt::{self, belt_variables, damper_variables};
-use super::{parameter, quantity_input, state_derivative, state_output, var, with_state_nominals, ModelDef};
-use crate::{Causality, DefaultExperiment, Initial, Kind, Model, Range, SquareWave, Type, Var, Variability};
+use super::{
+    calculated_output, parameter, quantity_input, state_derivative, state_output, supremum, with_state_nominals,
+    ModelDef,
+};
+use crate::{DefaultExperiment, Kind, Model, Range, SquareWave, Var};
 
 pub(super) const MODEL: ModelDef = ModelDef {
     describe: model,
@@ -52,7 +55,6 @@ fn model() -> Model {
 /// docs/model.md §8), then the belt's damper (42–47). Its defaults are BacklashBelt's drive pulling a film line: 50 mm roller,
 /// 1 m span, EA = 1e5 N (e.g. 50 µm PET, 0.5 m wide), 2 m/s.
 fn web_variables() -> Vec<Var> {
-    use Causality::*;
     use Range::*;
     let mut v = belt_variables();
     let tension = state_output(
@@ -83,30 +85,18 @@ fn web_variables() -> Vec<Var> {
         ),
         tension,
         der_tension,
-        var(
+        calculated_output(
             "bound_T",
             "BoundT",
             34,
-            Type::Real,
-            Output,
-            Variability::Continuous,
-            Initial::Calculated,
-            None,
-            Finite,
             "N",
             "Force",
             "Rigorous bound on |T with backlash - T without backlash| since the start time: K*g*integral of |h_T|",
         ),
-        var(
+        supremum(
             "bound_T_sup",
             "BoundTSup",
             35,
-            Type::Real,
-            CalculatedParameter,
-            Variability::Fixed,
-            Initial::Calculated,
-            None,
-            Finite,
             "N",
             "Force",
             "Supremum of bound_T over all times: K*g*integral of |h_T| to infinity; +inf (with a warning) if the loop is not asymptotically stable",
