@@ -55,3 +55,23 @@ def remove_all() -> None:
     shared.cache_clear()
     while _extracted:
         _extracted.pop().remove()
+
+
+def real_outputs(model: str) -> tuple[str, ...]:
+    """The Real outputs and calculated parameters of `model`, in value-reference order: its
+    states, psi (a gearbox's psi_1, psi_2), the bounds, bound_sup."""
+    md = shared(model).md
+    keep = [v for v in md.modelVariables if v.type in ("Real", "Float64") and v.causality in ("output", "calculatedParameter")]
+    return tuple(v.name for v in sorted(keep, key=lambda v: v.valueReference))
+
+
+def contact_output(model: str) -> str:
+    """The name of the contact output: `contact`, a gearbox's first mesh's `contact_1`."""
+    names = {v.name for v in shared(model).md.modelVariables}
+    return "contact" if "contact" in names else "contact_1"
+
+
+def gap_parameters(model: str) -> tuple[str, ...]:
+    """The half-gap parameters: `Delta`, a gearbox's `Delta_1` and `Delta_2`."""
+    names = [v.name for v in shared(model).md.modelVariables if v.causality == "parameter"]
+    return tuple(n for n in names if n == "Delta" or n.startswith("Delta_"))

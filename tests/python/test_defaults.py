@@ -11,12 +11,13 @@ import math
 import subprocess
 import sys
 
+import archives
+
 SCRIPT = r"""
 import json, sys
 from backlash_fmu.fmu import Archive
-path, unzipdir = sys.argv[1:3]
+path, unzipdir, names = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
 s = Archive(path, unzipdir=unzipdir).co_simulation("defaults")
-names = ["theta_m", "omega_m", "theta_L", "omega_L", "psi", "bound", "bound_paper", "bound_sup"]
 s.set_inputs(tau_m=1.0)
 for k in range(10):
     s.do_step(k * 1e-3, 1e-3)
@@ -30,7 +31,7 @@ def test_start_values_initialise_and_step_promptly(fmu):
     """The session's unpacked copy is reused (no temporary files left behind on a timeout)."""
     try:
         done = subprocess.run(
-            [sys.executable, "-c", SCRIPT, str(fmu.path), fmu.unzipdir],
+            [sys.executable, "-c", SCRIPT, str(fmu.path), fmu.unzipdir, json.dumps(archives.real_outputs(fmu.model))],
             capture_output=True,
             text=True,
             timeout=LIMIT_S,

@@ -4,8 +4,6 @@ fmi2Reset: a restored or reset instance reproduces the original run bit for bit.
 from __future__ import annotations
 
 import numpy as np
-from backlash_fmu.fmu import STATES
-
 import archives
 from rigs import RIGS
 from signals import reversing_torques
@@ -15,10 +13,11 @@ SNAPSHOT = 80
 
 
 def _params(model, scale=1.1):
-    """The rig with Delta and the gains scaled, so that two parameter sets differ everywhere
+    """The rig with its gaps and the gains scaled, so that two parameter sets differ everywhere
     a mix-up would show (plant, bound) and both initialise fast."""
     params, gains = RIGS[model]
-    return {**params, "Delta": params["Delta"] * scale, "Kp": gains["Kp"] * scale, "Ki": gains["Ki"] * scale}
+    gaps = {name: params[name] * scale for name in archives.gap_parameters(model)}
+    return {**params, **gaps, "Kp": gains["Kp"] * scale, "Ki": gains["Ki"] * scale}
 
 
 def _drive(inst, k0, k1, tau_m, tau_L):
@@ -26,7 +25,8 @@ def _drive(inst, k0, k1, tau_m, tau_L):
     rows = []
     for k in range(k0, k1):
         inst.step(inst.t0 + k * H, H, tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
-        rows.append((*inst.get(*STATES, "psi", "bound", "bound_paper", "bound_sup"), inst.contact()))
+        model = inst.archive.model
+        rows.append((*inst.get(*archives.real_outputs(model)), *inst.integers(archives.contact_output(model))))
     return rows
 
 
@@ -77,7 +77,8 @@ def test_reset_reproduces_the_first_run_bit_for_bit(fmu):
         starts = [float(fmu.variables[name].start) for name in params]
         # Passed through: the XML's start strings are the shortest round-trip text of these floats.
         assert inst.get(*params) == starts
-        assert inst.get(*STATES) == [0.0] * 4
+        states = [v.name for v in fmu.md.modelVariables if v.causality == "output" and v.initial == "exact"]
+        assert inst.get(*states) == [0.0] * len(states)
         # ... and the same experiment then reproduces the first run exactly.
         inst.fmu.reset()
         inst.initialise(0.0)
