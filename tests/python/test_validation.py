@@ -15,9 +15,7 @@ COMMON = {
     "omega_L": ("output", "Real", "rad/s"),
     "theta_m": ("output", "Real", "rad"),
     "theta_L": ("output", "Real", "rad"),
-    "contact": ("output", "Integer", None),
     "bound": ("output", "Real", "rad/s"),
-    "bound_paper": ("output", "Real", "rad/s"),
     "bound_sup": ("calculatedParameter", "Real", "rad/s"),
     "J_m": ("parameter", "Real", "kg.m2"),
     "J_L": ("parameter", "Real", "kg.m2"),
@@ -28,8 +26,13 @@ COMMON = {
     # 1: Modelica ElastoBacklash, 2: ElastoBacklash2 (docs/model.md §4).
     "contact_law": ("parameter", "Integer", None),
 }
-# The interface of each drive train's form and of a web span (docs/model.md §4, §8), named by a
-# parameter only that form has.
+# What a drive train of one gap has besides (docs/model.md §4).
+SINGLE_GAP = {
+    "contact": ("output", "Integer", None),
+    "bound_paper": ("output", "Real", "rad/s"),
+}
+# The interface of each drive train's form and of a web span (docs/model.md §4, §8, §10), named
+# by a parameter only that form has.
 FORMS = {
     "k": {
         "psi": ("output", "Real", "N.m"),
@@ -48,6 +51,25 @@ FORMS = {
         "Delta": ("parameter", "Real", "m"),
     },
 }
+# A two-stage gearbox (docs/model.md §10): its intermediate shaft and each mesh's interface.
+FORMS["k_1"] = {
+    "theta_i": ("output", "Real", "rad"),
+    "omega_i": ("output", "Real", "rad/s"),
+    **{
+        name: kind
+        for j in (1, 2)
+        for name, kind in {
+            f"psi_{j}": ("output", "Real", "N.m"),
+            f"contact_{j}": ("output", "Integer", None),
+            f"n_{j}": ("parameter", "Real", None),
+            f"k_{j}": ("parameter", "Real", "N.m/rad"),
+            f"Delta_{j}": ("parameter", "Real", "rad"),
+            f"d_{j}": ("parameter", "Real", "N.m.s/rad"),
+        }.items()
+    },
+    "J_i": ("parameter", "Real", "kg.m2"),
+    "b_i": ("parameter", "Real", "N.m.s/rad"),
+}
 # A web line (docs/model.md §8): a belt drive's interface and its span's.
 FORMS["R_w"] = {
     "v_in": ("input", "Real", "m/s"),
@@ -64,7 +86,12 @@ FORMS["R_w"] = {
 }
 # The forms docs/model.md §4 and §8 give the models it names (a model it does not name is checked
 # against the forms its parameters name).
-NAMED_FORMS = {"BacklashShaft": ["k"], "BacklashBelt": ["K_b"], "BacklashWeb": ["K_b", "R_w"]}
+NAMED_FORMS = {
+    "BacklashShaft": ["k"],
+    "BacklashBelt": ["K_b"],
+    "BacklashWeb": ["K_b", "R_w"],
+    "BacklashTwoStage": ["k_1"],
+}
 # SI base-unit exponents (kg, m, s, rad) of every unit the interface uses.
 BASE = {
     "N.m": (1, 2, -2, 0),
@@ -104,10 +131,12 @@ def test_fmu_is_fmi2_cosimulation(fmu):
 
 def test_interface_names_causalities_and_units(fmu):
     forms = [form for form in FORMS if form in fmu.variables]
-    assert ("k" in forms) != ("K_b" in forms), f"{fmu.model}: one drive train, shaft or belt: {forms}"
+    drives = [form for form in forms if form in ("k", "K_b", "k_1")]
+    assert len(drives) == 1, f"{fmu.model}: one drive train, shaft, belt or gearbox: {forms}"
     assert "R_w" not in forms or "K_b" in forms, f"{fmu.model}: a web span is pulled by a belt drive"
     assert forms == NAMED_FORMS.get(fmu.model, forms), f"{fmu.model}: {forms}"
-    expected = {**COMMON, **{name: kind for form in forms for name, kind in FORMS[form].items()}}
+    one_gap = {} if "k_1" in forms else SINGLE_GAP
+    expected = {**COMMON, **one_gap, **{name: kind for form in forms for name, kind in FORMS[form].items()}}
     for name, (causality, vtype, unit) in expected.items():
         assert name in fmu.variables, f"{fmu.model}: variable {name} missing"
         v = fmu.variables[name]
@@ -134,5 +163,5 @@ def test_units_are_defined_with_base_units_and_display_units(fmu):
         assert shown[display].factor == pytest.approx(factor, rel=1e-15)
         assert shown[display].offset == 0.0
     # Each FMU has lengths to show in mm only if it has lengths at all: the belt drives do.
-    if fmu.model != "BacklashShaft":
+    if "K_b" in fmu.variables:
         assert "m" in used
