@@ -132,23 +132,34 @@ def test_states_derivatives_and_event_indicators(model):
     md3 = read_model_description(str(fmi3_path(model)))
     md2 = read_model_description(str(fmu_path(model)))
     pairs = [(u.variable.name, u.variable.derivative.name) for u in md3.derivatives]
-    # The web line's span tension T is its fifth state (docs/model.md §8).
-    states = (*STATES, "T") if model == "BacklashWeb" else STATES
+    # The web line's span tension T is its fifth state (docs/model.md §8); the gearbox's
+    # intermediate shaft sits between the motor and the load (§10).
+    states = {
+        "BacklashWeb": (*STATES, "T"),
+        "BacklashTwoStage": ("theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L"),
+    }.get(model, STATES)
     assert pairs == [(f"der({s})", s) for s in states]
     assert pairs == [(u.variable.name, u.variable.derivative.name) for u in md2.derivatives]
     indicators = [(u.variable.name, u.variable.valueReference) for u in md3.eventIndicators]
-    assert indicators == [
-        ("u_minus_g", 28),
-        ("u_plus_g", 29),
-        ("force_upper", 44),
-        ("force_lower", 45),
-        ("cap_upper", 46),
-        ("cap_lower", 47),
-        ("stop_m", 54),
-        ("breakaway_m", 55),
-        ("stop_L", 56),
-        ("breakaway_L", 57),
-    ]
+    if model == "BacklashTwoStage":
+        # Each mesh's six contact surfaces, then each body's two friction surfaces.
+        surfaces = ("u_minus_g", "u_plus_g", "force_upper", "force_lower", "cap_upper", "cap_lower")
+        names = [f"{s}_{j}" for j in (1, 2) for s in surfaces]
+        names += [f"{kind}_{b}" for b in ("m", "i", "L") for kind in ("stop", "breakaway")]
+        assert indicators == list(zip(names, range(47, 65)))
+    else:
+        assert indicators == [
+            ("u_minus_g", 28),
+            ("u_plus_g", 29),
+            ("force_upper", 44),
+            ("force_lower", 45),
+            ("cap_upper", 46),
+            ("cap_lower", 47),
+            ("stop_m", 54),
+            ("breakaway_m", 55),
+            ("stop_L", 56),
+            ("breakaway_L", 57),
+        ]
     assert md2.numberOfEventIndicators == len(indicators)
     assert [u.variable.name for u in md3.outputs] == [u.variable.name for u in md2.outputs]
 

@@ -191,16 +191,24 @@ def test_model_description_declares_model_exchange(fmu):
     assert me is not None and md.coSimulation is not None, "both interfaces in one archive"
     assert me.modelIdentifier == fmu.path.stem  # the model it was asked for (fmu_path)
     assert me.providesDirectionalDerivative and me.canGetAndSetFMUstate and me.canSerializeFMUstate
-    assert md.numberOfEventIndicators == EVENT_INDICATORS == 10
     derivatives = [d.variable for d in md.derivatives]  # <ModelStructure><Derivatives>, in order
-    # The web line's span tension T is its fifth state (docs/model.md §8).
-    web = fmu.model == "BacklashWeb"
-    states = (*STATES, "T") if web else STATES
+    if fmu.model == "BacklashTwoStage":
+        # docs/model.md §10: six states, the intermediate shaft's between the motor's and the
+        # load's; each mesh's six contact surfaces and each body's two friction surfaces.
+        assert md.numberOfEventIndicators == 18
+        states = ("theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L")
+        derivative_vrs, state_vrs = tuple(range(38, 44)), list(range(3, 9))
+    else:
+        assert md.numberOfEventIndicators == EVENT_INDICATORS == 10
+        # The web line's span tension T is its fifth state (docs/model.md §8).
+        web = fmu.model == "BacklashWeb"
+        states = (*STATES, "T") if web else STATES
+        derivative_vrs, state_vrs = (24, 25, 26, 27, 33), [3, 4, 5, 6, 32][: len(states)]
     assert [d.name for d in derivatives] == [f"der({s})" for s in states]
-    for der, state, vr in zip(derivatives, states, (24, 25, 26, 27, 33), strict=False):
+    for der, state, vr in zip(derivatives, states, derivative_vrs, strict=False):
         assert der.valueReference == vr and der.causality == "local" and der.type == "Real"
         assert der.derivative is fmu.variables[state]
-    assert [fmu.vr[s] for s in states] == [3, 4, 5, 6, 32][: len(states)]
+    assert [fmu.vr[s] for s in states] == state_vrs
 
 
 def test_fmpy_validation_finds_no_problem(fmu):
