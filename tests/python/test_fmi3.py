@@ -43,6 +43,11 @@ from signals import held_table, rel_err, reversing_torques
 MODELS = archives.MODELS
 
 
+def contact(inst) -> int:
+    """The contact output of an instance: `contact`, a gearbox's first mesh's `contact_1`."""
+    return inst.integers(archives.contact_output(inst.archive.model))[0]
+
+
 @pytest.fixture(params=MODELS)
 def model(request) -> str:
     """Each model; its FMI 3.0 archive must exist (a missing one fails, never skips)."""
@@ -132,7 +137,7 @@ def _open_loop_steps():
 
 
 def _snapshot(inst, names) -> tuple:
-    return (*bits(inst.get(*names)), inst.contact())
+    return (*bits(inst.get(*names)), contact(inst))
 
 
 @pytest.mark.parametrize("loop", ["open", "closed"])
@@ -239,14 +244,14 @@ def _early_run(fmu3, params, h, tau_m, tau_L, names, event_mode: bool):
             t, t_end = k * h, (k + 1) * h
             inst.set_inputs(tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
             while True:
-                before = inst.contact()
+                before = contact(inst)
                 event, terminate, early, last = inst.do_step(t, t_end - t)
                 assert not terminate
                 if not early:
                     assert not event and last == t + (t_end - t)
                     break
                 assert event == event_mode and t < last < t_end, (t, last, t_end)
-                returns.append((last, before, inst.contact(), inst.get(*STATES), inst.get("u_minus_g", "u_plus_g"), k))
+                returns.append((last, before, contact(inst), inst.get(*STATES), inst.get("u_minus_g", "u_plus_g"), k))
                 if event_mode:
                     inst.fmu.enterEventMode()
                     updates.append(inst.fmu.updateDiscreteStates())
@@ -359,7 +364,7 @@ def _fmu_switch_sampled_loop(fmu3, params, gains):
             instants.append(t)
             inst.set_inputs(tau_m=pi.sample(_pi_w_ref(k), inst.get("omega_m")[0]), tau_L=_pi_load(k))
             while True:
-                before = inst.contact()
+                before = contact(inst)
                 event, terminate, early, last = inst.do_step(t, t_end - t)
                 assert not terminate
                 if not early:
@@ -370,7 +375,7 @@ def _fmu_switch_sampled_loop(fmu3, params, gains):
                 assert event and t < last < t_end
                 pi.advance(last - t)
                 t = last
-                switches.append((t, before, inst.contact()))
+                switches.append((t, before, contact(inst)))
                 inst.fmu.enterEventMode()
                 instants.append(t)
                 inst.set_inputs(tau_m=pi.sample(_pi_w_ref(k), inst.get("omega_m")[0]), tau_L=_pi_load(k))
@@ -485,8 +490,8 @@ def test_model_exchange_equals_fmi2_model_exchange(model):
             assert bits(d3) == bits(d2), (t, z, tau)
             assert bits(three.indicators(t, z)) == bits(two.indicators(t, z)), (t, z)
             assert bits(three.get(*names)) == bits(two.get(*names)), (t, z)
-            contacts.add(three.contact())
-            assert three.contact() == two.contact()
+            contacts.add(contact(three))
+            assert contact(three) == contact(two)
             for k in knowns:
                 j2 = two.fmu.getDirectionalDerivative([two.vr[n] for n in ders], [two.vr[k]], [1.0])
                 j3 = three.fmu.getDirectionalDerivative([three.vr[n] for n in ders], [three.vr[k]], [1.0])
@@ -511,7 +516,7 @@ def _drive3(inst: CoSimulation, k0: int, k1: int, tau_m, tau_L, names) -> list:
         inst.set_inputs(tau_m=float(tau_m[k]), tau_L=float(tau_L[k]))
         while True:
             answer = inst.do_step(t, t_end - t)
-            rows.append((answer, bits(inst.get(*names)), inst.contact()))
+            rows.append((answer, bits(inst.get(*names)), contact(inst)))
             if not answer[2]:
                 break
             t = answer[3]
@@ -549,14 +554,14 @@ def test_fmi2_state_is_refused_and_fmi3_state_continues_bit_for_bit(model):
     three = fmu3.co_simulation("refuses-fmi2", params)
     try:
         three.step(0.0, STATE_H, tau_m=1.0, tau_L=0.0)
-        before = (bits(three.get(*names)), three.contact())
+        before = (bits(three.get(*names)), contact(three))
 
         def load_fmi2_state():
             restored = three.fmu.deserializeFMUState(blob2)
             three.fmu.setFMUState(restored)
 
         three.refused(load_fmi2_state, "FMI 2.0", "FMI 3.0")
-        assert (bits(three.get(*names)), three.contact()) == before
+        assert (bits(three.get(*names)), contact(three)) == before
         assert not any(math.isnan(x) for x in three.get(*names))
     finally:
         three.free()
@@ -590,13 +595,13 @@ def test_fmi2_state_is_refused_and_fmi3_state_continues_bit_for_bit(model):
     two = fmu2.co_simulation("refuses-fmi3", params)
     try:
         two.fmu.doStep(0.0, STATE_H)
-        before = (bits(two.get(*names)), two.contact())
+        before = (bits(two.get(*names)), contact(two))
         with pytest.raises(FMICallException) as refusal:
             two.fmu.setFMUstate(two.fmu.deSerializeFMUstate(blob3))
         assert refusal.value.status == fmi3Error  # fmi2Error, the same code
         reasons = [m[2] for m in two.messages if m[1] == "logErrors"]
         assert any("FMI 2.0" in r and "FMI 3.0" in r for r in reasons), two.messages
-        assert (bits(two.get(*names)), two.contact()) == before
+        assert (bits(two.get(*names)), contact(two)) == before
     finally:
         two.fmu.freeInstance()  # in the Error state, where fmi2Terminate is not allowed
     me = fmu3.model_exchange("refuses-cs", params)
@@ -614,8 +619,12 @@ MISUSE = {
     "doStep with a NaN step": ({}, lambda s: s.do_step(s.time, math.nan), ("communicationStepSize",)),
     "doStep with a NaN time": ({}, lambda s: s.do_step(math.nan, 0.01), ("currentCommunicationPoint",)),
     "enterEventMode without eventModeUsed": ({}, lambda s: s.fmu.enterEventMode(), ("eventModeUsed",)),
-    "fmi3GetClock": ({}, lambda s: s.fmu.getClock([s.vr["contact"]]), ("clocks",)),
-    "fmi3SetClock": ({}, lambda s: s.fmu.setClock([s.vr["contact"]], [True]), ("clocks",)),
+    "fmi3GetClock": ({}, lambda s: s.fmu.getClock([s.vr[archives.contact_output(s.archive.model)]]), ("clocks",)),
+    "fmi3SetClock": (
+        {},
+        lambda s: s.fmu.setClock([s.vr[archives.contact_output(s.archive.model)]], [True]),
+        ("clocks",),
+    ),
     "doStep in Event Mode": (
         {"event_mode": True},
         lambda s: (s.fmu.enterEventMode(), s.do_step(s.time, 0.01)),
@@ -645,7 +654,7 @@ def test_misuse_is_refused_with_a_reason(model, case):
                 inst.fmu.updateDiscreteStates()
                 inst.fmu.enterStepMode()
             assert not inst.do_step(k * 0.02, 0.02)[2]
-            out.append((bits(inst.get(*names)), inst.contact()))
+            out.append((bits(inst.get(*names)), contact(inst)))
         return out
 
     reference_run = fmu3.co_simulation("reference", params, **options)
@@ -656,9 +665,9 @@ def test_misuse_is_refused_with_a_reason(model, case):
     inst = fmu3.co_simulation("misuse", params, **options)
     try:
         assert run(inst) == expected
-        before = (bits(inst.get(*names)), inst.contact())
+        before = (bits(inst.get(*names)), contact(inst))
         inst.refused(lambda: call(inst), *mentions)
-        assert (bits(inst.get(*names)), inst.contact()) == before
+        assert (bits(inst.get(*names)), contact(inst)) == before
         assert not any(math.isnan(x) for x in inst.get(*names))
         assert inst.fmu.reset() == 0
         inst.initialise(0.0)
