@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fmpy import simulate_fmu
 
 import archives
 import reference_two_stage as ref2
-from signals import rel_err, reversing_torques
+from signals import held_table, rel_err, reversing_torques
 
 MODEL = "BacklashTwoStage"
 TOL = 1e-9
@@ -94,3 +95,46 @@ def test_early_return_at_every_switch_of_either_mesh(event_mode):
     for (t_fmu, before, after), (t_ref, mesh, m0, m1) in zip(returns, expected):
         assert abs(t_fmu - t_ref) <= 1e-11, (t_fmu, t_ref)
         assert (before[mesh], after[mesh]) == (m0, m1), (t_ref, mesh, before, after)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_model_exchange_with_cvode_converges_to_the_reference(fmi):
+    """fmpy's CVode integrates the Model Exchange interface (the FMU's vector field, its 18 event
+    indicators as roots) under torques held for 0.1 s each. Every switch of either mesh is a
+    state event of the run (a repeated output time off the input edges), at rtol 1e-9 and
+    1e-11. At the communication points the states converge to the reference as rtol shrinks:
+    the error at rtol 1e-11 is below a tenth of that at 1e-9 and below 1e-6 relative. Measured
+    (FMI 2.0): 9.5e-6 at 1e-9, 4.6e-7 at 1e-11, both on the light intermediate shaft's speed,
+    over 50 switches: CVode controls only its local error, and the shaft rattling through the
+    gaps restarts it at every switch."""
+    params = defaults()
+    h, n = 0.1, 20
+    tau_m, tau_L = reversing_torques(n, h, 1.5, 0.6)
+    z, ref = ref2.run_open_loop(ref2.Gearbox.of(params), tau_m, tau_L, h)
+    grid = np.arange(n + 1) * h
+    path = archives.shared(MODEL, fmi=fmi).path
+
+    def error(rtol: float) -> float:
+        result = simulate_fmu(
+            str(path),
+            fmi_type="ModelExchange",
+            solver="CVode",
+            relative_tolerance=rtol,
+            start_time=0.0,
+            stop_time=n * h,
+            output_interval=h,
+            input=held_table(tau_m, tau_L, h),
+            output=list(STATES),
+        )
+        t = result["time"]
+        repeated = t[1:][np.diff(t) == 0.0]
+        state_events = [x for x in repeated if np.min(np.abs(x - grid)) > 1e-12]
+        assert len(state_events) == len(ref.switches), (rtol, len(state_events), len(ref.switches))
+        # One row per grid time: the last at it (after any event there).
+        last = np.r_[t[1:] != t[:-1], True]
+        rows = {round(x / h): i for i, x in enumerate(t) if last[i] and np.min(np.abs(x - grid)) <= 1e-12}
+        index = [rows[k] for k in range(n + 1)]
+        return max(rel_err(result[name][index], z[:, j]) for j, name in enumerate(STATES))
+
+    coarse, fine = error(1e-9), error(1e-11)
+    assert fine <= coarse / 10 and fine <= 1e-6, (coarse, fine)
