@@ -75,3 +75,12 @@ def gap_parameters(model: str) -> tuple[str, ...]:
     """The half-gap parameters: `Delta`, a gearbox's `Delta_1` and `Delta_2`."""
     names = [v.name for v in shared(model).md.modelVariables if v.causality == "parameter"]
     return tuple(n for n in names if n == "Delta" or n.startswith("Delta_"))
+
+
+def _single_gap(model: str) -> bool:
+    return any(v.name == "psi" for v in shared(model).md.modelVariables)
+
+
+# The models of one gap (docs/model.md §1), whose suites compare with the single gap's Python
+# reference (reference.py); the two-stage gearbox (§10) has its own, test_two_stage.py.
+SINGLE_GAP = tuple(m for m in MODELS if _single_gap(m))

@@ -6,9 +6,17 @@ the next torques (Kp h / J_m = 0.18 per step); the reference is good to ~2e-10 (
 
 from __future__ import annotations
 
+import pytest
+
+import archives
 import scenarios
 from rigs import RIGS, plant_of
 from signals import rel_err
+
+# The single gap's reference (reference.py); the two-stage gearbox's counterpart is in
+# test_two_stage.py.
+pytestmark = pytest.mark.parametrize("fmu", archives.SINGLE_GAP, indirect=True)
+
 
 TOL = 1e-8
 

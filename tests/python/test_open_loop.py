@@ -10,9 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import archives
 import scenarios
 from rigs import RIGS, plant_of
 from signals import rel_err
+
+# The single gap's reference (reference.py); the two-stage gearbox's counterpart is in
+# test_two_stage.py.
+pytestmark = pytest.mark.parametrize("fmu", archives.SINGLE_GAP, indirect=True)
+
 
 TOL = 1e-9
 

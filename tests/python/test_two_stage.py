@@ -171,3 +171,40 @@ def test_sampled_pi_loop_matches_the_reference():
     assert {mesh for _, mesh, _, _ in ref.switches} == {0, 1}, ref.switches
     errors = {name: rel_err(out[:, j], z[:, j]) for j, name in enumerate(STATES)}
     assert max(errors.values()) <= TOL, errors
+
+
+def test_each_mesh_contact_and_psi_follow_its_gap():
+    """Each mesh's `contact_j` is the side of its gap u_j is on and `psi_j` is
+    k_j dz(u_j, Delta_j), with u_j recomputed from the angle outputs (u_1 = theta_m -
+    n_1 theta_i, u_2 = theta_i - n_2 theta_L) while the FMU computes them from its own state:
+    they agree to round-off, 1e-12 of the terms of u_j plus Delta_j (a wrong force law is off by
+    k_j Delta_j, 1e12 times more); points within that of a flank are ambiguous for contact
+    (at most two). Every mode of each mesh occurs."""
+    params = defaults()
+    h, n = 0.02, 300
+    tau_m, tau_L = reversing_torques(n, h, 1.5, 0.6)
+    inst = archives.shared(MODEL).co_simulation("contact-psi", {})
+    rows, contacts = [], []
+    try:
+        for k, (a, b) in enumerate(zip(tau_m, tau_L)):
+            inst.step(k * h, h, tau_m=float(a), tau_L=float(b))
+            rows.append(inst.get("theta_m", "theta_i", "theta_L", "psi_1", "psi_2"))
+            contacts.append(inst.integers("contact_1", "contact_2"))
+    finally:
+        inst.free()
+    out, contacts = np.array(rows), np.array(contacts)
+    for j, (a, b, n_j, k_j, g) in enumerate(
+        [
+            (out[:, 0], out[:, 1], params["n_1"], params["k_1"], params["Delta_1"]),
+            (out[:, 1], out[:, 2], params["n_2"], params["k_2"], params["Delta_2"]),
+        ]
+    ):
+        u = a - n_j * b
+        slack = 1e-12 * (np.abs(a) + np.abs(n_j * b) + g)
+        dead_zone = np.where(u >= g, u - g, np.where(u <= -g, u + g, 0.0))
+        assert np.all(np.abs(out[:, 3 + j] - k_j * dead_zone) <= k_j * slack), j
+        side = np.where(u > g, 1, np.where(u < -g, -1, 0))
+        clear = np.abs(np.abs(u) - g) > slack
+        assert np.count_nonzero(~clear) <= 2, j
+        assert np.array_equal(contacts[clear, j], side[clear]), j
+        assert set(contacts[:, j].tolist()) == {-1, 0, 1}, j
