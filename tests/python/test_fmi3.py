@@ -266,6 +266,8 @@ def _early_run(fmu3, params, h, tau_m, tau_L, names, event_mode: bool):
     return np.array(rows), returns, updates
 
 
+# The two-stage gearbox's: test_two_stage.py::test_early_return_at_every_switch_of_either_mesh.
+@pytest.mark.parametrize("model", archives.SINGLE_GAP, indirect=True)
 @pytest.mark.parametrize("event_mode", [False, True], ids=["no-event-mode", "event-mode"])
 def test_early_return_at_every_switch(model, event_mode):
     """earlyReturnAllowed (docs/model.md §7), open loop, rig parameters, torques reversed every
@@ -442,6 +444,8 @@ def test_pi_loop_updated_at_every_early_return(model):
 
 
 
+# The two-stage gearbox's: test_two_stage.py::test_model_exchange_with_cvode_converges_to_the_reference.
+@pytest.mark.parametrize("model", archives.SINGLE_GAP, indirect=True)
 def test_simulate_fmu_model_exchange_with_cvode(model):
     """fmpy.simulate_fmu(fmi_type='ModelExchange', solver='CVode', rtol 1e-9) of the FMI 3.0
     archive (fmpy's FMU3Model: fmi3GetContinuousStateDerivatives, the event indicators u_minus_g

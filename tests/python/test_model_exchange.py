@@ -93,7 +93,7 @@ OPEN_LOOP_CASES = {
 }
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", archives.SINGLE_GAP)
 @pytest.mark.parametrize("case", OPEN_LOOP_CASES)
 def test_reference_open_loop_matches_event_located_integrator(model, case):
     """Kp = Ki = 0, torques held per step: reference_continuous against reference.py (DOP853 with
@@ -111,7 +111,7 @@ def test_reference_open_loop_matches_event_located_integrator(model, case):
     assert max(abs(a[0] - b[0]) for a, b in zip(exact.switches, ref.switches)) <= 1e-9
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", archives.SINGLE_GAP)
 def test_reference_without_backlash_is_the_linear_loop(model):
     """Delta = 0: the loop is linear, z_cl' = A_cl z_cl + G [tau_L, w_ref] with A_cl of
     reference_bound.loop_matrices (theta_L coordinates, built separately from the reference's
@@ -166,7 +166,7 @@ def test_reference_finds_a_grazing_touch(depth):
     assert abs(0.5 * (t_in + t_out) - t_peak) <= 1e-3 * length
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", archives.SINGLE_GAP)
 def test_reference_closed_loop_matches_event_located_integrator(model):
     """The PI loop with backlash: reference_continuous against loops.run_loop integrating the
     equations of docs/model.md §1 written in Python (PythonPlant: DOP853 rtol 1e-12 with the
@@ -359,6 +359,8 @@ def _free_jacobian(p) -> np.ndarray:
 
 
 
+# The two-stage gearbox's: test_two_stage.py::test_model_exchange_with_cvode_converges_to_the_reference.
+@pytest.mark.parametrize("fmu", archives.SINGLE_GAP, indirect=True)
 def test_simulate_fmu_with_cvode_matches_the_exact_solution(fmu):
     """fmpy.simulate_fmu(fmi_type='ModelExchange', solver='CVode') under reversing torques held
     for 0.1 s each, from a moving start, against the exact solution at the output points.
