@@ -144,20 +144,12 @@ pub(crate) fn write_units_categories_and_experiment(x: &mut String, model: &Mode
     );
 }
 
-/// The states an output other than `psi` depends on in Continuous-Time Mode (no output depends
-/// on an input: docs/model.md §1); the bounds depend on time alone ([`depends_on_time`]). `psi`'s
-/// are computed from the plant (`crate::structure::output_dependencies`).
+/// The states a single gap's output other than the states, `psi` and `contact` depends on in
+/// Continuous-Time Mode (no output depends on an input: docs/model.md §1); the bounds depend on
+/// time alone ([`depends_on_time`]). The others' are computed from the physics
+/// (`crate::structure::output_dependencies`).
 pub(crate) fn output_dependencies(name: &str) -> &'static [&'static str] {
     match name {
-        // A state output is the state itself.
-        "theta_m" => &["theta_m"],
-        "omega_m" => &["omega_m"],
-        "theta_L" => &["theta_L"],
-        "omega_L" => &["omega_L"],
-        "T" => &["T"],
-        // The mode exactly on +-g depends on the sign of u' as well, and with a damper its
-        // force, the sign of psi, on u'.
-        "contact" => &["theta_m", "omega_m", "theta_L", "omega_L"],
         // The friction mode: the sign of the speed sliding, the law of stiction at rest (the
         // torque on the body, from every state).
         "sliding_m" | "sliding_L" => &["theta_m", "omega_m", "theta_L", "omega_L"],

@@ -236,14 +236,16 @@ fn stage_of(name: &str) -> (&str, usize) {
 }
 
 /// The states the output `v` depends on in Continuous-Time Mode (no output depends on an
-/// input: docs/model.md §1): ψ's computed from the plant, a two-stage `contact_j` from its
-/// stage's surfaces, the others' as listed ([`crate::common::output_dependencies`]).
+/// input: docs/model.md §1): a state output is the state itself; ψ's and `contact`'s (a stage's
+/// on a chain) are computed from the physics (`contact` is the sign of ψ: on ±g it depends on
+/// the sign of u′ as well, and with a damper on the force's); the others' as listed
+/// ([`crate::common::output_dependencies`]; on a chain a body's `sliding` reads every state).
 pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
     let two_stage = matches!(model.kind, crate::Kind::TwoStage(_));
     match stage_of(v.name) {
+        _ if v.is_continuous_state() => vec![v.name],
         ("psi", stage) => state_dependencies(model, Quantity::Force(stage)),
-        ("contact", stage) if two_stage => state_dependencies(model, Quantity::ContactSurfaces(stage)),
-        _ if two_stage && v.is_continuous_state() => vec![v.name],
+        ("contact", stage) => state_dependencies(model, Quantity::ContactSurfaces(stage)),
         // A body's friction mode: the sign of its speed sliding, the law of stiction at rest
         // (the torque on the body, from every state).
         _ if two_stage && v.name.starts_with("sliding_") => state_names(model),

@@ -652,12 +652,10 @@ pub(crate) fn default_plant(model: &Model) -> Plant {
 }
 
 /// The plant parameters of the model `identifier` at its parameters' start values (its default
-/// parameters, docs/model.md §4), or `None` if no model in [`MODELS`] has that identifier.
+/// parameters, docs/model.md §4), or `None` if no single-gap plant has that identifier.
 pub fn default_plant_params(identifier: &str) -> Option<PlantParams> {
-    MODELS
-        .iter()
-        .map(|m| (m.describe)())
-        .find(|m| m.identifier == identifier && matches!(m.kind, Kind::Plant(_)))
+    described(identifier)
+        .filter(|m| matches!(m.kind, Kind::Plant(_)))
         .map(|m| *default_plant(&m).params())
 }
 

@@ -10,7 +10,7 @@
 
 use super::params::Chain;
 use super::state::{ChainMode, ChainState, Motion};
-use crate::vector_field::{contact_surfaces, ANGLE_SCALE_WITHOUT_GAP, EVENT_INDICATORS};
+use crate::vector_field::{contact_surfaces, ANGLE_SCALE_WITHOUT_GAP};
 
 impl<const S: usize> Chain<S> {
     /// The length of z: an angle and a speed per body, and T.
@@ -45,6 +45,9 @@ impl<const S: usize> Chain<S> {
         z.push(state.tension);
         z
     }
+
+    /// How many event indicators each stage has.
+    pub const STAGE_INDICATORS: usize = crate::vector_field::EVENT_INDICATORS;
 
     /// z′ at `state` with torques τ_m on the motor, τ_L on the load and the web span's forcing
     /// `span` (w = (v_ref T_in − EA v_in)/L_w, docs/model.md §8): θ_j′ = ω_j,
@@ -147,9 +150,6 @@ impl<const S: usize> Chain<S> {
             .collect()
     }
 
-    /// How many event indicators each stage has.
-    pub const STAGE_INDICATORS: usize = EVENT_INDICATORS;
-
     /// The scale each entry of z moves on (docs/model.md §6, as `Plant::state_nominals`): a
     /// body's angle at the finest gap it must resolve, g_i/a_i of the stage it drives and
     /// g_{i}/c_{i} of the stage that drives it (1e-4 rad where neither has a gap), its speed at
@@ -236,6 +236,37 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    /// The stepper's own field (`ChainStepper::rates`, the mode's rows over the augmented
+    /// state, chain/linear.rs) is this one, written from the equations: two stages with friction
+    /// on the intermediate shaft, in every stage's modes, within 4 ulps of each rate (measured:
+    /// 1; the stepper recovers the speeds from u′ and the load's speed).
+    #[test]
+    fn the_steppers_field_is_this_one() {
+        let chain = two_stage(0.0, ContactLaw::ElastoBacklash);
+        let stepper = crate::chain::TwoStageStepper::new(chain);
+        let g = chain.stage(0).g;
+        let inputs = crate::Inputs {
+            tau_m: 0.4,
+            tau_l: -0.2,
+            dtau_m: 0.0,
+            dtau_l: 0.0,
+            span: 0.0,
+            dspan: 0.0,
+        };
+        for (u1, u2) in [(3.0 * g, -2.5 * g), (0.2 * g, 4.0 * g), (-5.0 * g, 0.1 * g)] {
+            let z = [0.3 + u1, 0.01, 0.3, -0.004, (0.3 - u2) / 2.5, 0.002, 0.0];
+            let state = chain.state_at(&z);
+            let ours = chain.rates(&state, inputs.tau_m, inputs.tau_l, 0.0);
+            let theirs = stepper.rates(&state, &inputs);
+            for (r, (a, b)) in ours.iter().zip(&theirs).enumerate() {
+                assert!(
+                    (a - b).abs() <= 4.0 * f64::EPSILON * a.abs().max(b.abs()),
+                    "rate {r}: {a} vs {b}"
+                );
             }
         }
     }
