@@ -11,8 +11,8 @@ Tolerances:
 - the controller's outputs against its law written in Python (twin.SampledPi): the same
   operations in the same order on the same doubles (sin from the C library in both), so the same
   bits.
-- the independent reference (reference.py: DOP853 at rtol 1e-13 with located switches;
-  reference_web.py: matrix exponentials with brentq-located switches): 1e-9 relative per signal
+- the independent reference (reference.py, and reference_two_stage.py for the gearbox: DOP853 at
+  rtol 1e-13 with located switches; reference_web.py: matrix exponentials with brentq-located switches): 1e-9 relative per signal
   as in test_open_loop.py, over runs whose inputs were chosen so that a difference of 1e-12 in
   them grows at most ~1e3-fold by the end (measured; a drive rattling through its gap under a
   reversing torque would amplify it a billion-fold and no reference could check it).
@@ -30,6 +30,7 @@ import pytest
 from backlash_fmu.fmu import fmu_path
 
 import reference
+import reference_two_stage
 import reference_web
 from archives import CONTROLLERS, MODELS, require
 from rigs import plant_of
@@ -37,6 +38,8 @@ from signals import rel_err
 
 DIR = "extra/org.fmi-standard.fmi-ls-ref"
 STATES = ("theta_m", "omega_m", "theta_L", "omega_L")
+# reference_two_stage's z: the motor's, the intermediate shaft's and the load's angle and speed.
+GEARBOX_STATES = ("theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L")
 # The roles FMI-LS-REF 1.0.0-alpha.1 defines (its table "Role Values").
 ROLES = {"document", "requirement", "specification", "model", "parameter", "system", "testcase", "experiment",
          "result", "method", "rationale", "report", "request", "delivery", "configuration", "signature",
@@ -123,15 +126,21 @@ def test_the_outputs_agree_with_the_independent_reference(model):
     every = round((outputs["time"][1] - outputs["time"][0]) / h)
     params = {v.name: float(v.start) for v in md.modelVariables
               if v.causality == "parameter" and v.type == "Real"}
-    assert params.get("d", params.get("D_b")) == 0.0, "the references solve the undamped plant"
-    params = {k: v for k, v in params.items() if k not in ("d", "D_b")}
     times = float(experiment.startTime) + np.arange(n) * h
     u = held(inputs, ("tau_m", "tau_L", "v_in", "T_in"), times)
-    if model == "BacklashWeb":
+    if model == "BacklashTwoStage":
+        # Gearbox.of refuses a damper or friction: the reference solves the undamped plant.
+        z, solver = reference_two_stage.run_open_loop(reference_two_stage.Gearbox.of(params), u["tau_m"], u["tau_L"], h)
+        expected = {name: z[::every, j] for j, name in enumerate(GEARBOX_STATES)}
+    elif model == "BacklashWeb":
+        assert params["D_b"] == 0.0, "the references solve the undamped plant"
         table = np.column_stack([u["tau_m"], u["tau_L"], u["v_in"], u["T_in"]])
-        ref, solver = reference_web.run_open_loop(params, table, h, method="expm")
+        ref, solver = reference_web.run_open_loop({k: v for k, v in params.items() if k != "D_b"}, table, h,
+                                                  method="expm")
         expected = {name: ref[name][::every] for name in (*STATES, "T")}
     else:
+        assert params.get("d", params.get("D_b")) == 0.0, "the references solve the undamped plant"
+        params = {k: v for k, v in params.items() if k not in ("d", "D_b")}
         z, _, solver = reference.run_open_loop(plant_of(model, params), u["tau_m"], u["tau_L"], h)
         expected = {name: z[::every, j] for j, name in enumerate(STATES)}
     assert len(solver.switches) >= 20, "the reference experiment must cross the gap again and again"
