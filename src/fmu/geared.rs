@@ -8,6 +8,7 @@
 use super::adapter::{self, StateEntry, Values};
 use super::error::FmuError;
 use super::simulation::BoundClock;
+use super::templates::Templates;
 use super::variables::{Kind, ModelInfo, Symbol};
 use crate::physics::chain::{
     BodyMode, Chain, ChainEvent, ChainMode, ChainState, Motion, TwoStageBound, TwoStageStepper,
@@ -42,11 +43,38 @@ pub fn body_of_slot(slot: usize) -> usize {
     }
 }
 
+/// The gearboxes' built physics ([`Templates`]).
+static GEARBOXES: Templates<Geared> = Templates::new();
+
 impl Geared {
     /// The gearbox at the start: parameters validated (the error names the parameter), the
     /// state from the start values, each body's friction mode by the law of stiction under the
     /// inputs at the start (docs/model.md §12), the bound at elapsed time 0.
     pub fn build(model: &ModelInfo, v: &Values) -> Result<Geared, FmuError> {
+        let mut geared = GEARBOXES.get(model, v, || Geared::at_rest(model, v))?;
+        let at = |e: StateEntry| v[e.symbol().index()];
+        let motion = |theta, omega| Motion {
+            theta: at(theta),
+            omega: at(omega),
+        };
+        geared.state = ChainState::new(
+            geared.chain(),
+            motion(StateEntry::ThetaM, StateEntry::OmegaM),
+            [
+                motion(StateEntry::ThetaI, StateEntry::OmegaI),
+                motion(StateEntry::ThetaL, StateEntry::OmegaL),
+            ],
+        );
+        geared
+            .stepper
+            .apply_stiction(&mut geared.state, &inputs(v, &[0.0; adapter::MAX_INPUTS]));
+        geared.check(&geared.state, format_args!("the initial state overflows"))?;
+        Ok(geared)
+    }
+
+    /// What the parameter values of `v` alone determine (the chain, its stepper, the bound at
+    /// elapsed time 0), at the zero state.
+    fn at_rest(model: &ModelInfo, v: &Values) -> Result<Geared, FmuError> {
         let Kind::TwoStage(mapping) = model.kind else {
             return Err(FmuError::InvalidArgument(format!(
                 "{} is not a two-stage gearbox",
@@ -57,30 +85,16 @@ impl Geared {
         let chain = Chain::new(params).map_err(|e| FmuError::InvalidArgument(e.to_string()))?;
         let (speed, _) = adapter::gains(v);
         let bound = TwoStageBound::new(&chain, speed)?;
-        let at = |e: StateEntry| v[e.symbol().index()];
-        let motion = |theta, omega| Motion {
-            theta: at(theta),
-            omega: at(omega),
-        };
-        let mut state = ChainState::new(
-            &chain,
-            motion(StateEntry::ThetaM, StateEntry::OmegaM),
-            [
-                motion(StateEntry::ThetaI, StateEntry::OmegaI),
-                motion(StateEntry::ThetaL, StateEntry::OmegaL),
-            ],
-        );
-        let mut stepper = TwoStageStepper::new(chain);
-        stepper.apply_stiction(&mut state, &inputs(v, &[0.0; adapter::MAX_INPUTS]));
+        let rest = Motion { theta: 0.0, omega: 0.0 };
+        let state = ChainState::new(&chain, rest, [rest, rest]);
+        let stepper = TwoStageStepper::new(chain);
         let max_step = stepper.max_step();
-        let geared = Geared {
+        Ok(Geared {
             clock: BoundClock::new(bound, max_step),
             stepper,
             state,
             max_step,
-        };
-        geared.check(&geared.state, format_args!("the initial state overflows"))?;
-        Ok(geared)
+        })
     }
 
     pub fn chain(&self) -> &Chain<2> {

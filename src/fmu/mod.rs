@@ -13,6 +13,7 @@ pub mod logging;
 pub mod simulation;
 pub mod snapshot;
 pub mod state_machine;
+pub mod templates;
 pub mod variables;
 
 pub use error::{FmuError, Status};

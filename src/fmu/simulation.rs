@@ -5,7 +5,8 @@ use super::adapter::{self, StateVector, Values};
 use super::bounds::Bounds;
 use super::error::FmuError;
 use super::friction::{self, Friction};
-use super::variables::{Causality, ModelInfo};
+use super::templates::Templates;
+use super::variables::ModelInfo;
 use crate::physics::chain::OneStageFrictionBound;
 use crate::physics::{finite, max_step, BoundError, ContactMode, Inputs, Plant, PlantState, Stepper, Trajectory};
 
@@ -597,32 +598,15 @@ impl<B: Advancing> BoundClock<B> {
 /// within the first; after that an advance of any length is one step.
 pub const MAX_BOUND_ADVANCES: usize = 4;
 
-/// How many parameter sets keep their built physics.
-const TEMPLATE_CACHE: usize = 8;
-
-type TemplateKey = (&'static str, Vec<u64>);
-
-/// Built physics by model and exact parameter bits. Building the bound (its supremum needs an
-/// integration to convergence) is by far the most expensive part of an instance, and
-/// fmi2Reset, fmi2SetFMUstate and fresh instances of a parameter sweep rebuild the same plant
-/// again and again. Building is deterministic, so a copy steps bit-identically to a new build.
-static TEMPLATES: std::sync::Mutex<Vec<(TemplateKey, Simulation)>> = std::sync::Mutex::new(Vec::new());
+/// The single gap's built physics ([`Templates`]).
+static TEMPLATES: Templates<Simulation> = Templates::new();
 
 fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
-    let key: TemplateKey = (
-        model.identifier,
-        model
-            .variables
-            .iter()
-            .filter(|var| var.causality == Causality::Parameter)
-            .map(|var| v[var.symbol.index()].to_bits())
-            .collect(),
-    );
-    let lock = || TEMPLATES.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    if let Some((_, sim)) = lock().iter().find(|(k, _)| *k == key) {
-        return Ok(sim.clone());
-    }
-    // Built outside the lock: other instances need not wait for it.
+    TEMPLATES.get(model, v, || build(model, v))
+}
+
+/// The simulation of `model` at the parameter values of `v`, at the zero state.
+fn build(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let params = adapter::plant_params(model, v)
         .ok_or_else(|| FmuError::InvalidArgument(format!("{} is a controller: it has no plant", model.identifier)))?;
     let plant = Plant::new(params)?;
@@ -640,18 +624,12 @@ fn template(model: &ModelInfo, v: &Values) -> Result<Simulation, FmuError> {
     let longest = friction
         .as_ref()
         .map_or(max_step(&plant), |f| max_step(&plant).min(f.max_step()));
-    let sim = Simulation {
+    Ok(Simulation {
         max_step: longest,
         stepper: Stepper::new(plant),
         state,
         friction: friction.map(Box::new),
         clock: BoundClock::new(bound, longest),
         events: EventTerms::UNTRACKED,
-    };
-    let mut cache = lock();
-    if cache.len() == TEMPLATE_CACHE {
-        cache.remove(0);
-    }
-    cache.push((key, sim.clone()));
-    Ok(sim)
+    })
 }
