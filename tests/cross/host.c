@@ -3,9 +3,8 @@
  * win64 under Wine, aarch64-linux-gnu-gcc under qemu), loads one platform's library and prints
  * what it observed, one result per line:
  *
- *     @ sample <k> <contact> <switches> <bits of theta_m omega_m theta_L omega_L psi bound bound_paper
- *                                         [T bound_T]>
- *     @ early <k> <contact> <switches> <bits of lastSuccessfulTime> <bits of the same outputs>
+ *     @ sample <k> <contacts> <switches> <bits of each output given>
+ *     @ early <k> <contacts> <switches> <bits of lastSuccessfulTime> <bits of the same outputs>
  *     @ misuse <case> <status> <messages logged>
  *     @ saved <size in bytes>
  *
@@ -16,10 +15,12 @@
  * usage: host <library> <token> <variables> <parameters> <scenario> [args]
  *   <token>       the guid of the FMI 2.0 description, or for the fmi3 scenario the
  *                 instantiationToken of the FMI 3.0 one
- *   <variables>   name=vr,... for tau_m tau_L theta_m omega_m theta_L omega_L psi bound
- *                 bound_paper contact Kp Ki (read by xtask from the archive's modelDescription.xml),
- *                 and for a web line (BacklashWeb) also v_in T_in T bound_T: the host then sets
- *                 the upstream web speed and tension as inputs too and samples T and bound_T
+ *   <variables>   name=vr,... for tau_m tau_L omega_m Kp Ki (read by xtask from the archive's
+ *                 modelDescription.xml), and for a web line (BacklashWeb) also v_in T_in: the
+ *                 host then sets the upstream web speed and tension as inputs too; then
+ *                 out=vr for each Real output a sample prints, in their order, and contact=vr
+ *                 for each mesh's Integer contact mode (<contacts>: their values joined by
+ *                 commas; <switches>: the changes of any of them, each mesh's counted)
  *   <parameters>  vr=bits,... Real parameters set before initialization, each value as the
  *                 hexadecimal IEEE-754 bits (no platform's decimal conversion enters the run);
  *                 must include Kp and Ki, which are also the gains of the host's PI loop
@@ -164,19 +165,30 @@ static void load(const char *path) {
 
 /* ---- value references, by name ---- */
 
-/* Every model's variables, then the web line's (from V_IN on): given all or none. */
-enum { TAU_M, TAU_L, THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER, CONTACT, KP, KI,
-       V_IN, T_IN, TENSION, BOUND_T, NVARS };
-static const char *const var_name[NVARS] = {"tau_m", "tau_L", "theta_m", "omega_m",     "theta_L", "omega_L",
-                                            "psi",   "bound", "bound_paper", "contact", "Kp",      "Ki",
-                                            "v_in",  "T_in",  "T",           "bound_T"};
+/* The variables the host drives, then the web line's inputs (from V_IN on): given both or none. */
+enum { TAU_M, TAU_L, OMEGA_M, KP, KI, V_IN, T_IN, NVARS };
+static const char *const var_name[NVARS] = {"tau_m", "tau_L", "omega_m", "Kp", "Ki", "v_in", "T_in"};
 static fmi2ValueReference vr[NVARS];
 
 /* The model is a web line: its variables from V_IN on were given. */
 static int web;
 
+/* What a sample prints: the Real outputs (out=vr, in their order) and the contact modes
+ * (contact=vr, one per mesh). */
+#define MAX_OUTPUTS 16
+#define MAX_CONTACTS 4
+static fmi2ValueReference out_vr[MAX_OUTPUTS], contact_vr[MAX_CONTACTS];
+static size_t n_out, n_contacts;
+
+static fmi2ValueReference value_reference(const char *name, const char *text, const char *end) {
+    char *stop;
+    unsigned long value = strtoul(text, &stop, 10);
+    if (stop == text || stop != end) die("variables: value reference of %s is not a number", name);
+    return (fmi2ValueReference)value;
+}
+
 /* Parses "name=vr,name=vr,..."; every name of var_name before V_IN must be given, the web line's
- * all or none. */
+ * both or none, and at least one out and one contact. */
 static void parse_variables(const char *list) {
     int seen[NVARS] = {0};
     const char *p = list;
@@ -184,15 +196,22 @@ static void parse_variables(const char *list) {
         const char *eq = strchr(p, '='), *end = strchr(p, ',');
         if (!end) end = p + strlen(p);
         if (!eq || eq > end) die("variables: expected name=vr in `%s`", p);
+        const size_t length = (size_t)(eq - p);
+        int known = 0;
+        if (length == 3 && strncmp(p, "out", 3) == 0) {
+            if (n_out == MAX_OUTPUTS) die("variables: more than %d outputs", MAX_OUTPUTS);
+            out_vr[n_out++] = value_reference("out", eq + 1, end), known = 1;
+        } else if (length == 7 && strncmp(p, "contact", 7) == 0) {
+            if (n_contacts == MAX_CONTACTS) die("variables: more than %d contacts", MAX_CONTACTS);
+            contact_vr[n_contacts++] = value_reference("contact", eq + 1, end), known = 1;
+        }
         for (int i = 0; i < NVARS; i++) {
-            if ((size_t)(eq - p) == strlen(var_name[i]) && strncmp(p, var_name[i], eq - p) == 0) {
-                char *stop;
-                unsigned long value = strtoul(eq + 1, &stop, 10);
-                if (stop != end) die("variables: value reference of %s is not a number", var_name[i]);
-                vr[i] = (fmi2ValueReference)value;
-                seen[i] = 1;
+            if (length == strlen(var_name[i]) && strncmp(p, var_name[i], length) == 0) {
+                vr[i] = value_reference(var_name[i], eq + 1, end);
+                seen[i] = known = 1;
             }
         }
+        if (!known) die("variables: unknown name in `%s`", p);
         p = *end ? end + 1 : end;
     }
     for (int i = 0; i < V_IN; i++)
@@ -201,6 +220,7 @@ static void parse_variables(const char *list) {
     for (int i = V_IN; i < NVARS; i++) web_seen += seen[i];
     if (web_seen != 0 && web_seen != NVARS - V_IN) die("variables: some of the web line's, not all");
     web = web_seen != 0;
+    if (n_out == 0 || n_contacts == 0) die("variables: no out= or no contact= given");
 }
 
 /* Parameters: value references and values, parsed from "vr=bits,..."; kp, ki among them. */
@@ -316,60 +336,69 @@ static uint64_t bits(double x) {
     return b;
 }
 
-static fmi2Integer last_contact;
+static fmi2Integer last_contact[MAX_CONTACTS];
 static long switches;
 
-static void note_contact(int contact) {
-    if (contact != last_contact) switches++;
-    last_contact = contact;
+/* Each mesh whose contact mode changed is one switch. */
+static void note_contacts(const fmi2Integer contact[MAX_CONTACTS]) {
+    for (size_t i = 0; i < n_contacts; i++) {
+        if (contact[i] != last_contact[i]) switches++;
+        last_contact[i] = contact[i];
+    }
+}
+
+static void read_contacts(fmi2Component c, fmi2Integer contact[MAX_CONTACTS]) {
+    check(api.get_integer(c, contact_vr, n_contacts, contact), "fmi2GetInteger(contact)");
 }
 
 static void count_switch(fmi2Component c) {
-    fmi2Integer contact;
-    check(api.get_integer(c, &vr[CONTACT], 1, &contact), "fmi2GetInteger(contact)");
-    note_contact(contact);
+    fmi2Integer contact[MAX_CONTACTS];
+    read_contacts(c, contact);
+    note_contacts(contact);
 }
 
 static void count_switch3(fmi3Instance c) {
-    const fmi3ValueReference ref = vr[CONTACT];
-    fmi3Int32 contact;
-    check(api3.get_int32(c, &ref, 1, &contact, 1), "fmi3GetInt32(contact)");
-    note_contact(contact);
+    fmi3ValueReference refs[MAX_CONTACTS];
+    fmi3Int32 contact3[MAX_CONTACTS];
+    fmi2Integer contact[MAX_CONTACTS];
+    for (size_t i = 0; i < n_contacts; i++) refs[i] = contact_vr[i];
+    check(api3.get_int32(c, refs, n_contacts, contact3, n_contacts), "fmi3GetInt32(contact)");
+    for (size_t i = 0; i < n_contacts; i++) contact[i] = contact3[i];
+    note_contacts(contact);
 }
 
-/* The Real outputs of a sample line, in their order (OUTPUTS in xtask/src/cross/compare.rs): every
- * model's, then a web line's (WEB_OUTPUTS there). */
-#define NOUT 9
-static const int output_var[NOUT] = {THETA_M, OMEGA_M, THETA_L, OMEGA_L, PSI, BOUND, BOUND_PAPER, TENSION, BOUND_T};
+/* "@ <kind> <k> <contacts> <switches>" of a sample line. */
+static void print_head(const char *kind, long k) {
+    printf("@ %s %ld ", kind, k);
+    for (size_t i = 0; i < n_contacts; i++) printf(i ? ",%d" : "%d", (int)last_contact[i]);
+    printf(" %ld", switches);
+}
 
-/* How many of output_var the model has. */
-static size_t n_outputs(void) { return web ? NOUT : NOUT - 2; }
-
-static void print_outputs(const double out[NOUT]) {
-    for (size_t i = 0; i < n_outputs(); i++) printf(" %016" PRIx64, bits(out[i]));
+static void print_outputs(const double out[MAX_OUTPUTS]) {
+    for (size_t i = 0; i < n_out; i++) printf(" %016" PRIx64, bits(out[i]));
     printf("\n");
 }
 
 static void sample(fmi2Component c, long k) {
-    fmi2ValueReference out_vr[NOUT];
-    fmi2Real out[NOUT];
-    for (size_t i = 0; i < n_outputs(); i++) out_vr[i] = vr[output_var[i]];
-    check(api.get_real(c, out_vr, n_outputs(), out), "fmi2GetReal(outputs)");
-    printf("@ sample %ld %d %ld", k, (int)last_contact, switches);
+    fmi2Real out[MAX_OUTPUTS];
+    check(api.get_real(c, out_vr, n_out, out), "fmi2GetReal(outputs)");
+    print_head("sample", k);
     print_outputs(out);
 }
 
 /* The outputs through FMI 3.0: after step k, or (`early` not NULL) at the instant *early inside
  * step k where fmi3DoStep returned early. */
 static void sample3(fmi3Instance c, long k, const fmi3Float64 *early) {
-    fmi3ValueReference out_vr[NOUT];
-    fmi3Float64 out[NOUT];
-    for (size_t i = 0; i < n_outputs(); i++) out_vr[i] = vr[output_var[i]];
-    check(api3.get_float64(c, out_vr, n_outputs(), out, n_outputs()), "fmi3GetFloat64(outputs)");
-    if (early)
-        printf("@ early %ld %d %ld %016" PRIx64, k, (int)last_contact, switches, bits(*early));
-    else
-        printf("@ sample %ld %d %ld", k, (int)last_contact, switches);
+    fmi3ValueReference refs[MAX_OUTPUTS];
+    fmi3Float64 out[MAX_OUTPUTS];
+    for (size_t i = 0; i < n_out; i++) refs[i] = out_vr[i];
+    check(api3.get_float64(c, refs, n_out, out, n_out), "fmi3GetFloat64(outputs)");
+    if (early) {
+        print_head("early", k);
+        printf(" %016" PRIx64, bits(*early));
+    } else {
+        print_head("sample", k);
+    }
     print_outputs(out);
 }
 
@@ -521,7 +550,7 @@ static void restore(long steps, long every, const char *path) {
     check(api.deserialize(c, bytes, size, &state), "fmi2DeSerializeFMUstate");
     check(api.set_state(c, state), "fmi2SetFMUstate");
     check(api.free_state(c, &state), "fmi2FreeFMUstate");
-    check(api.get_integer(c, &vr[CONTACT], 1, &last_contact), "fmi2GetInteger(contact)");
+    read_contacts(c, last_contact);
     switches = 0;
     run_open(c, steps / 2, steps, every);
     release(c);

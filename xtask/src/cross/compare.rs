@@ -1,35 +1,19 @@
 //! Reads what the cross test's host printed (tests/cross/host.c) and compares two platforms.
 
-/// The Real outputs of a sample line, in the host's order: every model's, then the last
-/// [`WEB_OUTPUTS`] of them a web line's (BacklashWeb), which the other models lack.
-pub const OUTPUTS: [&str; 9] = [
-    "theta_m",
-    "omega_m",
-    "theta_L",
-    "omega_L",
-    "psi",
-    "bound",
-    "bound_paper",
-    "T",
-    "bound_T",
-];
-
-/// How many of [`OUTPUTS`], at its end, only a web line has.
-pub const WEB_OUTPUTS: usize = 2;
-
 /// Largest relative difference two platforms may show in any output.
 pub const TOLERANCE: f64 = 1e-12;
 
 /// The outputs after step `k`, or at the instant inside step `k` where fmi3DoStep returned early
-/// (`early`, its lastSuccessfulTime), the contact mode, and the contact switches counted so far.
+/// (`early`, its lastSuccessfulTime), each mesh's contact mode, and the contact switches counted
+/// so far.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sample {
     pub k: u64,
     pub early: Option<f64>,
-    pub contact: i32,
+    /// The meshes' contact modes as the host printed them (`1`, or `1,-1` for two meshes).
+    pub contact: String,
     pub switches: u64,
-    /// The first `values.len()` of [`OUTPUTS`]: all of them on a web line, else all but the web
-    /// line's.
+    /// The Real outputs the host was given, in their order.
     pub values: Vec<f64>,
 }
 
@@ -72,14 +56,15 @@ pub fn samples(output: &str) -> Result<Vec<Sample>, String> {
                 "sample" if fields.len() > 4 => (None, &fields[4..]),
                 _ => return Err(bad()),
             };
-            if outputs.len() != OUTPUTS.len() && outputs.len() != OUTPUTS.len() - WEB_OUTPUTS {
+            let values = outputs.iter().map(|field| hex(field)).collect::<Result<Vec<_>, _>>()?;
+            let contact = fields[2];
+            if contact.split(',').any(|mode| mode.parse::<i32>().is_err()) {
                 return Err(bad());
             }
-            let values = outputs.iter().map(|field| hex(field)).collect::<Result<Vec<_>, _>>()?;
             Ok(Sample {
                 k: fields[1].parse().map_err(|_| bad())?,
                 early,
-                contact: fields[2].parse().map_err(|_| bad())?,
+                contact: contact.to_string(),
                 switches: fields[3].parse().map_err(|_| bad())?,
                 values,
             })
@@ -125,12 +110,12 @@ pub struct Agreement {
     pub bit_identical: usize,
     pub max_relative: f64,
     /// Output and sample (see [`Sample::at`]) of the largest difference.
-    pub worst: Option<(&'static str, String)>,
+    pub worst: Option<(String, String)>,
 }
 
-/// Same steps and early returns, same contact modes and switch counts, and every output and
-/// early-return instant within [`TOLERANCE`].
-pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String> {
+/// Same steps and early returns, same contact modes and switch counts, and every output (named
+/// by `outputs`, in the samples' order) and early-return instant within [`TOLERANCE`].
+pub fn agree(reference: &[Sample], other: &[Sample], outputs: &[String]) -> Result<Agreement, String> {
     if reference.len() != other.len() {
         return Err(format!(
             "{} samples against {} of the reference",
@@ -148,15 +133,16 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
         if (r.k, r.early.is_some()) != (o.k, o.early.is_some()) {
             return Err(format!("a sample {} where the reference has one {}", o.at(), r.at()));
         }
-        if r.values.len() != o.values.len() {
+        if r.values.len() != outputs.len() || o.values.len() != outputs.len() {
             return Err(format!(
-                "{} outputs {}, the reference {}",
+                "{} outputs {}, the reference {}, the model {}",
                 o.values.len(),
                 o.at(),
-                r.values.len()
+                r.values.len(),
+                outputs.len()
             ));
         }
-        if (r.contact, r.switches) != (o.contact, o.switches) {
+        if (&r.contact, r.switches) != (&o.contact, o.switches) {
             return Err(format!(
                 "{}: contact {} after {} switches, the reference contact {} after {}",
                 r.at(),
@@ -167,11 +153,11 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
             ));
         }
         let early = r.early.zip(o.early).map(|(a, b)| ("lastSuccessfulTime", (a, b)));
-        let outputs = OUTPUTS
+        let values = outputs
             .iter()
-            .zip(r.values.iter().copied().zip(o.values.iter().copied()))
-            .map(|(n, v)| (*n, v));
-        let compared: Vec<(&'static str, (f64, f64))> = early.into_iter().chain(outputs).collect();
+            .map(String::as_str)
+            .zip(r.values.iter().copied().zip(o.values.iter().copied()));
+        let compared: Vec<(&str, (f64, f64))> = early.into_iter().chain(values).collect();
         if compared.iter().all(|(_, (a, b))| a.to_bits() == b.to_bits()) {
             agreement.bit_identical += 1;
         }
@@ -179,7 +165,7 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
             let d = relative_difference(a, b);
             if d > agreement.max_relative {
                 agreement.max_relative = d;
-                agreement.worst = Some((name, r.at()));
+                agreement.worst = Some((name.to_string(), r.at()));
             }
         }
     }
@@ -197,101 +183,118 @@ pub fn agree(reference: &[Sample], other: &[Sample]) -> Result<Agreement, String
 mod tests {
     use super::*;
 
-    fn line(k: u64, contact: i32, switches: u64, values: &[f64]) -> String {
+    fn line(k: u64, contact: &str, switches: u64, values: &[f64]) -> String {
         let hex: Vec<String> = values.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
         format!("@ sample {k} {contact} {switches} {}\r\n", hex.join(" "))
+    }
+
+    /// A single gap's outputs, in the host's order (a shaft's description's).
+    fn names(list: &[&str]) -> Vec<String> {
+        list.iter().map(|n| n.to_string()).collect()
+    }
+
+    fn shaft() -> Vec<String> {
+        names(&["theta_m", "omega_m", "theta_L", "omega_L", "psi", "bound", "bound_paper"])
     }
 
     #[test]
     fn samples_are_read_bit_for_bit_from_either_line_ending() {
         let values = [0.1, -2.5, 1e-300, f64::MIN_POSITIVE, -0.0, 3.0, 1.0 / 3.0];
-        let text = format!("noise\n{}@ misuse x 3 1\n", line(100, -1, 4, &values));
+        let text = format!("noise\n{}@ misuse x 3 1\n", line(100, "-1", 4, &values));
         let parsed = samples(&text).unwrap();
         assert_eq!(parsed.len(), 1);
-        assert_eq!((parsed[0].k, parsed[0].contact, parsed[0].switches), (100, -1, 4));
+        assert_eq!((parsed[0].k, parsed[0].contact.as_str(), parsed[0].switches), (100, "-1", 4));
         for (a, b) in parsed[0].values.iter().zip(&values) {
             assert_eq!(a.to_bits(), b.to_bits());
         }
-        assert!(samples("@ sample 1 0 0 3ff0000000000000\n").is_err());
+        assert!(samples("@ sample 1 0 0\n").is_err(), "a sample without outputs");
+        assert!(samples("@ sample 1 1,x 0 3ff0000000000000\n").is_err(), "a contact mode that is no number");
         assert!(samples("nothing here\n").is_err());
         assert_eq!(misuse(&text).unwrap(), [("x".into(), "3".into(), "1".into())]);
     }
 
     #[test]
     fn platforms_disagree_beyond_the_tolerance_or_in_a_contact_switch() {
+        let outputs = shaft();
         let base = Sample {
             k: 10,
             early: None,
-            contact: 1,
+            contact: "1".into(),
             switches: 2,
             values: vec![1.0; 7],
         };
         let reference = std::slice::from_ref(&base);
-        let same = agree(reference, reference).unwrap();
+        let same = agree(reference, reference, &outputs).unwrap();
         assert_eq!((same.bit_identical, same.max_relative), (1, 0.0));
 
         let mut close = base.clone();
         close.values[3] = 1.0 + 4.0 * f64::EPSILON;
-        let near = agree(reference, &[close]).unwrap();
+        let near = agree(reference, &[close], &outputs).unwrap();
         assert_eq!(near.bit_identical, 0);
-        assert_eq!(near.worst, Some(("omega_L", "after step 10".into())));
+        assert_eq!(near.worst, Some(("omega_L".into(), "after step 10".into())));
         assert!(near.max_relative > 0.0 && near.max_relative <= TOLERANCE);
 
         let mut far = base.clone();
         far.values[5] = 1.0 + 1e-9;
-        assert!(agree(reference, &[far]).unwrap_err().contains("bound after step 10"));
+        assert!(agree(reference, &[far], &outputs).unwrap_err().contains("bound after step 10"));
 
         let mut nan = base.clone();
         nan.values[0] = f64::NAN;
-        assert!(agree(reference, &[nan]).is_err());
+        assert!(agree(reference, &[nan], &outputs).is_err());
 
         let mut switched = base.clone();
         switched.switches = 3;
-        assert!(agree(reference, &[switched]).is_err());
-        assert!(agree(reference, &[]).is_err());
+        assert!(agree(reference, &[switched], &outputs).is_err());
+        assert!(agree(reference, &[], &outputs).is_err());
     }
 
     #[test]
     fn early_returns_are_read_in_place_and_compared_by_their_instant() {
+        let outputs = shaft();
         let values = [0.5_f64; 7];
         let early = |t: f64| {
             let hex: Vec<String> = values.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
             format!("@ early 7 0 1 {:016x} {}\n", t.to_bits(), hex.join(" "))
         };
-        let text = format!("{}{}", early(6.5e-3), line(7, 0, 1, &values));
+        let text = format!("{}{}", early(6.5e-3), line(7, "0", 1, &values));
         let reference = samples(&text).unwrap();
         assert_eq!(
             reference.iter().map(|s| s.early).collect::<Vec<_>>(),
             [Some(6.5e-3), None]
         );
-        assert_eq!(agree(&reference, &reference).unwrap().bit_identical, 2);
+        assert_eq!(agree(&reference, &reference, &outputs).unwrap().bit_identical, 2);
 
-        let moved = samples(&format!("{}{}", early(6.5e-3 * (1.0 + 1e-9)), line(7, 0, 1, &values))).unwrap();
-        let error = agree(&reference, &moved).unwrap_err();
+        let moved = samples(&format!("{}{}", early(6.5e-3 * (1.0 + 1e-9)), line(7, "0", 1, &values))).unwrap();
+        let error = agree(&reference, &moved, &outputs).unwrap_err();
         assert!(
             error.contains("lastSuccessfulTime at the early return in step 7"),
             "{error}"
         );
 
-        let missing = samples(&format!("{}{}", line(7, 0, 1, &values), line(7, 0, 1, &values))).unwrap();
-        assert!(agree(&reference, &missing).is_err());
+        let missing = samples(&format!("{}{}", line(7, "0", 1, &values), line(7, "0", 1, &values))).unwrap();
+        assert!(agree(&reference, &missing, &outputs).is_err());
         assert!(samples("@ early 7 0 1 3ff0000000000000\n").is_err());
     }
 
     #[test]
-    fn a_web_lines_samples_carry_its_outputs_and_are_compared_in_them() {
-        let mut values = vec![1.0; OUTPUTS.len()];
-        let reference = samples(&line(5, 1, 0, &values)).unwrap();
-        assert_eq!(reference[0].values.len(), OUTPUTS.len());
-        values[OUTPUTS.len() - 1] = 1.0 + 1e-9;
-        let error = agree(&reference, &samples(&line(5, 1, 0, &values)).unwrap()).unwrap_err();
-        assert!(error.contains("bound_T after step 5"), "{error}");
+    fn a_gearboxs_samples_carry_each_meshs_contact_and_its_own_outputs() {
+        let outputs = names(&["theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L", "psi_1", "psi_2", "bound"]);
+        let mut values = vec![1.0; outputs.len()];
+        let reference = samples(&line(5, "1,-1", 3, &values)).unwrap();
+        assert_eq!(reference[0].contact, "1,-1");
+        assert_eq!(agree(&reference, &reference, &outputs).unwrap().bit_identical, 1);
 
-        // A model without the web line's outputs is not compared with one that has them.
-        let drive_only = samples(&line(5, 1, 0, &values[..OUTPUTS.len() - WEB_OUTPUTS])).unwrap();
-        assert!(agree(&reference, &drive_only).is_err());
-        // Only all outputs or all but the web line's make a sample.
-        assert!(samples(&line(5, 1, 0, &values[..OUTPUTS.len() - 1])).is_err());
+        // One mesh in another mode is a disagreement, whatever the other does.
+        let other_mesh = samples(&line(5, "1,0", 3, &values)).unwrap();
+        assert!(agree(&reference, &other_mesh, &outputs).unwrap_err().contains("contact 1,0"));
+
+        values[outputs.len() - 2] = 1.0 + 1e-9;
+        let error = agree(&reference, &samples(&line(5, "1,-1", 3, &values)).unwrap(), &outputs).unwrap_err();
+        assert!(error.contains("psi_2 after step 5"), "{error}");
+
+        // Samples are compared in the model's outputs only: a sample of another length is refused.
+        let short = samples(&line(5, "1,-1", 3, &values[..outputs.len() - 1])).unwrap();
+        assert!(agree(&short, &short, &outputs).is_err());
     }
 
     #[test]

@@ -3,9 +3,9 @@
 //! and compared with it.
 //!
 //! For each model: a closed PI loop and an open-loop torque schedule through FMI 2.0, both with
-//! contact switches, sampled along the way (every output within 1e-12 relative of linux64, the
-//! same contact modes and switch counts; on the web line also its upstream speed and tension as
-//! inputs, and its tension T and bound_T among the outputs); the same open loop through FMI 3.0
+//! contact switches, sampled along the way (every Real output of its description within 1e-12
+//! relative of linux64, every mesh's contact mode the same, the same switch counts; on the web
+//! line also its upstream speed and tension as inputs); the same open loop through FMI 3.0
 //! from the FMI 3.0 archive, whose fmi3DoStep returns early at every contact switch (each switch
 //! instant and the outputs there compared as the samples are); misuse of the C API (the same
 //! fmi2Status and number of logged messages as on linux64); an FMU state serialized on each
@@ -105,26 +105,14 @@ const CONTROLLER_SINE: [(&str, f64); 2] = [("amplitude", 5.0), ("frequency", 0.5
 /// A scenario that switches contact fewer times than this would not test the switching.
 const MIN_SWITCHES: u64 = 4;
 
-/// The variables the host drives and reads on every model, by name (tests/cross/host.c).
-const HOST_VARIABLES: [&str; 12] = [
-    "tau_m",
-    "tau_L",
-    "theta_m",
-    "omega_m",
-    "theta_L",
-    "omega_L",
-    "psi",
-    "bound",
-    "bound_paper",
-    "contact",
-    "Kp",
-    "Ki",
-];
+/// The variables the host drives on every model, by name (tests/cross/host.c): its inputs, the
+/// speed its PI loop reads, and the gains of that loop. What it samples is the description's own
+/// list: every Real output and each mesh's contact mode ([`sampled`]).
+const HOST_VARIABLES: [&str; 5] = ["tau_m", "tau_L", "omega_m", "Kp", "Ki"];
 
-/// The web line's variables the host drives (the upstream web speed and tension) and reads,
-/// passed where the description has them (BacklashWeb): the host then sets these inputs too and
-/// samples T and bound_T.
-const WEB_VARIABLES: [&str; 4] = ["v_in", "T_in", "T", "bound_T"];
+/// The web line's inputs the host drives (the upstream web speed and tension), passed where the
+/// description has them (BacklashWeb).
+const WEB_VARIABLES: [&str; 2] = ["v_in", "T_in"];
 
 pub fn run(args: &[String]) -> Result<(), String> {
     if let Some(arg) = args.first() {
@@ -240,6 +228,8 @@ struct Model {
     libraries: Vec<(&'static Platform, PathBuf)>,
     token: String,
     variables: String,
+    /// The Real outputs a sample carries, in its order.
+    outputs: Vec<String>,
     parameters: String,
     /// [`FRICTION`] as `vr=bits,...`.
     friction: String,
@@ -273,7 +263,8 @@ impl Model {
                 .map_err(|e| format!("writing {}: {e}", path.display()))?;
             libraries.push((platform, path));
         }
-        let (token, variables, parameters) = host_arguments(id, standard, &xml).map_err(|e| format!("{id}: {e}"))?;
+        let (token, variables, outputs, parameters) =
+            host_arguments(id, standard, &xml).map_err(|e| format!("{id}: {e}"))?;
         let friction = parameter_bits(&xml, &FRICTION).map_err(|e| format!("{id}: {e}"))?;
         Ok(Model {
             id,
@@ -281,6 +272,7 @@ impl Model {
             libraries,
             token,
             variables,
+            outputs,
             parameters,
             friction,
         })
@@ -328,9 +320,9 @@ fn read_entry(archive: &Path, name: &str) -> Result<Vec<u8>, String> {
 
 /// From a model description of `standard`: the guid (FMI 2.0) or instantiation token (FMI 3.0),
 /// `name=vr,...` of the host's variables (those of [`WEB_VARIABLES`] where the description has
-/// them), and the rig's parameters as `vr=bits,...` (the exact f64 of each value, as hexadecimal
-/// IEEE-754 bits).
-fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, String, String), String> {
+/// them, then what it samples: [`sampled`]), the names of the sampled Real outputs, and the rig's
+/// parameters as `vr=bits,...` (the exact f64 of each value, as hexadecimal IEEE-754 bits).
+fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, String, Vec<String>, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
     let token = standard.token(&doc)?;
     let mut variables = HOST_VARIABLES
@@ -347,8 +339,45 @@ fn host_arguments(id: &str, standard: &Standard, xml: &str) -> Result<(String, S
         ));
     }
     variables.extend(web);
+    let (outputs, contacts) = sampled(&doc);
+    if contacts.is_empty() {
+        return Err("modelDescription.xml has no contact output".into());
+    }
+    variables.extend(outputs.iter().map(|(_, vr)| format!("out={vr}")));
+    variables.extend(contacts.iter().map(|vr| format!("contact={vr}")));
+    let names = outputs.into_iter().map(|(name, _)| name.to_string()).collect();
     let parameters = parameter_bits(xml, &rig(id)?)?;
-    Ok((token.to_string(), variables.join(","), parameters))
+    Ok((token.to_string(), variables.join(","), names, parameters))
+}
+
+/// What the host samples, from a model description: every Real (Float64) output, with its value
+/// reference, and the value reference of each mesh's contact mode (the Integer outputs `contact`,
+/// or a gearbox's `contact_1`, `contact_2`), each in value-reference order.
+fn sampled<'a>(doc: &'a roxmltree::Document) -> (Vec<(&'a str, u32)>, Vec<u32>) {
+    let mut outputs = Vec::new();
+    let mut contacts = Vec::new();
+    for variable in doc
+        .descendants()
+        .filter(|n| n.parent().is_some_and(|p| p.has_tag_name("ModelVariables")))
+        .filter(|n| n.attribute("causality") == Some("output"))
+    {
+        let (Some(name), Some(vr)) = (
+            variable.attribute("name"),
+            variable.attribute("valueReference").and_then(|vr| vr.parse::<u32>().ok()),
+        ) else {
+            continue;
+        };
+        // FMI 2.0 names the type in a child element, FMI 3.0 in the variable's own tag.
+        let is = |ty: &str| variable.has_tag_name(ty) || variable.children().any(|c| c.has_tag_name(ty));
+        if is("Real") || is("Float64") {
+            outputs.push((name, vr));
+        } else if (is("Integer") || is("Int32")) && (name == "contact" || name.starts_with("contact_")) {
+            contacts.push(vr);
+        }
+    }
+    outputs.sort_by_key(|&(_, vr)| vr);
+    contacts.sort_unstable();
+    (outputs, contacts)
 }
 
 /// The value reference of the variable `name` of a model description: a child of
@@ -459,7 +488,7 @@ fn scenario(model: &Model, hosts: &[Host], timer: &mut Timer, run: &Sampled, ext
             reference = Some(samples);
             continue;
         };
-        let agreement = compare::agree(reference, &samples)
+        let agreement = compare::agree(reference, &samples, &model.outputs)
             .map_err(|e| format!("{}, {label}, {} against linux64: {e}", model.id, host.platform.name))?;
         report(model, label, host.platform, &agreement);
     }
@@ -544,7 +573,7 @@ fn fmu_state(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), Str
     let reference_bytes = fs::read(&saved[0].1).map_err(|e| format!("{}: {e}", saved[0].1.display()))?;
     for (platform, file, continuation) in &saved[1..] {
         let bytes = fs::read(file).map_err(|e| format!("{}: {e}", file.display()))?;
-        let agreement = compare::agree(&saved[0].2, continuation)
+        let agreement = compare::agree(&saved[0].2, continuation, &model.outputs)
             .map_err(|e| format!("{}, continuation after saving on {}: {e}", model.id, platform.name))?;
         println!(
             "  {:<13} {:<34} {:<13} serialized state ({} bytes) {} linux64's",
@@ -564,7 +593,7 @@ fn fmu_state(model: &Model, hosts: &[Host], timer: &mut Timer) -> Result<(), Str
         for (saver, file, continuation) in &saved {
             let args = vec!["restore".into(), steps.clone(), every.clone(), host.path_argument(file)];
             let restored = compare::samples(&timer.run(model, host, &args)?)?;
-            let agreement = compare::agree(continuation, &restored).map_err(|e| {
+            let agreement = compare::agree(continuation, &restored, &model.outputs).map_err(|e| {
                 format!(
                     "{}, state saved on {} and restored on {}, against its continuation on {}: {e}",
                     model.id, saver.name, host.platform.name, saver.name
@@ -602,5 +631,30 @@ mod tests {
             "the cross-platform sets: {web:?}"
         );
         assert!(rig("NoSuchModel").unwrap_err().contains("no rig for NoSuchModel"));
+    }
+
+    /// What the host samples, read from each standard's XML, is the description's table: every
+    /// Real output and every contact output, in value-reference order.
+    #[test]
+    fn the_host_samples_every_real_output_and_each_meshs_contact() {
+        use model_description::{Causality, Type};
+        for &id in model_description::model_identifiers() {
+            let model = model_description::model(id);
+            let mut outputs: Vec<_> = model.variables.iter().filter(|v| v.causality == Causality::Output).collect();
+            outputs.sort_by_key(|v| v.vr);
+            let reals: Vec<(&str, u32)> = outputs.iter().filter(|v| v.ty == Type::Real).map(|v| (v.name, v.vr)).collect();
+            let contacts: Vec<u32> = outputs
+                .iter()
+                .filter(|v| v.ty == Type::Integer && v.name.starts_with("contact"))
+                .map(|v| v.vr)
+                .collect();
+            let expected_contacts = if id == "BacklashTwoStage" { 2 } else { 1 };
+            assert_eq!(contacts.len(), expected_contacts, "{id}");
+            for standard in fmu::STANDARDS {
+                let xml = (standard.description)(id);
+                let doc = roxmltree::Document::parse(&xml).unwrap();
+                assert_eq!(sampled(&doc), (reals.clone(), contacts.clone()), "{id}, FMI {}", standard.fmi_version);
+            }
+        }
     }
 }
