@@ -11,7 +11,7 @@ edit here). For each: an open loop with a reversing torque, input ramps set by
 fmi2SetRealInputDerivatives, a sampled PI loop closed here, and a start from a non-zero load
 speed, at the time scale of its drive's form (a shaft's or a belt's stiffness, read from its
 description; a web line's span inputs stay at their start values). After every step it records
-every Real variable, `contact` and the output derivatives of the Real outputs, as exact
+every Real variable, each mesh's contact and the output derivatives of the Real outputs, as exact
 hexadecimal floats (`--dump` writes them, one line per step).
 
 The archives are driven through the package's driver, backlash_fmu.fmu (each scenario on an
@@ -31,7 +31,10 @@ from backlash_fmu import fmu
 
 SCENARIOS = ("open", "ramp", "closed", "initial_speed")
 STEPS = 1500
-DERIVED = ["omega_m", "omega_L", "theta_m", "theta_L", "psi", "bound", "bound_paper"]
+# The outputs whose derivatives are recorded, those of them a model has: a single gap's, then a
+# gearbox's intermediate shaft and meshes.
+DERIVED = ["omega_m", "omega_L", "theta_m", "theta_L", "psi", "bound", "bound_paper", "theta_i", "omega_i", "psi_1",
+           "psi_2"]
 
 
 def run(path: Path, scenario: str) -> list[str]:
@@ -41,9 +44,10 @@ def run(path: Path, scenario: str) -> list[str]:
         lines = [f"# {archive.model} {scenario}"]
         vr = archive.vr
         reals = [v.name for v in archive.md.modelVariables if v.type == "Real"]
-        derived = [vr[n] for n in DERIVED]
-        # The rig's time scale follows the compliant member: a shaft's k, or a belt's K_b.
-        shaft = "k" in vr
+        derived = [vr[n] for n in DERIVED if n in vr]
+        # The rig's time scale follows the compliant member: a shaft's k (a gearbox's k_1), or a
+        # belt's K_b.
+        shaft = "k" in vr or "k_1" in vr
         gains = {"Kp": 5.0, "Ki": 10.0} if shaft else {"Kp": 0.05, "Ki": 1.0}
         start = dict(gains, omega_L=0.3) if scenario == "initial_speed" else gains
         inst = archive.co_simulation(name="fingerprint", params=start)
@@ -67,8 +71,8 @@ def run(path: Path, scenario: str) -> list[str]:
                 inst.do_step(t, h)
                 t += h
                 values = list(inst.get(*reals)) + list(slave.getRealOutputDerivatives(derived, [1] * len(derived)))
-                contact = inst.contact()
-                lines.append(" ".join(float(x).hex() for x in values) + f" {contact}")
+                contacts = " ".join(str(c) for c in inst.contacts().values())
+                lines.append(" ".join(float(x).hex() for x in values) + f" {contacts}")
         finally:
             inst.free()
     return lines

@@ -27,14 +27,16 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 
-# The drive train's continuous states in their order (a web line has its span's tension T as a
-# fifth); also the outputs that carry them.
+# A single-gap drive train's continuous states in their order (a web line has its span's tension
+# T as a fifth); also the outputs that carry them. An archive reads its own (Archive.drive_states:
+# a gearbox's six, docs/model.md §10).
 STATES = ("theta_m", "omega_m", "theta_L", "omega_L")
 # Its ten event indicators (docs/model.md §6, §12): u - g, u + g, then the damped force's surfaces
 # K*(u - g) + D*u' and K*(u + g) + D*u', and the cap's D*u' - K*(u - g) and D*u' - K*(u + g), then
 # bearing friction's stop_m, breakaway_m, stop_L, breakaway_L (each 1 where the plant has no such
 # surface: without a damper, the cap's with contact_law = 2, a body without friction or in the
-# other mode). An instance reads the count from its description (ModelExchange.nz).
+# other mode). BacklashTwoStage has 18 (docs/model.md §10). An instance reads the count from its
+# description (ModelExchange.nz).
 EVENT_INDICATORS = 10
 # The status every refusal is answered with: fmi2Error and fmi3Error are both 3.
 ERROR = 3
@@ -107,6 +109,13 @@ class Archive:
         self.unzipdir = extract(str(self.path)) if unzipdir is None else str(unzipdir)
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.vr = {name: v.valueReference for name, v in self.variables.items()}
+        # The drive train's continuous states in the description's order: every state but a web
+        # span's tension T (the states x[:len(drive_states)] of ModelExchange's calls).
+        self.drive_states = tuple(d.variable.derivative.name for d in self.md.derivatives
+                                  if d.variable.derivative.name != "T")
+        # Each mesh's contact mode: `contact`, or a gearbox's `contact_1`, `contact_2`.
+        self.contacts = tuple(n for n, v in self.variables.items() if v.causality == "output"
+                              and (n == "contact" or n.startswith("contact_")))
         self._count = 0
 
     @classmethod
@@ -237,8 +246,18 @@ class Instance:
         return self._get_real(self.refs(names))
 
     def contact(self) -> int:
-        """The Integer (FMI 3.0: Int32) output `contact`."""
+        """The Integer (FMI 3.0: Int32) output `contact` of a single-gap plant. A gearbox has one
+        per mesh (`contacts`): ValueError."""
+        if self.archive.contacts != ("contact",):
+            raise ValueError(f"{self.archive.model} has a contact mode per mesh {self.archive.contacts}: "
+                             "read them with contacts()")
         return self._get_int([self.vr["contact"]])[0]
+
+    def contacts(self) -> dict[str, int]:
+        """Each mesh's contact mode by name (`contact`; a gearbox's `contact_1`, `contact_2`), in
+        one call."""
+        names = self.archive.contacts
+        return dict(zip(names, self._get_int(self.refs(names))))
 
     def integers(self, *names: str) -> list[int]:
         """Integer (FMI 3.0: Int32) values by name, in one call (`contact`, `sliding_m`, ...)."""
@@ -327,9 +346,10 @@ class CoSimulation(Instance):
         return self.do_step(t, h)
 
     def outputs(self, names: tuple[str, ...]) -> dict[str, float]:
-        """`names` and `contact` read together, as a dict."""
+        """`names` and each mesh's contact mode (`contact`, a gearbox's `contact_1`, `contact_2`)
+        read together, as a dict."""
         out = dict(zip(names, self.get(*names)))
-        out["contact"] = self.contact()
+        out.update(self.contacts())
         return out
 
     def free(self) -> None:
@@ -346,7 +366,8 @@ class CoSimulation(Instance):
 class ModelExchange(Instance):
     """A Model Exchange instance (FMU2Model, FMU3Model), initialised and in Continuous-Time
     Mode, with the calls an integrator makes. States, derivatives and nominals are the drive
-    train's four (STATES); a web line's fifth, T, is set to 0 by `set_state`."""
+    train's (Archive.drive_states: a single gap's four, STATES, or a gearbox's six); a web line's
+    last, T, is set to 0 by `set_state`."""
 
     def __init__(self, archive: Archive, name: str, params: dict[str, float] | None, start_time: float):
         if archive.fmi == 2:
@@ -358,6 +379,7 @@ class ModelExchange(Instance):
 
             super().__init__(archive, FMU3Model, name)
         self.nx = len(archive.md.derivatives)
+        self.n_drive = len(archive.drive_states)
         self._x = (ctypes.c_double * self.nx)()
         self._dx = (ctypes.c_double * self.nx)()
         self.nz = archive.md.numberOfEventIndicators
@@ -393,22 +415,22 @@ class ModelExchange(Instance):
             self.fmu.fmi3SetFloat64(self.c, self._torques, 2, self._u, 2)
 
     def set_state(self, t: float, x: Any) -> None:
-        """Time and the drive train's states x[:4]; a web line's T is 0."""
-        n = len(STATES)
+        """Time and the drive train's states x[:n_drive]; a web line's T is 0."""
+        n = self.n_drive
         self._set_time(self.c, t)
         self.x_view[:n] = x[:n]
         self._set_states(self.c, self._x, self.nx)
 
     def derivatives(self, t: float, x: Any, tau_m: float, tau_L: float) -> np.ndarray:
-        """The drive train's derivatives at (t, x[:4]) under the torques."""
+        """The drive train's derivatives at (t, x[:n_drive]) under the torques."""
         self.set_state(t, x)
         self.set_torques(tau_m, tau_L)
         self._get_derivatives(self.c, self._dx, self.nx)
-        return np.array(self._dx[: len(STATES)])
+        return np.array(self._dx[: self.n_drive])
 
     def indicators(self, t: float, x: Any) -> np.ndarray:
-        """The event indicators at (t, x[:4]): u - g, u + g, the damper's four and friction's four
-        (EVENT_INDICATORS)."""
+        """The event indicators at (t, x[:n_drive]): a single gap's u - g, u + g, the damper's four
+        and friction's four (EVENT_INDICATORS); a gearbox's six per mesh and two per body."""
         self.set_state(t, x)
         self._get_indicators(self.c, self._z, self.nz)
         return np.array(self._z)
@@ -417,13 +439,13 @@ class ModelExchange(Instance):
         """The drive train's state nominals."""
         out = (ctypes.c_double * self.nx)()
         self.fmu.getNominalsOfContinuousStates(out, self.nx)
-        return np.array(out[: len(STATES)])
+        return np.array(out[: self.n_drive])
 
     def continuous_states(self) -> np.ndarray:
         """The drive train's states."""
         out = (ctypes.c_double * self.nx)()
         self.fmu.getContinuousStates(out, self.nx)
-        return np.array(out[: len(STATES)])
+        return np.array(out[: self.n_drive])
 
     def completed_step(self) -> tuple[bool, bool]:
         """fmi2CompletedIntegratorStep / fmi3CompletedIntegratorStep: (enterEventMode,

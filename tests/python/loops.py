@@ -130,19 +130,26 @@ class LoopRun:
     step_answers: list = field(default_factory=list)
 
 
-def _mode(sides) -> int:
-    """Contact mode from the signs of the indicators [u - g, u + g]."""
-    if sides[0] > 0:
+def _mode(sides, mesh: int = 0) -> int:
+    """A mesh's contact mode from the signs of its indicators [u - g, u + g]: the first two of
+    each mesh's six (docs/model.md §6; a gearbox's, §10)."""
+    if sides[6 * mesh] > 0:
         return PLUS
-    if sides[1] < 0:
+    if sides[6 * mesh + 1] < 0:
         return MINUS
     return FREE
 
 
-def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, atol=1e-15, events=True) -> LoopRun:
+def modes(sides, meshes: int = 2) -> tuple[int, ...]:
+    """Each mesh's contact mode from the signs of a gearbox's indicators."""
+    return tuple(_mode(sides, j) for j in range(meshes))
+
+
+def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, atol=1e-15, events=True,
+             meshes: int = 1) -> LoopRun:
     """The continuous-time PI of docs/model.md §3 closed around `model`:
 
-        y = [theta_m, omega_m, theta_L, omega_L, xi],   xi' = w_ref - omega_m,
+        y = [z, xi],   xi' = w_ref - omega_m,
         tau_m = tau_ff + Kp (w_ref - omega_m) + Ki xi,
 
     integrated by solve_ivp (DOP853) from hold to hold (the signals jump there, so every hold
@@ -154,14 +161,19 @@ def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, a
     events=False integrates without events (for Delta = 0, where the right-hand side is linear
     and both indicators are u: there is nothing to locate). solve_ivp looks for sign changes at
     its step ends only, so a contact entered and left within one step would go unseen; the
-    tests compare the whole switch sequence with the exact one, which would show it."""
+    tests compare the whole switch sequence with the exact one, which would show it.
+
+    z is the drive train's states ([theta_m, omega_m, theta_L, omega_L]; a gearbox's six, with
+    `meshes` = 2) and the model has NZ indicators or says how many (`model.nz`). A switch is
+    (time, mode before, mode after); a gearbox's (time, mesh, mode before, mode after), one per
+    mesh whose mode changed."""
     t_out = np.asarray(t_out, dtype=float)
-    t_end = float(t_out[-1])
+    t_end, nx, nz = float(t_out[-1]), len(z0), getattr(model, "nz", NZ)
     y = np.array([*z0, xi0], dtype=float)
     t = holds[0].t
-    Y_out = np.full((len(t_out), 5), np.nan)
+    Y_out = np.full((len(t_out), nx + 1), np.nan)
     run = LoopRun(t_out, None, None, None)
-    sides = np.sign(model.indicators(t, y)) if events else np.zeros(NZ)
+    sides = np.sign(model.indicators(t, y)) if events else np.zeros(nz)
     if events and np.any(sides == 0.0):
         raise ValueError("the run must not start on a switching surface")
 
@@ -170,7 +182,7 @@ def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, a
 
         def rhs(s, yy, hold=hold):
             e = hold.w_ref - yy[1]
-            tau = hold.tau_m + Kp * e + Ki * yy[4]
+            tau = hold.tau_m + Kp * e + Ki * yy[nx]
             return np.append(model.derivatives(s, yy, tau, hold.tau_L), e)
 
         while t < seg_end:
@@ -185,7 +197,7 @@ def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, a
                         cache[key] = model.indicators(s, yy)
                     return cache[key][i]
 
-                for i in range(NZ):
+                for i in range(nz):
                     fn = lambda s, yy, i=i: indicator(s, yy, i)  # noqa: E731
                     fn.terminal, fn.direction = True, -sides[i]
                     functions.append(fn)
@@ -199,14 +211,18 @@ def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, a
             if np.any(mask):
                 Y_out[mask] = sol.sol(t_out[mask]).T
             if sol.status == 1:
-                fired = [i for i in range(NZ) if len(sol.t_events[i])]
+                fired = [i for i in range(nz) if len(sol.t_events[i])]
                 stop = min(float(sol.t_events[i][0]) for i in fired)
                 fired = [i for i in fired if float(sol.t_events[i][0]) == stop]
                 y = sol.y_events[fired[0]][0].copy()
-                before = _mode(sides)
+                before = modes(sides, meshes)
                 for i in fired:
                     sides[i] = -sides[i]
-                run.switches.append((stop, before, _mode(sides)))
+                after = modes(sides, meshes)
+                if meshes == 1:
+                    run.switches.append((stop, before[0], after[0]))
+                else:
+                    run.switches += [(stop, j, before[j], after[j]) for j in range(meshes) if before[j] != after[j]]
                 model.set_state(stop, y)
                 run.event_infos.append(model.event_iteration())
             else:
@@ -223,9 +239,9 @@ def run_loop(model, Kp, Ki, holds: list[Hold], t_out, z0, xi0=0.0, rtol=1e-12, a
     starts = np.array([h.t for h in holds])
     idx = np.searchsorted(starts, t_out, side="right") - 1
     run.tau_m = np.array(
-        [holds[i].tau_m + Kp * (holds[i].w_ref - w) + Ki * x for i, w, x in zip(idx, Y_out[:, 1], Y_out[:, 4])]
+        [holds[i].tau_m + Kp * (holds[i].w_ref - w) + Ki * x for i, w, x in zip(idx, Y_out[:, 1], Y_out[:, nx])]
     )
-    run.z, run.xi = Y_out[:, :4], Y_out[:, 4]
+    run.z, run.xi = Y_out[:, :nx], Y_out[:, nx]
     return run
 
 

@@ -15,6 +15,12 @@ friction: the plant of the equations
 The state is kept as x = [theta_m, omega_m, u_1, omega_i, u_2, omega_L] (each u integrated
 directly, as reference.py does for the single gap); `z` gives [theta_m, omega_m, theta_i,
 omega_i, theta_L, omega_L].
+
+For Model Exchange (test_model_exchange.py), from the same equations: the field in z's
+coordinates, its exact Jacobian per tuple of modes, the 18 event indicators and the state
+nominals of docs/model.md §6, §10 (`Gearbox`), the continuous-time PI loop closed around the
+equations (`run_pi_loop`), and the equations behind a Model Exchange interface
+(`PythonGearbox`).
 """
 
 from __future__ import annotations
@@ -80,6 +86,68 @@ class Gearbox:
             ]
 
         return f
+
+    def dead_zone(self, j: int, u: float) -> float:
+        """dz(u_j, Delta_j) of docs/model.md §1."""
+        g = self.gap(j)
+        return u - g if u >= g else (u + g if u <= -g else 0.0)
+
+    def u(self, z) -> tuple[float, float]:
+        """(u_1, u_2) of the angles of z = [theta_m, omega_m, theta_i, omega_i, theta_L, omega_L]."""
+        return z[0] - self.n_1 * z[2], z[2] - self.n_2 * z[4]
+
+    def state_with_u(self, u_1: float, u_2: float, theta_m=0.2, omega_m=0.5, omega_i=0.1, omega_L=-0.4) -> np.ndarray:
+        """z with the meshes' coordinates u_1 and u_2."""
+        return self.to_state([theta_m, omega_m, u_1, omega_i, u_2, omega_L])
+
+    def field(self, z, tau_m: float, tau_L: float) -> np.ndarray:
+        """z' of the equations at z, each mesh in the mode its u_j is in (`entering` on a flank),
+        in z's coordinates: the angles' rates are the speeds, the speeds' those of `rhs`."""
+        x = self.to_internal(z)
+        f = self.rhs(self.entering(x, tau_m, tau_L), tau_m, tau_L)(0.0, x)
+        return np.array([z[1], f[1], z[3], f[3], z[5], f[5]])
+
+    def jacobian(self, modes: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The exact Jacobian of `field` inside `modes`, A = d z'/d z (6 x 6) and B = d z'/d
+        [tau_m, tau_L] (6 x 2), and the rows of psi_1, psi_2 (2 x 6): each psi_j is k_j u_j
+        (minus a constant) in contact, 0 in the gap."""
+        c = [0.0 if m == FREE else 1.0 for m in modes]
+        dpsi = np.array(
+            [
+                c[0] * self.k_1 * np.array([1.0, 0.0, -self.n_1, 0.0, 0.0, 0.0]),
+                c[1] * self.k_2 * np.array([0.0, 0.0, 1.0, 0.0, -self.n_2, 0.0]),
+            ]
+        )
+        A = np.zeros((6, 6))
+        A[0, 1] = A[2, 3] = A[4, 5] = 1.0
+        A[1, 1], A[3, 3], A[5, 5] = -self.b_m / self.J_m, -self.b_i / self.J_i, -self.b_L / self.J_L
+        A[1] -= dpsi[0] / self.J_m
+        A[3] += (self.n_1 * dpsi[0] - dpsi[1]) / self.J_i
+        A[5] += self.n_2 * dpsi[1] / self.J_L
+        B = np.zeros((6, 2))
+        B[1, 0], B[5, 1] = 1.0 / self.J_m, 1.0 / self.J_L
+        return A, B, dpsi
+
+    def state_nominals(self) -> np.ndarray:
+        """Nominals of z (docs/model.md §6, §10): each body's angle at the finest gap it must
+        resolve, Delta_j of the mesh it drives (input side, a = 1) and Delta_j / n_j of the mesh
+        driving it (1e-4 rad where neither has a gap); each speed that angle times
+        omega_0 = sqrt(k_1 (1/J_m + n_1^2/J_i) + k_2 (1/J_i + n_2^2/J_L))."""
+        sides = [[self.Delta_1], [self.Delta_1 / self.n_1, self.Delta_2], [self.Delta_2 / self.n_2]]
+        angles = [min((g for g in body if g > 0.0), default=1e-4) for body in sides]
+        w0 = np.sqrt(
+            self.k_1 * (1.0 / self.J_m + self.n_1**2 / self.J_i) + self.k_2 * (1.0 / self.J_i + self.n_2**2 / self.J_L)
+        )
+        return np.array([x for a in angles for x in (a, w0 * a)])
+
+    def indicators(self, z) -> np.ndarray:
+        """The FMU's 18 event indicators of this plant (docs/model.md §6, §10): each mesh's
+        u_j - Delta_j, u_j + Delta_j and its damper's four surfaces, then each body's two
+        friction surfaces, the ones it has not (no damper, no friction) at 1."""
+        out = np.ones(18)
+        for j, u in enumerate(self.u(z)):
+            out[6 * j : 6 * j + 2] = u - self.gap(j), u + self.gap(j)
+        return out
 
     def entering(self, x, tau_m: float, tau_L: float) -> tuple[int, int]:
         """Each mesh's mode at x: the side of its gap u_j is on; exactly on a flank, the mode its
@@ -179,3 +247,97 @@ def run_open_loop(box: Gearbox, tau_m, tau_L, h: float, z0=None):
     for a, b in zip(tau_m, tau_L):
         rows.append(ref.step(a, b, h))
     return np.array(rows), ref
+
+
+@dataclass
+class LoopResult:
+    """A closed loop's states at the output times (z rows, xi the PI integral), the meshes'
+    coordinates there (u: n x 2), every switch as (time, mesh, mode before, mode after) and the
+    rate u_j' of the switching mesh at each."""
+
+    t: np.ndarray
+    z: np.ndarray
+    xi: np.ndarray
+    u: np.ndarray
+    switches: list
+    switch_rates: list
+
+
+def run_pi_loop(box: Gearbox, Kp: float, Ki: float, holds, t_out, z0=None, rtol=1e-13, atol=1e-17) -> LoopResult:
+    """The continuous-time PI of docs/model.md §3 on omega_m closed around the gearbox:
+
+        y = [x, xi],   xi' = w_ref - omega_m,   tau_m = tau_ff + Kp (w_ref - omega_m) + Ki xi,
+
+    with x the internal state (u_j integrated directly), the signals of each hold (.t, .tau_m
+    the feed-forward, .tau_L, .w_ref) held until the next. DOP853 inside each tuple of modes, a
+    new integration at every hold and every switch, located as a terminal event as in
+    ReferenceGearbox. A mesh without a gap (Delta_j = 0) has psi_j = k_j u_j everywhere: the
+    mode PLUS of its force law, never left, nothing to locate."""
+    t_out = np.asarray(t_out, dtype=float)
+    y = np.append(box.to_internal(np.zeros(6) if z0 is None else z0), 0.0)
+    Y = np.full((len(t_out), 7), np.nan)
+    switches, rates = [], []
+    t, modes = holds[0].t, None
+    for k, hold in enumerate(holds):
+        end = min(holds[k + 1].t if k + 1 < len(holds) else np.inf, float(t_out[-1]))
+
+        def tau(yy, hold=hold):
+            return hold.tau_m + Kp * (hold.w_ref - yy[1]) + Ki * yy[6]
+
+        if modes is None:
+            modes = box.entering(y[:6], tau(y), hold.tau_L)
+            modes = tuple(PLUS if box.gap(j) == 0.0 else m for j, m in enumerate(modes))
+        while t < end:
+            events = [e for e in _events(box, modes) if box.gap(e[1]) > 0.0]
+
+            def f(s, yy, modes=modes, hold=hold):
+                dx = box.rhs(modes, tau(yy), hold.tau_L)(s, yy[:6])
+                return [*dx, hold.w_ref - yy[1]]
+
+            sol = solve_ivp(f, (t, end), y, method="DOP853", rtol=rtol, atol=atol, dense_output=True,
+                            events=[e for e, _, _ in events] or None)
+            if sol.status == -1:
+                raise RuntimeError(f"reference integration failed: {sol.message}")
+            stop = float(sol.t[-1])
+            inside = (t_out >= t) & (t_out <= stop)
+            if np.any(inside):
+                Y[inside] = sol.sol(t_out[inside]).T
+            if sol.status == 1:
+                hit = next(i for i, te in enumerate(sol.t_events) if len(te))
+                stop, y = float(sol.t_events[hit][0]), sol.y_events[hit][0].copy()
+                _, mesh, to = events[hit]
+                du = box.rhs(modes, tau(y), hold.tau_L)(stop, y[:6])[2 + 2 * mesh]
+                switches.append((stop, mesh, modes[mesh], to))
+                rates.append(du)
+                modes = tuple(to if j == mesh else m for j, m in enumerate(modes))
+            else:
+                y = sol.y[:, -1].copy()
+            t = stop
+    if np.any(np.isnan(Y)):
+        raise ValueError("output times beyond the last hold's reach")
+    z = np.array([box.to_state(row[:6]) for row in Y])
+    return LoopResult(t_out, z, Y[:, 6], Y[:, [2, 4]], switches, rates)
+
+
+class PythonGearbox:
+    """The gearbox's field and event indicators written in Python with the interface of a Model
+    Exchange instance seen over its six states (test_model_exchange.FullState): the double that
+    tests the loop integrator the FMU's tests use."""
+
+    def __init__(self, box: Gearbox):
+        self.box, self.nx, self.nz = box, 6, 18
+
+    def derivatives(self, t, x, tau_m, tau_L):
+        return self.box.field(np.asarray(x[:6], dtype=float), tau_m, tau_L)
+
+    def indicators(self, t, x):
+        return self.box.indicators(x[:6])
+
+    def set_state(self, t, x):
+        pass
+
+    def completed_step(self):
+        return False, False
+
+    def event_iteration(self):
+        return (False, False, False, False, False, 0.0)

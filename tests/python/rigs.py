@@ -56,4 +56,12 @@ def plant_of(model: str, params: dict) -> Plant:
 
 
 def with_delta(params: dict, delta: float) -> dict:
-    return {**params, "Delta": delta}
+    """`params` with every half gap at `delta`: the single gap's Delta, or each mesh's Delta_j of
+    a gearbox (docs/model.md §10)."""
+    meshes = [name for name in params if name.startswith("Delta_")]
+    return {**params, **{name: delta for name in meshes or ["Delta"]}}
+
+
+# The two-stage rig geared: ratios other than 1 and unequal gaps, so that a ratio on the wrong
+# side of a mesh, or one mesh's gap taken for the other's, changes what the tests compare.
+TWO_STAGE_GEARED = {**RIGS["BacklashTwoStage"][0], "n_1": 2.5, "n_2": 1.6, "Delta_2": 2.2e-3}
