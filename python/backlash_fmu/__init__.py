@@ -9,8 +9,9 @@
 - `identify(model, data, fit=None, **known)`: a drive's half gap, stiffness and load from one
   measured run (a CSV path or a table), with 95 % intervals: the same keys and numbers as
   `backlash identify ... --json` (docs/model.md §11);
-- `fmu_path(model, fmi=2)`: the FMI 2.0 or FMI 3.0 archive of BacklashShaft, BacklashBelt or
-  BacklashWeb, built from the same sources as this package;
+- `fmu_path(model, fmi=2)`: the FMI 2.0 or FMI 3.0 archive of a plant (`MODELS`: BacklashShaft,
+  BacklashBelt, BacklashWeb, BacklashTwoStage) or of BacklashController, built from the same
+  sources as this package;
 - `backlash_fmu.fmu`: the driver of the archives (FMI 2.0 and 3.0, Co-Simulation and Model
   Exchange); `backlash_fmu.twin`: the twin closed-loop runs; `backlash_fmu.sweep`: tolerance
   sweeps; `backlash_fmu.demo`: the paper's experiments.
@@ -126,9 +127,9 @@ def _number(name: str, value: object) -> float:
 
 def fmu_path(model: str, fmi: int = 2) -> Path:
     """The FMI 2.0 (`fmi=2`) or FMI 3.0 (`fmi=3`) archive of `model` ("BacklashShaft",
-    "BacklashBelt", "BacklashWeb" or "BacklashController") shipped in this package. Raises
-    ValueError for another model or standard, FileNotFoundError if the archive is missing from
-    the installation."""
+    "BacklashBelt", "BacklashWeb", "BacklashTwoStage" or "BacklashController") shipped in this
+    package. Raises ValueError for another model or standard, FileNotFoundError if the archive is
+    missing from the installation."""
     if model not in MODELS + CONTROLLERS:
         raise ValueError(f"model = {model!r}: choose one of {', '.join(MODELS + CONTROLLERS)}")
     if fmi not in (2, 3):

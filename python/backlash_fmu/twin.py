@@ -10,8 +10,8 @@ and sampled at every communication point (step h, zero-order hold on the motor t
       e_T,n = T_ref - T(t_n),  w_ref,n = w_ref0(t_n) + Kp_T e_T,n + Ki_T x_T,n,  x_T,n+1 = x_T,n + h e_T,n
       e_n = w_ref,n - omega_m(t_n),  tau_m = Kp e_n + Ki x_c,n,  x_c,n+1 = x_c,n + h e_n;
 - `sample_row`, `sample_rows`, `prepare`, `archive_from_bytes`, `unpacked`: one sample (or a
-  chunk of samples) of a tolerance sweep (backlash_fmu.sweep) of any of the three models, on an
-  archive sent as bytes and unpacked once per process.
+  chunk of samples) of a tolerance sweep (backlash_fmu.sweep) of any model it sweeps (shaft,
+  belt, web), on an archive sent as bytes and unpacked once per process.
 
 One definition shared by the demonstration (backlash_fmu.demo) and the tolerance sweep, so that
 both measure the same thing; every instance is driven through backlash_fmu.fmu.

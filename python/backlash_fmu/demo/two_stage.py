@@ -17,8 +17,8 @@ other gap at its value, and the stage that dominates. Writes DIR/two_stage.json 
 (Delta_1, Delta_2) plane with lines of equal bound_sup and the gearbox's gaps, beside each stage's
 share of bound_sup.
 
-The answer is the bound's: no FMU simulates two stages (BacklashTwoStage is not shipped yet), so
-this step runs no experiment.
+The answer is the bound's: this step runs no experiment (BacklashTwoStage.fmu simulates a
+two-stage gearbox, docs/model.md §10; the gearbox's parameters here have its names).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 # A gearbox of two unequal meshes (SI units; angles in rad on each stage's input side), each
-# mesh damped (d_j, the law of docs/model.md §9 by default): without, the light intermediate
+# mesh damped (d_j, the law of docs/model.md §1 by default): without, the light intermediate
 # shaft rings on, and the best-damped rule's gains reach a smallest damping ratio of only 0.0018.
 GEARBOX = {"J_m": 0.6, "J_i": 0.04, "J_L": 5.0, "b_m": 0.02, "b_i": 0.05, "b_L": 0.4,
            "n_1": 4.0, "n_2": 2.5, "k_1": 600.0, "k_2": 3000.0, "d_1": 1.0, "d_2": 5.0,
