@@ -1,5 +1,5 @@
 //! `documentation/index.html` of each archive: a shared page (`template.html`, its style sheet
-//! `style.css` inlined where it says `{{STYLE}}`, as in a controller's own page) with the model's
+//! `style.css` inlined where it says `{{STYLE}}`, as in a page of a model's own) with the model's
 //! drive-train section (where it says `{{BELT_DRIVE}}`, the belt drive's generic form of
 //! `belt_drive.html`) and a variable table taken from the generated model description, so that
 //! the documented names, units and start values cannot drift from the ones the FMU serves.
