@@ -321,7 +321,7 @@ def run_pi_loop(box: Gearbox, Kp: float, Ki: float, holds, t_out, z0=None, rtol=
 
 class PythonGearbox:
     """The gearbox's field and event indicators written in Python with the interface of a Model
-    Exchange instance seen over its six states (test_model_exchange.FullState): the double that
+    Exchange instance over its six states (backlash_fmu.fmu.ModelExchange): the double that
     tests the loop integrator the FMU's tests use."""
 
     def __init__(self, box: Gearbox):
