@@ -10,6 +10,7 @@
 //! its inputs and output are signals, connected one by one.
 
 use model_description::xml::escape;
+use model_description::Kind;
 
 use super::image::{circle, outline, png, polyline, rect, segment, Canvas, Extent, Rgb};
 use super::Entry;
@@ -17,10 +18,14 @@ use super::Entry;
 /// The archive entries of this kit for the standard `fmi_version` ("2.0" or "3.0") of model `id`,
 /// whose model description is `xml`.
 pub fn entries(fmi_version: &str, id: &str, xml: &str) -> Result<Vec<Entry>, String> {
-    let controller = model_description::controller_identifiers().contains(&id);
-    let (draw, flanges): (fn(&mut Canvas), &[Flange]) = match controller {
-        true => (draw_controller, &[]),
-        false => (draw_drive_train, &FLANGES),
+    let (draw, flanges): (fn(&mut Canvas), &[Flange]) = if model_description::controller_identifiers().contains(&id) {
+        (draw_controller, &[])
+    } else if model_description::model_identifiers().contains(&id)
+        && matches!(model_description::model(id).kind, Kind::TwoStage(_))
+    {
+        (draw_gearbox, &FLANGES)
+    } else {
+        (draw_drive_train, &FLANGES)
     };
     let icon = picture(ICON_PIXELS, ICON, draw).map_err(|e| format!("{id}: icon: {e}"))?;
     match fmi_version {
@@ -276,56 +281,91 @@ fn picture(pixels: u32, extent: Extent, draw: impl FnOnce(&mut Canvas)) -> Resul
 /// inside a slotted cup, the load inertia (larger) and the load flange's shaft; both shafts end on
 /// the icon's edge, where the terminals sit.
 fn draw_drive_train(canvas: &mut Canvas) {
-    // A shaft's edges are drawn along its length only: its ends meet an inertia or the icon's edge.
-    let shaft = |canvas: &mut Canvas, from: f64, to: f64| {
-        canvas.fill(rect(from, -4.0, to, 4.0, 0.0), SHAFT_GREY);
-        for y in [-4.0, 4.0] {
-            canvas.fill(segment((from, y), (to, y), 0.6), BLACK);
-        }
-    };
     shaft(canvas, -100.0, -80.0);
     inertia(canvas, -80.0, -46.0, 32.0);
+    motor_mark(canvas, -64.0, 1.0);
+    stage(canvas, -46.0, 1.0);
+    shaft(canvas, 52.0, 58.0);
+    inertia(canvas, 58.0, 92.0, 46.0);
+    shaft(canvas, 92.0, 100.0);
+}
+
+/// A gearbox of two stages (docs/model.md §10): as the drive train, with a second compliant
+/// member and backlash behind a light intermediate inertia, each stage drawn at 0.55 of the drive
+/// train's size.
+fn draw_gearbox(canvas: &mut Canvas) {
+    const SCALE: f64 = 0.55;
+    shaft(canvas, -100.0, -92.0);
+    inertia(canvas, -92.0, -70.0, 26.0);
+    motor_mark(canvas, -81.0, 0.8);
+    stage(canvas, -70.0, SCALE);
+    shaft(canvas, -16.1, -13.0);
+    inertia(canvas, -13.0, -3.0, 16.0);
+    stage(canvas, -3.0, SCALE);
+    shaft(canvas, 50.9, 56.0);
+    inertia(canvas, 56.0, 88.0, 40.0);
+    shaft(canvas, 88.0, 100.0);
+}
+
+/// A shaft from `from` to `to` on the axis. Its edges are drawn along its length only: its ends
+/// meet an inertia or the icon's edge.
+fn shaft(canvas: &mut Canvas, from: f64, to: f64) {
+    canvas.fill(rect(from, -4.0, to, 4.0, 0.0), SHAFT_GREY);
+    for y in [-4.0, 4.0] {
+        canvas.fill(segment((from, y), (to, y), 0.6), BLACK);
+    }
+}
+
+/// The motor's letter M centred on `x`, `scale` times its drive-train size.
+fn motor_mark(canvas: &mut Canvas, x: f64, scale: f64) {
+    let at = |dx: f64, y: f64| (x + scale * dx, scale * y);
     canvas.fill(
         polyline(
             &[
-                (-74.0, -16.0),
-                (-74.0, 16.0),
-                (-64.0, -2.0),
-                (-54.0, 16.0),
-                (-54.0, -16.0),
+                at(-10.0, -16.0),
+                at(-10.0, 16.0),
+                at(0.0, -2.0),
+                at(10.0, 16.0),
+                at(10.0, -16.0),
             ],
             2.2,
         ),
         Rgb(40, 40, 40),
     );
+}
+
+/// One stage from `left` on: the compliant member as a zigzag spring, then the backlash as a plate
+/// with play inside a slotted cup, `scale` times the drive train's size (at 1: 98 units long,
+/// the cup's back wall ending at `left` + 98).
+fn stage(canvas: &mut Canvas, left: f64, scale: f64) {
+    // x and y of the drive train's drawing, where the stage starts at -46.
+    let x = |drawn: f64| left + scale * (drawn + 46.0);
+    let y = |drawn: f64| scale * drawn;
+    let rect_at = |x1: f64, y1: f64, x2: f64, y2: f64| rect(x(x1), y(y1), x(x2), y(y2), 0.0);
 
     // The spring: a lead on either side and four full waves.
     let (start, end, lead, amplitude) = (-46.0, 6.0, 6.0, 16.0);
     let waves = 4;
     let pitch = (end - start - 2.0 * lead) / (2 * waves) as f64;
-    let mut zigzag = vec![(start, 0.0), (start + lead, 0.0)];
+    let mut zigzag = vec![(x(start), 0.0), (x(start + lead), 0.0)];
     for k in 0..2 * waves {
         let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
-        zigzag.push((start + lead + (k as f64 + 0.5) * pitch, sign * amplitude));
+        zigzag.push((x(start + lead + (k as f64 + 0.5) * pitch), y(sign * amplitude)));
     }
-    zigzag.extend([(end - lead, 0.0), (end, 0.0)]);
+    zigzag.extend([(x(end - lead), 0.0), (x(end), 0.0)]);
     canvas.fill(polyline(&zigzag, 1.6), BLACK);
 
     // The backlash: the rod's plate moves 12 units either way inside the cup before touching a lip
     // or the back wall.
-    canvas.fill(segment((end, 0.0), (34.0, 0.0), 1.6), BLACK);
-    canvas.fill(rect(32.0, -16.0, 36.0, 16.0, 0.0), BLACK);
+    canvas.fill(segment((x(end), 0.0), (x(34.0), 0.0), 1.6), BLACK);
+    canvas.fill(rect_at(32.0, -16.0, 36.0, 16.0), BLACK);
     for sign in [1.0, -1.0] {
         let band = |from: f64, to: f64| (sign * from).min(sign * to)..(sign * from).max(sign * to);
         let (arm, lip) = (band(24.0, 28.0), band(10.0, 28.0));
-        canvas.fill(rect(16.0, arm.start, 52.0, arm.end, 0.0), BLACK);
-        canvas.fill(rect(16.0, lip.start, 20.0, lip.end, 0.0), BLACK);
+        canvas.fill(rect_at(16.0, arm.start, 52.0, arm.end), BLACK);
+        canvas.fill(rect_at(16.0, lip.start, 20.0, lip.end), BLACK);
     }
-    canvas.fill(rect(48.0, -28.0, 52.0, 28.0, 0.0), BLACK);
-
-    shaft(canvas, 52.0, 58.0);
-    inertia(canvas, 58.0, 92.0, 46.0);
-    shaft(canvas, 92.0, 100.0);
+    canvas.fill(rect_at(48.0, -28.0, 52.0, 28.0), BLACK);
 }
 
 /// A controller: a block holding a sine (the reference, thin) and the staircase of its samples
@@ -406,6 +446,40 @@ mod tests {
         assert_eq!(icon_at(&pixels, 26.0, 12.0)[3], 0);
         assert_eq!(icon_at(&pixels, 42.0, 12.0)[3], 0);
         assert_eq!(icon_at(&pixels, 34.0, 12.0), [0, 0, 0, 255]);
+    }
+
+    #[test]
+    fn the_gearbox_icon_shows_two_stages_and_the_intermediate_inertia() {
+        let mut canvas = Canvas::new(ICON_PIXELS, ICON_PIXELS, ICON);
+        draw_gearbox(&mut canvas);
+        let pixels = canvas.rgba8();
+        for corner in [(-99.0, -99.0), (99.0, 99.0)] {
+            assert_eq!(icon_at(&pixels, corner.0, corner.1)[3], 0, "corner {corner:?}");
+        }
+        // The light intermediate inertia between the stages, lower than the motor's.
+        assert_eq!(icon_at(&pixels, -8.0, 12.0)[3], 255);
+        assert_eq!(icon_at(&pixels, -8.0, 20.0)[3], 0);
+        assert_eq!(icon_at(&pixels, -80.0, 20.0)[3], 255);
+        // Each stage's plate (the drive train's at x = 34, y = 12, scaled) with its play either
+        // side empty: the first stage from -70, the second from -3.
+        for left in [-70.0, -3.0] {
+            let x = |drawn: f64| left + 0.55 * (drawn + 46.0);
+            assert_eq!(
+                icon_at(&pixels, x(34.0), 0.55 * 12.0),
+                [0, 0, 0, 255],
+                "stage at {left}"
+            );
+            for play in [26.0, 42.0] {
+                assert_eq!(
+                    icon_at(&pixels, x(play), 0.55 * 12.0)[3],
+                    0,
+                    "stage at {left}, x {play}"
+                );
+            }
+        }
+        // The shafts reach the edges where the flanges sit.
+        assert_eq!(icon_at(&pixels, -99.5, 0.0), [160, 160, 160, 255]);
+        assert_eq!(icon_at(&pixels, 99.5, 0.0), [160, 160, 160, 255]);
     }
 
     #[test]
