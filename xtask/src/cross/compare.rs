@@ -194,7 +194,15 @@ mod tests {
     }
 
     fn shaft() -> Vec<String> {
-        names(&["theta_m", "omega_m", "theta_L", "omega_L", "psi", "bound", "bound_paper"])
+        names(&[
+            "theta_m",
+            "omega_m",
+            "theta_L",
+            "omega_L",
+            "psi",
+            "bound",
+            "bound_paper",
+        ])
     }
 
     #[test]
@@ -203,12 +211,18 @@ mod tests {
         let text = format!("noise\n{}@ misuse x 3 1\n", line(100, "-1", 4, &values));
         let parsed = samples(&text).unwrap();
         assert_eq!(parsed.len(), 1);
-        assert_eq!((parsed[0].k, parsed[0].contact.as_str(), parsed[0].switches), (100, "-1", 4));
+        assert_eq!(
+            (parsed[0].k, parsed[0].contact.as_str(), parsed[0].switches),
+            (100, "-1", 4)
+        );
         for (a, b) in parsed[0].values.iter().zip(&values) {
             assert_eq!(a.to_bits(), b.to_bits());
         }
         assert!(samples("@ sample 1 0 0\n").is_err(), "a sample without outputs");
-        assert!(samples("@ sample 1 1,x 0 3ff0000000000000\n").is_err(), "a contact mode that is no number");
+        assert!(
+            samples("@ sample 1 1,x 0 3ff0000000000000\n").is_err(),
+            "a contact mode that is no number"
+        );
         assert!(samples("nothing here\n").is_err());
         assert_eq!(misuse(&text).unwrap(), [("x".into(), "3".into(), "1".into())]);
     }
@@ -236,7 +250,9 @@ mod tests {
 
         let mut far = base.clone();
         far.values[5] = 1.0 + 1e-9;
-        assert!(agree(reference, &[far], &outputs).unwrap_err().contains("bound after step 10"));
+        assert!(agree(reference, &[far], &outputs)
+            .unwrap_err()
+            .contains("bound after step 10"));
 
         let mut nan = base.clone();
         nan.values[0] = f64::NAN;
@@ -278,7 +294,9 @@ mod tests {
 
     #[test]
     fn a_gearboxs_samples_carry_each_meshs_contact_and_its_own_outputs() {
-        let outputs = names(&["theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L", "psi_1", "psi_2", "bound"]);
+        let outputs = names(&[
+            "theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L", "psi_1", "psi_2", "bound",
+        ]);
         let mut values = vec![1.0; outputs.len()];
         let reference = samples(&line(5, "1,-1", 3, &values)).unwrap();
         assert_eq!(reference[0].contact, "1,-1");
@@ -286,7 +304,9 @@ mod tests {
 
         // One mesh in another mode is a disagreement, whatever the other does.
         let other_mesh = samples(&line(5, "1,0", 3, &values)).unwrap();
-        assert!(agree(&reference, &other_mesh, &outputs).unwrap_err().contains("contact 1,0"));
+        assert!(agree(&reference, &other_mesh, &outputs)
+            .unwrap_err()
+            .contains("contact 1,0"));
 
         values[outputs.len() - 2] = 1.0 + 1e-9;
         let error = agree(&reference, &samples(&line(5, "1,-1", 3, &values)).unwrap(), &outputs).unwrap_err();

@@ -363,7 +363,9 @@ fn sampled<'a>(doc: &'a roxmltree::Document) -> (Vec<(&'a str, u32)>, Vec<u32>) 
     {
         let (Some(name), Some(vr)) = (
             variable.attribute("name"),
-            variable.attribute("valueReference").and_then(|vr| vr.parse::<u32>().ok()),
+            variable
+                .attribute("valueReference")
+                .and_then(|vr| vr.parse::<u32>().ok()),
         ) else {
             continue;
         };
@@ -640,9 +642,17 @@ mod tests {
         use model_description::{Causality, Type};
         for &id in model_description::model_identifiers() {
             let model = model_description::model(id);
-            let mut outputs: Vec<_> = model.variables.iter().filter(|v| v.causality == Causality::Output).collect();
+            let mut outputs: Vec<_> = model
+                .variables
+                .iter()
+                .filter(|v| v.causality == Causality::Output)
+                .collect();
             outputs.sort_by_key(|v| v.vr);
-            let reals: Vec<(&str, u32)> = outputs.iter().filter(|v| v.ty == Type::Real).map(|v| (v.name, v.vr)).collect();
+            let reals: Vec<(&str, u32)> = outputs
+                .iter()
+                .filter(|v| v.ty == Type::Real)
+                .map(|v| (v.name, v.vr))
+                .collect();
             let contacts: Vec<u32> = outputs
                 .iter()
                 .filter(|v| v.ty == Type::Integer && v.name.starts_with("contact"))
@@ -653,7 +663,12 @@ mod tests {
             for standard in fmu::STANDARDS {
                 let xml = (standard.description)(id);
                 let doc = roxmltree::Document::parse(&xml).unwrap();
-                assert_eq!(sampled(&doc), (reals.clone(), contacts.clone()), "{id}, FMI {}", standard.fmi_version);
+                assert_eq!(
+                    sampled(&doc),
+                    (reals.clone(), contacts.clone()),
+                    "{id}, FMI {}",
+                    standard.fmi_version
+                );
             }
         }
     }
