@@ -393,9 +393,9 @@ impl Geared {
         let mut mode = ChainMode::new(stages);
         for j in 0..3 {
             let body = match w[14 + j] {
-                x if x == 1.0 => BodyMode::Forward,
-                x if x == 0.0 => BodyMode::Stuck,
-                x if x == -1.0 => BodyMode::Backward,
+                1.0 => BodyMode::Forward,
+                0.0 => BodyMode::Stuck,
+                -1.0 => BodyMode::Backward,
                 x => {
                     return Err(FmuError::StateRefused(format!(
                         "unknown friction mode {x} of the {}",

@@ -60,3 +60,9 @@ impl<T: Clone> Templates<T> {
         Ok(built)
     }
 }
+
+impl<T: Clone> Default for Templates<T> {
+    fn default() -> Templates<T> {
+        Templates::new()
+    }
+}
