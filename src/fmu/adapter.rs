@@ -63,10 +63,11 @@ pub enum StateEntry {
     OmegaI,
 }
 
-/// The most state entries of any model: z with a web span's tension.
+/// The most state entries of a single gap's model: z with a web span's tension. A gearbox's six
+/// are the chain's own ([`crate::fmu::geared::Geared::z`]).
 pub const MAX_STATES: usize = 5;
 
-/// z of any model, [θ_m, ω_m, θ_L, ω_L, T]; T is 0 for the drive trains.
+/// z of a single gap's model, [θ_m, ω_m, θ_L, ω_L, T]; T is 0 for the drive trains.
 pub type StateVector = [f64; MAX_STATES];
 
 /// The most input lines of any model: τ_m, τ_L and a web span's v_in, T_in.
