@@ -6,16 +6,18 @@
  *
  * Built and run by `cargo xtask bench` (xtask/src/bench/), which also writes bench_vr.h (the
  * value references, read from each archive's modelDescription.xml: VR_<name> of BacklashShaft,
- * VR_<model>_<name> of the others) and bench_rig.h (BacklashShaft's rig, read from
+ * VR_<model>_<name> of the others, and likewise START_<model>_<name> of each Real's start value)
+ * and bench_rig.h (BacklashShaft's rig, read from
  * tests/fixtures/rigs.toml: RIG_<name> of each of its values, RIG_VR and RIG_VALUE of all of
  * them), and passes the guids.
  *
  * usage: native_host <lib.so> <guid> <resource-uri> <mode> [args]
  *   suite <batches> <steps-per-batch> <belt.so> <belt-guid> <belt-resource-uri>
- *         <web.so> <web-guid> <web-resource-uri>
+ *         <web.so> <web-guid> <web-resource-uri> <two-stage.so> <two-stage-guid> <two-stage-resource-uri>
  *                                       per-call costs (medians over batches) and their floors;
- *                                       beside them the event-free steps of BacklashBelt and
- *                                       BacklashWeb, each loaded from its own archive
+ *                                       beside them the event-free steps of BacklashBelt,
+ *                                       BacklashWeb and BacklashTwoStage, each loaded from its own
+ *                                       archive
  *   scale <steps>                       one long event-free run: time and peak RSS
  *   instances <count> <batches> <instance-steps-per-batch>
  *                                       many instances stepped round-robin
@@ -71,7 +73,7 @@ typedef struct {
     fmi3FreeInstanceTYPE *free_instance3;
 } Api;
 
-/* BacklashShaft's library (the first argument), which every mode but the belt and web rows uses. */
+/* BacklashShaft's library (the first argument), which every mode but the other drives' rows uses. */
 static Api api;
 static const char *guid, *resources;
 
@@ -324,7 +326,7 @@ static fmi2Component make_swinging(const char *name, int log_contacts) {
 }
 static double swing_torque(long k) { return (k % 2 == 0 ? 1.0 : -1.0) * 2.0 * V_SWING * J_M / H; }
 
-/* ---- the belt drive and the web line ----
+/* ---- the other drives: the belt drive, the web line and the two-stage gearbox ----
  *
  * BacklashBelt and BacklashWeb, each dlopened from its own archive, side by side on the schedule
  * of benches/physics.rs `web_benches`: the FMUs' start values (the web line's drive is
@@ -343,31 +345,63 @@ static double swing_torque(long k) { return (k % 2 == 0 ? 1.0 : -1.0) * 2.0 * V_
  * (docs/model.md §1). */
 #define THETA_PRESSED_BELT ((0.04 / 0.015 * 5e-5 + 1e-4) / 0.02)
 
-/* One of the two archives: its library, guid and resource URI, and what the schedule sets:
- * parameters and start values before initialization, then the held torques tau_m, tau_L. */
+/* BacklashTwoStage (docs/model.md §10) beside the shaft: its start values (bench_vr.h's START_,
+ * read from its description), the shaft's h = 1 ms (not its default experiment's step) and the
+ * shaft's constant TAU_PRESS and PI gains (KP, KI: those of the shaft's rig, which is also the
+ * two-stage rig's in tests/fixtures/rigs.toml), so that its step and its bound's cost compare
+ * with the shaft's `ours_step_event_free`. */
+#define TS(name) START_BacklashTwoStage_##name
+
+/* One drive's archive: its library, guid and resource URI, and what its schedule sets:
+ * parameters and start values before initialization, then the held torques tau_m, tau_L,
+ * stepped with step size h. */
 #define MAX_START 6
+#define MAX_CONTACTS 2
 typedef struct {
     Api api;
     const char *guid, *resources;
-    fmi2ValueReference start_vr[MAX_START], input_vr[2], contact_vr;
+    fmi2ValueReference start_vr[MAX_START], input_vr[2];
     fmi2Real start[MAX_START];
     size_t n_start;
+    fmi2Real tau_m, h;
+    /* Each mesh's contact output, read at the end of the untimed check. */
+    fmi2ValueReference contact_vr[MAX_CONTACTS];
+    size_t n_contact;
     /* The bounds, as a master reading every output reads them after each step. */
     fmi2ValueReference bound_vr[3];
     size_t n_bound;
 } Drive;
 
-enum { BELT, WEB, DRIVES };
+enum { BELT, WEB, TWO_STAGE, DRIVES };
 static Drive drive[DRIVES];
 
-/* Loads both archives' libraries; the value references are each description's own. */
-static void load_drives(char **belt_args, char **web_args) {
+/* The two-stage gearbox pressed into both meshes' positive flanks at the rigid motion that
+ * TAU_PRESS gives it from rest: the load accelerating at a, the intermediate shaft at n_2 a, the
+ * motor at n_1 n_2 a, each mesh carrying what accelerates the bodies beyond it (J_L ω_L' =
+ * n_2 ψ_2, J_i ω_i' = n_1 ψ_1 − ψ_2, docs/model.md §10). Started there, no mesh oscillates; the
+ * viscous friction then shifts the meshes' torques slowly as the speed grows, never to zero
+ * under a forward torque. theta_L at its start value; theta_i and theta_m past each gap by
+ * psi_j / k_j. */
+static void two_stage_pressed(fmi2Real *theta_i, fmi2Real *theta_m) {
+    double n1 = TS(n_1), n2 = TS(n_2);
+    double beyond_1 = TS(J_i) * n2 + TS(J_L) / n2; /* what mesh 1 accelerates, per unit a */
+    double a = TAU_PRESS / (TS(J_m) * n1 * n2 + beyond_1 / n1);
+    double psi_2 = TS(J_L) * a / n2, psi_1 = beyond_1 * a / n1;
+    *theta_i = n2 * TS(theta_L) + TS(Delta_2) + psi_2 / TS(k_2);
+    *theta_m = n1 * *theta_i + TS(Delta_1) + psi_1 / TS(k_1);
+}
+
+/* Loads the three archives' libraries; the value references are each description's own. */
+static void load_drives(char **belt_args, char **web_args, char **two_stage_args) {
     const Drive belt = {
         .start_vr = {VR_BacklashBelt_Kp, VR_BacklashBelt_Ki, VR_BacklashBelt_theta_m},
         .start = {KP_BELT, KI_BELT, THETA_PRESSED_BELT},
         .n_start = 3,
         .input_vr = {VR_BacklashBelt_tau_m, VR_BacklashBelt_tau_L},
-        .contact_vr = VR_BacklashBelt_contact,
+        .tau_m = TAU_PRESS_BELT,
+        .h = H_BELT,
+        .contact_vr = {VR_BacklashBelt_contact},
+        .n_contact = 1,
         .bound_vr = {VR_BacklashBelt_bound, VR_BacklashBelt_bound_paper},
         .n_bound = 2,
     };
@@ -377,13 +411,32 @@ static void load_drives(char **belt_args, char **web_args) {
         .start = {KP_BELT, KI_BELT, THETA_PRESSED_BELT, 5.0, KP_T_WEB, KI_T_WEB},
         .n_start = 6,
         .input_vr = {VR_BacklashWeb_tau_m, VR_BacklashWeb_tau_L},
-        .contact_vr = VR_BacklashWeb_contact,
+        .tau_m = TAU_PRESS_BELT,
+        .h = H_BELT,
+        .contact_vr = {VR_BacklashWeb_contact},
+        .n_contact = 1,
         .bound_vr = {VR_BacklashWeb_bound, VR_BacklashWeb_bound_paper, VR_BacklashWeb_bound_T},
         .n_bound = 3,
     };
+    fmi2Real theta_i, theta_m;
+    two_stage_pressed(&theta_i, &theta_m);
+    const Drive two_stage = {
+        .start_vr = {VR_BacklashTwoStage_Kp, VR_BacklashTwoStage_Ki, VR_BacklashTwoStage_theta_i,
+                     VR_BacklashTwoStage_theta_m},
+        .start = {KP, KI, theta_i, theta_m},
+        .n_start = 4,
+        .input_vr = {VR_BacklashTwoStage_tau_m, VR_BacklashTwoStage_tau_L},
+        .tau_m = TAU_PRESS,
+        .h = H,
+        .contact_vr = {VR_BacklashTwoStage_contact_1, VR_BacklashTwoStage_contact_2},
+        .n_contact = 2,
+        .bound_vr = {VR_BacklashTwoStage_bound},
+        .n_bound = 1,
+    };
     drive[BELT] = belt;
     drive[WEB] = web;
-    char **args[DRIVES] = {belt_args, web_args};
+    drive[TWO_STAGE] = two_stage;
+    char **args[DRIVES] = {belt_args, web_args, two_stage_args};
     for (int i = 0; i < DRIVES; i++) {
         load(&drive[i].api, args[i][0]);
         drive[i].guid = args[i][1];
@@ -393,7 +446,7 @@ static void load_drives(char **belt_args, char **web_args) {
 
 static fmi2Component make_drive_pressed(const Drive *d, const char *name, int log_contacts) {
     fmi2Component c = make_of(&d->api, d->guid, d->resources, name, d->start_vr, d->start, d->n_start, log_contacts);
-    const fmi2Real tau[] = {TAU_PRESS_BELT, 0.0};
+    const fmi2Real tau[] = {d->tau_m, 0.0};
     check(d->api.set_real(c, d->input_vr, 2, tau), "fmi2SetReal(inputs)");
     return c;
 }
@@ -455,6 +508,9 @@ enum {
     WEB_FROM_START,
     BELT_READ_BOUNDS,
     WEB_READ_BOUNDS,
+    TWO_STAGE_STEP,
+    TWO_STAGE_FROM_START,
+    TWO_STAGE_READ_BOUNDS,
     BLOCKS
 };
 static const char *const block_key[BLOCKS] = {
@@ -464,13 +520,14 @@ static const char *const block_key[BLOCKS] = {
     "me_get_derivatives", "me_get_event_indicators", "me_set_states_get_derivatives", "ours3_step_event_free",
     "belt_step_event_free", "web_step_event_free", "belt_step_from_start", "web_step_from_start",
     "belt_step_read_bounds", "web_step_read_bounds",
+    "two_stage_step_event_free", "two_stage_step_from_start", "two_stage_step_read_bounds",
 };
 /* The rows of the drives (an instance stepped on through the run, and a fresh instance's first
  * steps), and their names in the `@ <name>_pressed_switches` check lines. */
-static const int drive_block[DRIVES] = {BELT_STEP, WEB_STEP};
-static const int drive_from_start_block[DRIVES] = {BELT_FROM_START, WEB_FROM_START};
-static const int drive_read_bounds_block[DRIVES] = {BELT_READ_BOUNDS, WEB_READ_BOUNDS};
-static const char *const drive_name[DRIVES] = {"belt", "web"};
+static const int drive_block[DRIVES] = {BELT_STEP, WEB_STEP, TWO_STAGE_STEP};
+static const int drive_from_start_block[DRIVES] = {BELT_FROM_START, WEB_FROM_START, TWO_STAGE_FROM_START};
+static const int drive_read_bounds_block[DRIVES] = {BELT_READ_BOUNDS, WEB_READ_BOUNDS, TWO_STAGE_READ_BOUNDS};
+static const char *const drive_name[DRIVES] = {"belt", "web", "two_stage"};
 
 /* One batch of the floor y = M x, fed back (see `suite`); a function of its own so that its
  * code is the same as in a loop by itself (the matrix in registers). */
@@ -550,14 +607,18 @@ static void suite(int batches, long steps) {
         printf("@ swinging_switches %ld %ld\n", contact_messages, total);
         release(c);
     }
-    /* The belt and web schedules: event-free too, checked the same way. */
+    /* The other drives' schedules: event-free too, checked the same way; the line ends with
+     * each mesh's final contact: "@ <name>_pressed_switches <switches> <steps> <h> <contact>...". */
     for (int i = 0; i < DRIVES; i++) {
         const Drive *d = &drive[i];
         fmi2Component c = make_drive_pressed(d, "check-pressed", 1);
         contact_messages = 0;
-        for (long k = 0; k < total; k++) check(d->api.do_step(c, k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
-        check(d->api.get_integer(c, &d->contact_vr, 1, &contact), "fmi2GetInteger");
-        printf("@ %s_pressed_switches %ld %ld %d %g\n", drive_name[i], contact_messages, total, (int)contact, H_BELT);
+        for (long k = 0; k < total; k++) check(d->api.do_step(c, k * d->h, d->h, fmi2True), "fmi2DoStep");
+        fmi2Integer contacts[MAX_CONTACTS];
+        check(d->api.get_integer(c, d->contact_vr, d->n_contact, contacts), "fmi2GetInteger");
+        printf("@ %s_pressed_switches %ld %ld %g", drive_name[i], contact_messages, total, d->h);
+        for (size_t j = 0; j < d->n_contact; j++) printf(" %d", (int)contacts[j]);
+        printf("\n");
         release_of(&d->api, c);
     }
 
@@ -687,17 +748,17 @@ static void suite(int batches, long steps) {
         }
         toc(t0, steps, t[STEP3], tw[STEP3], b);
 
-        /* The belt's and the web's event-free steps, one batch each, in turns: which goes first
-         * alternates from round to round. Both take the same steps, k_drive on; then the same
-         * number of steps from t = 0 on a fresh instance (made and freed untimed), since a step
-         * costs more while the bounds' responses are still being integrated. */
+        /* The other drives' event-free steps, one batch each, in turns: which goes first
+         * rotates from round to round. All take the same steps, k_drive on (each at its own h);
+         * then the same number of steps from t = 0 on a fresh instance (made and freed untimed),
+         * since a step costs more while the bounds' responses are still being integrated. */
         for (int j = 0; j < DRIVES; j++) {
             int i = (b + j) % DRIVES;
             const Drive *d = &drive[i];
             long k = k_drive;
             t0 = tic();
             for (long n = 0; n < steps; n++, k++)
-                check(d->api.do_step(drive_step[i], k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
+                check(d->api.do_step(drive_step[i], k * d->h, d->h, fmi2True), "fmi2DoStep");
             toc(t0, steps, t[drive_block[i]], tw[drive_block[i]], b);
         }
         k_drive += steps;
@@ -706,7 +767,7 @@ static void suite(int batches, long steps) {
             const Drive *d = &drive[i];
             fmi2Component fresh = make_drive_pressed(d, drive_name[i], 0);
             t0 = tic();
-            for (long k = 0; k < steps; k++) check(d->api.do_step(fresh, k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
+            for (long k = 0; k < steps; k++) check(d->api.do_step(fresh, k * d->h, d->h, fmi2True), "fmi2DoStep");
             toc(t0, steps, t[drive_from_start_block[i]], tw[drive_from_start_block[i]], b);
             release_of(&d->api, fresh);
         }
@@ -719,7 +780,7 @@ static void suite(int batches, long steps) {
             fmi2Real bounds[3];
             t0 = tic();
             for (long k = 0; k < steps; k++) {
-                check(d->api.do_step(fresh, k * H_BELT, H_BELT, fmi2True), "fmi2DoStep");
+                check(d->api.do_step(fresh, k * d->h, d->h, fmi2True), "fmi2DoStep");
                 check(d->api.get_real(fresh, d->bound_vr, d->n_bound, bounds), "fmi2GetReal(bounds)");
             }
             toc(t0, steps, t[drive_read_bounds_block[i]], tw[drive_read_bounds_block[i]], b);
@@ -832,8 +893,8 @@ int main(int argc, char **argv) {
     guid = argv[2];
     resources = argv[3];
     const char *mode = argv[4];
-    if (strcmp(mode, "suite") == 0 && argc == 13) {
-        load_drives(&argv[7], &argv[10]);
+    if (strcmp(mode, "suite") == 0 && argc == 16) {
+        load_drives(&argv[7], &argv[10], &argv[13]);
         suite(atoi(argv[5]), atol(argv[6]));
     } else if (strcmp(mode, "scale") == 0 && argc == 6) {
         scale(atol(argv[5]));

@@ -1,10 +1,11 @@
 //! `cargo xtask bench [--smoke]`: every benchmark in one run, and BENCHMARKS.md generated from it.
 //!
-//! Builds the FMUs, unpacks BacklashShaft.fmu, BacklashBelt.fmu and BacklashWeb.fmu, compiles the C
-//! host benches/native_host.c against the official FMI 2.0 headers (fmpy's copy in .venv) and the
-//! value references of the archives' modelDescription.xml, then runs: the native per-call costs and
-//! their floors, with the event-free steps of the belt drive and the web line beside them, the
-//! growth with steps and instances, the PI loop natively, through fmpy and in scipy
+//! Builds the FMUs, unpacks BacklashShaft.fmu, BacklashBelt.fmu, BacklashWeb.fmu and
+//! BacklashTwoStage.fmu, compiles the C host benches/native_host.c against the official FMI 2.0
+//! headers (fmpy's copy in .venv) and the value references and start values of the archives'
+//! modelDescription.xml, then runs: the native per-call costs and their floors, with the event-free
+//! steps of the belt drive, the web line and the two-stage gearbox beside them, the growth with
+//! steps and instances, the PI loop natively, through fmpy and in scipy
 //! (benches/python_bench.py), and the criterion bench of the physics core. Each tool prints
 //! `@ <key> <values>` lines (criterion writes estimates.json); run.rs collects them, report.rs
 //! writes the report with the machine facts and the exact commands.
@@ -37,6 +38,11 @@ const MODEL: &str = "BacklashShaft";
 /// steps are taken in the same rounds of the native suite, so that the web's cost is measured
 /// against the belt's in one run (target: within 1.5x of it).
 const DRIVE_AND_WEB: [&str; 2] = ["BacklashBelt", "BacklashWeb"];
+
+/// The two-stage gearbox, from its own archive: its event-free step is taken in the same rounds
+/// of the native suite as the shaft's, at the shaft's step size, so that its cost is measured
+/// against the shaft's in one run (target: within 2.5x of it).
+const GEARBOX: &str = "BacklashTwoStage";
 
 /// Sizes of one run; `--smoke` shrinks all of them.
 struct Plan {

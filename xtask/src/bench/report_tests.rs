@@ -22,8 +22,9 @@ const COMMON: &str = "\
 @ pressed_final_contact 1
 @ pressed_friction_switches 0 2020000 1 1
 @ swinging_switches 4040000 2020000
-@ belt_pressed_switches 0 2020000 1 0.0001
-@ web_pressed_switches 0 2020000 1 0.0001
+@ belt_pressed_switches 0 2020000 0.0001 1
+@ web_pressed_switches 0 2020000 0.0001 1
+@ two_stage_pressed_switches 0 2020000 0.001 1 1
 @ matvec_4x4 5.5 5.45 5.55 5.52 5.46 5.6
 @ copy_set2_step_get1 10.4 10.35 10.5 10.41 10.36 10.52
 @ ours_set2_get1 20.1 19.9 20.3 20.12 19.95 20.33
@@ -44,6 +45,9 @@ const COMMON: &str = "\
 @ web_step_from_start 29.6 29.4 30.2 29.62 29.41 30.22
 @ belt_step_read_bounds 54.9 54.6 55.6 54.93 54.62 55.64
 @ web_step_read_bounds 145.3 144.4 146.7 145.32 144.43 146.71
+@ two_stage_step_event_free 49.7 49.3 50.4 49.72 49.31 50.43
+@ two_stage_step_from_start 55.2 54.8 55.9 55.23 54.82 55.94
+@ two_stage_step_read_bounds 143.8 142.9 145.1 143.84 142.93 145.12
 @ instances 1 25.1 24.2 26.3 251234 1964 3024 3072 25.2
 @ instances 10 26 25.8 26.4 28123.5 1964 3184 3336 26.1
 @ instances 100 25.2 24.4 26.1 11034 1968 4818 4768 25.3
@@ -114,6 +118,8 @@ fn measured(text: &str, criterion: bool) -> Measurements {
             ("matvec_4x4", 1.68, 1.7, 1.72),
             ("step_1ms_no_switch", 26.4, 26.5, 26.6),
             ("web_bounds_advance_100us", 139.3, 139.6, 139.8),
+            ("chain_one_stage_step_1ms_no_switch", 30.1, 30.3, 30.6),
+            ("chain_two_stage_step_1ms_no_switch", 44.6, 44.9, 45.3),
             ("chain_two_stage_step_1ms_sliding", 61.0, 61.4, 61.9),
             ("chain_two_stage_step_1ms_sliding_friction", 66.2, 66.8, 67.5),
         ]
@@ -208,7 +214,7 @@ fn error(append: &str, drop: &[&str]) -> String {
 
 #[test]
 fn schedule_checks_fail_with_unchanged_messages() {
-    let cases: [(&str, &[&str], &str); 11] = [
+    let cases: [(&str, &[&str], &str); 13] = [
         (
             "@ pressed_switches 3 2020000\n",
             &[],
@@ -225,14 +231,25 @@ fn schedule_checks_fail_with_unchanged_messages() {
             "the switching schedule switched only 0.25 times per step",
         ),
         (
-            "@ belt_pressed_switches 2 2020000 1 0.0001\n",
+            "@ belt_pressed_switches 2 2020000 0.0001 1\n",
             &[],
             "the belt event-free schedule switched 2 times (final contact 1): not event-free",
         ),
         (
-            "@ web_pressed_switches 0 2020000 0 0.0001\n",
+            "@ web_pressed_switches 0 2020000 0.0001 0\n",
             &[],
             "the web event-free schedule switched 0 times (final contact 0): not event-free",
+        ),
+        (
+            "@ two_stage_pressed_switches 0 2020000 0.001 1 0\n",
+            &[],
+            "the two-stage event-free schedule switched 0 times (final contacts 1, 0): not event-free",
+        ),
+        (
+            "@ two_stage_pressed_switches 0 2020000 0.001 1\n",
+            &[],
+            "result `two_stage_pressed_switches`: [\"0\", \"2020000\", \"0.001\", \"1\"] is not the two-stage \
+             schedule's check of 2 mesh(es)",
         ),
         (
             "@ scale 5 0.1 2.5 1 2 3 0 4\n",
@@ -324,4 +341,37 @@ fn friction_ratio_is_judged() {
     m.criterion.retain(|c| c.name != "chain_two_stage_step_1ms_sliding");
     let report = render(&plan, &m, &facts()).expect("renders");
     assert!(!report.contains("Bearing friction on every body"));
+}
+
+/// The two-stage gearbox's target: its event-free step over the shaft's, medians of the same
+/// run, judged against 2.5x (the shaft's 23.4 ns: 2.5x is 58.5 ns), and quoted beside the physics.
+#[test]
+fn two_stage_ratio_is_judged() {
+    let plan = Plan::full();
+    for (two_stage, ratio, verdict) in [(58.4, "2.50x", "**met**"), (58.6, "2.50x", "**not met**")] {
+        let text = format!(
+            "{}@ two_stage_step_event_free {two_stage} 58 59 58.5 58 59\n",
+            full_text()
+        );
+        let report = render(&plan, &measured(&text, true), &facts()).expect("renders");
+        let line = report
+            .lines()
+            .find(|l| l.starts_with("| native event-free `fmi2DoStep` of BacklashTwoStage"))
+            .expect("the target's line");
+        assert!(
+            line.contains(&format!("{two_stage:.1} ns / 23.4 ns = {ratio} | {verdict} |")),
+            "{line}"
+        );
+    }
+    // The physics line quotes the FMU's ratio beside the chain's, and no longer says no FMU steps it.
+    let report = render(&plan, &measured(&full_text(), true), &facts()).expect("renders");
+    let physics = report
+        .lines()
+        .find(|l| l.starts_with("The chain of stages"))
+        .expect("the chain's line");
+    assert!(
+        physics.contains("**1.69x**") && physics.contains("section 1: 2.12x the shaft's"),
+        "{physics}"
+    );
+    assert!(!report.contains("no FMU steps the two-stage chain yet"));
 }

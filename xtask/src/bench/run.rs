@@ -10,7 +10,7 @@ use std::time::{Instant, SystemTime};
 
 use serde::Deserialize;
 
-use super::{Plan, DRIVE_AND_WEB, MODEL};
+use super::{Plan, DRIVE_AND_WEB, GEARBOX, MODEL};
 use crate::{fmu, python, rigs, util};
 
 /// The `@ key values…` lines of every tool, by key, in order of arrival.
@@ -215,11 +215,12 @@ struct Archive {
 
 impl Archive {
     /// Unpacks `target/fmu/<id>.fmu` into `work/<id>`; the archive and the `#define`s of the value
-    /// references of its description, each named `<prefix><variable>`.
-    fn unpack(work: &Path, id: &str, prefix: &str) -> Result<(Archive, String), String> {
+    /// references and start values of its description, named `VR_<infix><variable>` and
+    /// `START_<infix><variable>`.
+    fn unpack(work: &Path, id: &str, infix: &str) -> Result<(Archive, String), String> {
         let dir = work.join(id);
         let xml = unpack(&util::fmu_dir().join(format!("{id}.fmu")), &dir)?;
-        let (guid, defines) = guid_and_vr_defines(&xml, prefix)?;
+        let (guid, defines) = guid_and_vr_defines(&xml, infix)?;
         let archive = Archive {
             library: dir.join("binaries").join("linux64").join(format!("{id}.so")),
             guid,
@@ -243,23 +244,25 @@ pub(super) struct Runner {
     host: PathBuf,
     /// BacklashShaft, the model of every mode.
     shaft: Archive,
-    /// The archives of [`DRIVE_AND_WEB`], in that order, for the suite's belt and web rows.
+    /// The archives of [`DRIVE_AND_WEB`] and [`GEARBOX`], in that order, for the suite's rows of
+    /// the other drives.
     drives: Vec<Archive>,
     measured: Measurements,
 }
 
 impl Runner {
-    /// Unpacks BacklashShaft.fmu and the archives of [`DRIVE_AND_WEB`] into `work` and compiles
-    /// benches/native_host.c against fmpy's FMI headers, the value references of the archives'
-    /// own modelDescription.xml (bench_vr.h: `VR_<name>` of BacklashShaft, `VR_<model>_<name>` of
-    /// the others) and BacklashShaft's rig from tests/fixtures/rigs.toml (bench_rig.h).
+    /// Unpacks BacklashShaft.fmu and the archives of [`DRIVE_AND_WEB`] and [`GEARBOX`] into `work`
+    /// and compiles benches/native_host.c against fmpy's FMI headers, the value references and
+    /// start values of the archives' own modelDescription.xml (bench_vr.h: `VR_<name>` of
+    /// BacklashShaft, `VR_<model>_<name>` and `START_<model>_<name>` of the others) and
+    /// BacklashShaft's rig from tests/fixtures/rigs.toml (bench_rig.h).
     pub(super) fn prepare(work: &Path) -> Result<Runner, String> {
-        let (shaft, defines) = Archive::unpack(work, MODEL, "VR_")?;
+        let (shaft, defines) = Archive::unpack(work, MODEL, "")?;
         let mut vr_header =
             String::from("/* Written by cargo xtask bench from the archives' modelDescription.xml. */\n") + &defines;
         let mut drives = Vec::new();
-        for id in DRIVE_AND_WEB {
-            let (archive, defines) = Archive::unpack(work, id, &format!("VR_{id}_"))?;
+        for id in DRIVE_AND_WEB.into_iter().chain([GEARBOX]) {
+            let (archive, defines) = Archive::unpack(work, id, &format!("{id}_"))?;
             vr_header.push_str(&defines);
             drives.push(archive);
         }
@@ -328,7 +331,7 @@ impl Runner {
     }
 
     /// Section 1: the per-call costs and their floors, and the event-free steps of the archives
-    /// of [`DRIVE_AND_WEB`]; rows taken in turn round by round.
+    /// of [`DRIVE_AND_WEB`] and [`GEARBOX`]; rows taken in turn round by round.
     pub(super) fn native_suite(&mut self, plan: &Plan) -> Result<(), String> {
         let mut mode = strings(&[
             "suite",
@@ -566,9 +569,11 @@ fn unpack(archive: &Path, dir: &Path) -> Result<String, String> {
     Ok(xml)
 }
 
-/// The guid of the archive's description, `#define <prefix><name> <vr>u` for every
-/// ScalarVariable of it, and `#define <prefix>EVENT_INDICATORS <n>` of its event indicators.
-fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), String> {
+/// The guid of the archive's description, `#define VR_<infix><name> <vr>u` for every
+/// ScalarVariable of it, `#define START_<infix><name> <start>` for every Real with a finite start
+/// value (the host computes its schedules' states from them), and
+/// `#define VR_<infix>EVENT_INDICATORS <n>` of its event indicators.
+fn guid_and_vr_defines(xml: &str, infix: &str) -> Result<(String, String), String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("modelDescription.xml: {e}"))?;
     let guid = fmu::FMI2.token(&doc)?;
     let mut text = String::new();
@@ -583,7 +588,20 @@ fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), Stri
             .chars()
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
             .collect();
-        text.push_str(&format!("#define {prefix}{ident} {vr}u\n"));
+        text.push_str(&format!("#define VR_{infix}{ident} {vr}u\n"));
+        let start = variable
+            .children()
+            .find(|n| n.has_tag_name("Real"))
+            .and_then(|real| real.attribute("start"));
+        if let Some(start) = start {
+            let value: f64 = start
+                .parse()
+                .map_err(|e| format!("{name}'s start value `{start}` is not a number: {e}"))?;
+            // Rust's shortest decimal that reads back as the same f64; C reads it back exactly too.
+            if value.is_finite() {
+                text.push_str(&format!("#define START_{infix}{ident} {value:?}\n"));
+            }
+        }
         count += 1;
     }
     if count == 0 {
@@ -594,10 +612,7 @@ fn guid_and_vr_defines(xml: &str, prefix: &str) -> Result<(String, String), Stri
         .root_element()
         .attribute("numberOfEventIndicators")
         .ok_or("modelDescription.xml has no numberOfEventIndicators")?;
-    text.push_str(&format!(
-        "#define {prefix}EVENT_INDICATORS {indicators}
-"
-    ));
+    text.push_str(&format!("#define VR_{infix}EVENT_INDICATORS {indicators}\n"));
     Ok((guid.to_string(), text))
 }
 
@@ -715,6 +730,34 @@ mod tests {
             ]
         );
         fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn the_vr_header_defines_every_value_reference_and_each_real_start_value() {
+        let xml = r#"<fmiModelDescription guid="{g}" numberOfEventIndicators="2"><ModelVariables>
+            <ScalarVariable name="J_m" valueReference="15"><Real start="2.28"/></ScalarVariable>
+            <ScalarVariable name="Delta_1" valueReference="23"><Real start="0.3875e-3"/></ScalarVariable>
+            <ScalarVariable name="bound_sup" valueReference="14"><Real/></ScalarVariable>
+            <ScalarVariable name="contact_law" valueReference="29"><Integer start="1"/></ScalarVariable>
+            <ScalarVariable name="der(theta_m)" valueReference="38"><Real/></ScalarVariable>
+        </ModelVariables></fmiModelDescription>"#;
+        let (guid, text) = guid_and_vr_defines(xml, "M_").unwrap();
+        assert_eq!(guid, "{g}");
+        assert_eq!(
+            text,
+            "#define VR_M_J_m 15u\n\
+             #define START_M_J_m 2.28\n\
+             #define VR_M_Delta_1 23u\n\
+             #define START_M_Delta_1 0.0003875\n\
+             #define VR_M_bound_sup 14u\n\
+             #define VR_M_contact_law 29u\n\
+             #define VR_M_der_theta_m 38u\n\
+             #define VR_M_EVENT_INDICATORS 2\n"
+        );
+        let bad = xml.replace("2.28", "fast");
+        assert!(guid_and_vr_defines(&bad, "")
+            .unwrap_err()
+            .contains("J_m's start value `fast`"));
     }
 
     #[test]
