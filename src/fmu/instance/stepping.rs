@@ -47,13 +47,17 @@ impl Instance {
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
         let end = communication_point + h;
         let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
-        // A controller has no simulation: its step is a sample, off the plants' path.
-        let sim = match self.life.running() {
-            Ok(sim) => sim,
-            Err(_) if self.model.is_controller() => return self.sample_step(communication_point, h),
-            Err(_) if self.model.is_geared() => return self.geared_step_body(communication_point, h, early_return),
-            Err(e) => return Err(e),
-        };
+        // A controller has no simulation: its step is a sample, off the plants' path; a gearbox's
+        // is its chain's. Told apart before `running`, whose refusal allocates its reason.
+        if self.life.sim().is_none() {
+            if self.model.is_controller() {
+                return self.sample_step(communication_point, h);
+            }
+            if self.model.is_geared() {
+                return self.geared_step_body(communication_point, h, early_return);
+            }
+        }
+        let sim = self.life.running()?;
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         // The input lines at the end of the step (see below); refused before stepping if they
         // leave f64, so that a refused step changes nothing.
