@@ -115,6 +115,16 @@ impl Geared {
         )))
     }
 
+    /// [`Geared::check`] of a state the stepper returned, which is finite (the stepper refuses
+    /// one that is not: `StepError::Overflow`): only its forces can still overflow.
+    #[inline]
+    pub fn check_stepped(&self, state: &ChainState<2>, what: std::fmt::Arguments<'_>) -> Result<(), FmuError> {
+        if state.forces(self.chain()).iter().all(|f| finite(*f)) {
+            return Ok(());
+        }
+        self.check(state, what)
+    }
+
     /// A state entry's value.
     pub fn entry(&self, entry: StateEntry) -> f64 {
         Chain::<2>::z_of(&self.state)[entry.chain_index()]

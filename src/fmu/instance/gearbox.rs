@@ -221,7 +221,7 @@ impl Instance {
                 .map_err(overflow)?;
         }
         let advanced = stopped.unwrap_or(h);
-        g.check(
+        g.check_stepped(
             &next,
             format_args!("the step to t = {} overflows", communication_point + advanced),
         )?;
