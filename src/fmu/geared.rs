@@ -280,29 +280,28 @@ impl Geared {
         next
     }
 
-    /// The step of Co-Simulation over `h` under `inputs`, from a copy of the state: the state
-    /// after it and where it stopped (with `early_return`, at the first switch inside it), each
-    /// switch passed to `record`. The state is not changed here ([`Geared::commit`]).
+    /// The step of Co-Simulation over `h` under `inputs`, in place: where it stopped (with
+    /// `early_return`, at the first switch inside it), each switch passed to `record`. A refused
+    /// step leaves the state as it was (the stepper writes it only on success); the bound is
+    /// moved on by [`Geared::lag`] once the step is accepted. Stepping in place spares a copy
+    /// of the state the stepper has just written, whose read-back stalls.
     pub fn step(
         &mut self,
         inputs: &Inputs,
         h: f64,
         early_return: bool,
         record: &mut dyn FnMut(ChainEvent),
-    ) -> Result<(ChainState<2>, Option<f64>), StepError> {
-        let mut next = self.state;
-        let stopped = if early_return {
-            self.stepper.step_to_first_switch(&mut next, inputs, h, record)?
+    ) -> Result<Option<f64>, StepError> {
+        if early_return {
+            self.stepper.step_to_first_switch(&mut self.state, inputs, h, record)
         } else {
-            self.stepper.step(&mut next, inputs, h, record)?;
-            None
-        };
-        Ok((next, stopped))
+            self.stepper.step(&mut self.state, inputs, h, record)?;
+            Ok(None)
+        }
     }
 
-    /// Makes `next` the state after a step of `advanced` seconds: the bound lags that much more.
-    pub fn commit(&mut self, next: ChainState<2>, advanced: f64) {
-        self.state = next;
+    /// The state after an accepted step of `advanced` seconds: the bound lags that much more.
+    pub fn lag(&mut self, advanced: f64) {
         self.clock.lag(advanced);
     }
 

@@ -202,7 +202,8 @@ impl Instance {
             .geared_mut()
             .ok_or_else(|| FmuError::InvalidArgument("no gearbox before initialization has ended".into()))?;
         let mut switches = Vec::new();
-        let (mut next, mut stopped) = g
+        let before = g.state;
+        let mut stopped = g
             .step(&inputs, h, early_return, &mut |e| {
                 if want_switches {
                     switches.push(e)
@@ -212,7 +213,8 @@ impl Instance {
         // A switch that does not move time is no reason to return early: the whole step instead.
         if super::stepping::without_progress(communication_point, h, stopped) {
             switches.clear();
-            (next, stopped) = g
+            g.state = before;
+            stopped = g
                 .step(&inputs, h, false, &mut |e| {
                     if want_switches {
                         switches.push(e)
@@ -221,11 +223,15 @@ impl Instance {
                 .map_err(overflow)?;
         }
         let advanced = stopped.unwrap_or(h);
-        g.check_stepped(
-            &next,
+        if let Err(e) = g.check_stepped(
+            &g.state,
             format_args!("the step to t = {} overflows", communication_point + advanced),
-        )?;
-        g.commit(next, advanced);
+        ) {
+            // A refused step changes nothing.
+            g.state = before;
+            return Err(e);
+        }
+        g.lag(advanced);
         let gaps = [g.half_gap(0), g.half_gap(1)];
         for e in switches {
             let t = communication_point + e.offset();
