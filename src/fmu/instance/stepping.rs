@@ -45,7 +45,6 @@ impl Instance {
     /// The step; returns whether it stopped early at a contact switch (only when `early_return`).
     #[inline]
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
-        let end = communication_point + h;
         let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
         // A controller has no simulation: its step is a sample, off the plants' path; a gearbox's
         // is its chain's. Told apart before `running`, whose refusal allocates its reason.
@@ -59,37 +58,51 @@ impl Instance {
         }
         let sim = self.life.running()?;
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
-        // The input lines at the end of the step (see below); refused before stepping if they
-        // leave f64, so that a refused step changes nothing.
         let lines = adapter::input_values(&self.values);
-        let lines_end: [f64; MAX_INPUTS] = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
-        // All argument checks in one branch (non-short-circuit `&`, each false on NaN); the
-        // reason is sorted out by `step_refusal` only when one fails. `max_step` is finite.
-        let accepted = finite(communication_point)
-            & (h > 0.0)
-            & (h <= sim.max_step)
-            & at_time
-            & (end > communication_point)
-            & (end <= limit)
-            & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
-        if !accepted {
+        let Some(lines_end) = accepted_lines(
+            &lines,
+            &self.input_slopes,
+            communication_point,
+            h,
+            sim.max_step,
+            limit,
+            at_time,
+        ) else {
+            let lines_end = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
             return Err(self.step_refusal(communication_point, h, &lines_end));
-        }
+        };
         if !sim.quiet_step(&inputs, h) {
-            if let Some(offset) = self.general_step(communication_point, &inputs, h, early_return)? {
-                // Stopped at a switch: the input lines and the time move to it.
-                let at_switch = std::array::from_fn(|i| lines[i] + offset * self.input_slopes[i]);
-                adapter::store_inputs(&mut self.values, &at_switch);
-                self.time = communication_point + offset;
-                return Ok(true);
-            }
+            let stopped = self.general_step(communication_point, &inputs, h, early_return)?;
+            return Ok(self.step_taken(communication_point, h, &lines, &lines_end, stopped));
+        }
+        Ok(self.step_taken(communication_point, h, &lines, &lines_end, None))
+    }
+
+    /// After a step from `communication_point` that stopped at the switch `stopped` (an offset
+    /// in it) or went its whole length `h`: the input lines and the time moved there. Returns
+    /// whether it stopped early.
+    #[inline(always)]
+    fn step_taken(
+        &mut self,
+        communication_point: f64,
+        h: f64,
+        lines: &[f64; MAX_INPUTS],
+        lines_end: &[f64; MAX_INPUTS],
+        stopped: Option<f64>,
+    ) -> bool {
+        if let Some(offset) = stopped {
+            // Stopped at a switch: the input lines and the time move to it.
+            let at_switch = std::array::from_fn(|i| lines[i] + offset * self.input_slopes[i]);
+            adapter::store_inputs(&mut self.values, &at_switch);
+            self.time = communication_point + offset;
+            return true;
         }
         // The input lines continue over the next step unless set again (see
         // `set_real_input_derivatives_body`).
-        adapter::store_inputs(&mut self.values, &lines_end);
+        adapter::store_inputs(&mut self.values, lines_end);
         // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
-        self.time = end;
-        Ok(false)
+        self.time = communication_point + h;
+        false
     }
 
     /// `step_body` of a gearbox (`super::gearbox`): the same argument checks, the chain's step,
@@ -97,30 +110,23 @@ impl Instance {
     #[cold]
     #[inline(never)]
     fn geared_step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
-        let end = communication_point + h;
         let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
-        let max_step = self.max_step();
         let lines = adapter::input_values(&self.values);
-        let lines_end: [f64; MAX_INPUTS] = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
-        let accepted = finite(communication_point)
-            & (h > 0.0)
-            & (h <= max_step)
-            & at_time
-            & (end > communication_point)
-            & (end <= limit)
-            & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
-        if !accepted {
+        let max_step = self.max_step();
+        let Some(lines_end) = accepted_lines(
+            &lines,
+            &self.input_slopes,
+            communication_point,
+            h,
+            max_step,
+            limit,
+            at_time,
+        ) else {
+            let lines_end = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
             return Err(self.step_refusal(communication_point, h, &lines_end));
-        }
-        if let Some(offset) = self.gear_step(communication_point, h, early_return)? {
-            let at_switch = std::array::from_fn(|i| lines[i] + offset * self.input_slopes[i]);
-            adapter::store_inputs(&mut self.values, &at_switch);
-            self.time = communication_point + offset;
-            return Ok(true);
-        }
-        adapter::store_inputs(&mut self.values, &lines_end);
-        self.time = end;
-        Ok(false)
+        };
+        let stopped = self.gear_step(communication_point, h, early_return)?;
+        Ok(self.step_taken(communication_point, h, &lines, &lines_end, stopped))
     }
 
     /// The longest step the physics accepts (NaN before there is any).
@@ -363,4 +369,31 @@ pub(super) fn without_progress(communication_point: f64, h: f64, stopped: Option
 /// The logged line of a contact switch at `t`.
 fn contact_switch(t: f64, from: ContactMode, to: ContactMode, half_gap: f64) -> String {
     format!("contact switch at t = {t} s: {from:?} -> {to:?} (g = {half_gap})")
+}
+
+/// The input lines at the end of a step from `communication_point` over `h`, if every argument
+/// is acceptable: a finite point at the instance's time (`at_time`), 0 < h <= `max_step`, an end
+/// that moves time and stays within `limit`, lines that stay in f64 (refused before stepping, so
+/// that a refused step changes nothing). All in one branch (non-short-circuit `&`, each false on
+/// NaN); `step_refusal` sorts out the reason only when one fails.
+#[inline(always)]
+fn accepted_lines(
+    lines: &[f64; MAX_INPUTS],
+    slopes: &[f64; MAX_INPUTS],
+    communication_point: f64,
+    h: f64,
+    max_step: f64,
+    limit: f64,
+    at_time: bool,
+) -> Option<[f64; MAX_INPUTS]> {
+    let end = communication_point + h;
+    let lines_end: [f64; MAX_INPUTS] = std::array::from_fn(|i| lines[i] + h * slopes[i]);
+    let accepted = finite(communication_point)
+        & (h > 0.0)
+        & (h <= max_step)
+        & at_time
+        & (end > communication_point)
+        & (end <= limit)
+        & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
+    accepted.then_some(lines_end)
 }
