@@ -129,7 +129,7 @@ pub fn variable_tables() -> String {
     out.push_str("    /// The symbol's slot in an instance's value store.\n");
     out.push_str("    pub fn index(self) -> usize {\n        self as usize\n    }\n\n");
     out.push_str("    /// Where the variable's value comes from (`crate::fmu::adapter::Source`).\n");
-    out.push_str("    #[inline]\n    pub const fn source(self) -> Source {\n        match self {\n");
+    out.push_str("    #[inline(always)]\n    pub const fn source(self) -> Source {\n        match self {\n");
     for (symbol, source) in sources(&models, &controllers) {
         let _ = writeln!(out, "            Symbol::{symbol} => {source},");
     }

@@ -47,16 +47,11 @@ impl Instance {
     fn step_body(&mut self, communication_point: f64, h: f64, early_return: bool) -> Result<bool, FmuError> {
         let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
         // A controller has no simulation: its step is a sample, off the plants' path; a gearbox's
-        // is its chain's. Told apart before `running`, whose refusal allocates its reason.
-        if self.life.sim().is_none() {
-            if self.model.is_controller() {
-                return self.sample_step(communication_point, h);
-            }
-            if self.model.is_geared() {
-                return self.geared_step_body(communication_point, h, early_return);
-            }
-        }
-        let sim = self.life.running()?;
+        // is its chain's. Told apart without `running`, whose refusal allocates its reason.
+        let sim = match self.life.sim_mut() {
+            Some(sim) => sim,
+            None => return self.step_without_simulation(communication_point, h, early_return),
+        };
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         let lines = adapter::input_values(&self.values);
         let Some(lines_end) = accepted_lines(
@@ -103,6 +98,26 @@ impl Instance {
         // FMI 2.0.4 §4.2.2: synchronize to tc + h rather than accumulate.
         self.time = communication_point + h;
         false
+    }
+
+    /// `step_body` of an instance without a single gap's simulation: a controller's sample, a
+    /// gearbox's step, or the refusal of a plant's step before initialization has ended.
+    #[cold]
+    #[inline(never)]
+    fn step_without_simulation(
+        &mut self,
+        communication_point: f64,
+        h: f64,
+        early_return: bool,
+    ) -> Result<bool, FmuError> {
+        if self.model.is_controller() {
+            return self.sample_step(communication_point, h);
+        }
+        if self.model.is_geared() {
+            return self.geared_step_body(communication_point, h, early_return);
+        }
+        // `running` refuses: there is no simulation to step.
+        self.life.running().map(|_| false)
     }
 
     /// `step_body` of a gearbox (`super::gearbox`): the same argument checks, the chain's step,
