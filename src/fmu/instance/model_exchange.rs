@@ -206,16 +206,24 @@ impl Instance {
     }
 
     /// Refused unless x has the model's number of states, each finite (`entries` name them).
+    #[inline]
     fn checked_states(&self, x: &[f64], entries: &[StateEntry]) -> Result<(), FmuError> {
         Self::same_length("continuous states", x.len(), self.continuous_state_count())?;
-        if let Some((i, value)) = x.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-            return Err(FmuError::InvalidArgument(format!(
-                "continuous state {} ({}) is {value}; states must be finite",
-                i + 1,
-                self.model.by_symbol(entries[i].symbol()).map_or("?", |v| v.name)
-            )));
+        match x.iter().position(|x| !x.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(self.state_refusal(x, entries, i)),
         }
-        Ok(())
+    }
+
+    /// Why x is refused: its `i`-th state is not finite.
+    #[cold]
+    fn state_refusal(&self, x: &[f64], entries: &[StateEntry], i: usize) -> FmuError {
+        FmuError::InvalidArgument(format!(
+            "continuous state {} ({}) is {}; states must be finite",
+            i + 1,
+            self.model.by_symbol(entries[i].symbol()).map_or("?", |v| v.name),
+            x[i]
+        ))
     }
 
     fn fill(out: &mut [f64], what: &'static str, values: &[f64]) -> Result<Status, FmuError> {
