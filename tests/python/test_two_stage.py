@@ -220,8 +220,8 @@ def test_model_exchange_bound_is_infinite_exactly_when_a_mesh_is_damped(fmi, dam
     times integrals of the loop's responses, docs/model.md §11): Model Exchange's at t = 0.5 s
     (read at that time, the states where the instance started) equals Co-Simulation's after 50
     steps of 10 ms under other torques, to 1e-12 relative (the one integral evaluated to 0.5 s at
-    once or in 50 pieces; measured 1.8e-15). A damper's term dropped from the test, or +inf in
-    Co-Simulation too, fails it."""
+    once or in 50 pieces; measured 1.8e-15). A finite Model Exchange bound that leaves out the
+    damper's term fails the test, as does +inf in Co-Simulation."""
     params = {"Kp": 42.0, "Ki": 180.0, **({damper: 0.05} if damper else {})}
     archive = archives.shared(MODEL, fmi=fmi)
     me = archive.model_exchange(f"me-bound-{damper}", params)
