@@ -239,7 +239,8 @@ fn stage_of(name: &str) -> (&str, usize) {
 /// input: docs/model.md §1): a state output is the state itself; ψ's and `contact`'s (a stage's
 /// on a chain) are computed from the physics (`contact` is the sign of ψ: on ±g it depends on
 /// the sign of u′ as well, and with a damper on the force's); the others' as listed
-/// ([`crate::common::output_dependencies`]; on a chain a body's `sliding` reads every state).
+/// ([`crate::common::output_dependencies`]; on a chain a body's `sliding`, and the load's
+/// everywhere, reads every state).
 pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
     let two_stage = matches!(model.kind, crate::Kind::TwoStage(_));
     match stage_of(v.name) {
@@ -247,8 +248,9 @@ pub(crate) fn output_dependencies(model: &Model, v: &Var) -> Vec<&'static str> {
         ("psi", stage) => state_dependencies(model, Quantity::Force(stage)),
         ("contact", stage) => state_dependencies(model, Quantity::ContactSurfaces(stage)),
         // A body's friction mode: the sign of its speed sliding, the law of stiction at rest
-        // (the torque on the body, from every state).
-        _ if two_stage && v.name.starts_with("sliding_") => state_names(model),
+        // (the torque on the body, from every state; on a web line the load's torque carries
+        // the span's tension T).
+        _ if (two_stage && v.name.starts_with("sliding_")) || v.name == "sliding_L" => state_names(model),
         _ => crate::common::output_dependencies(v.name).to_vec(),
     }
 }

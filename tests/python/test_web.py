@@ -541,3 +541,23 @@ def test_output_derivatives_of_T_omega_L_and_bound_T(web):
         assert rates["bound_T"] == pytest.approx(central, rel=1e-6)
         worst = max(worst, abs(rates["bound_T"] / central - 1))
     print(f"\noutput derivatives at {len(checked)} points: d bound_T/dt vs central difference rel {worst:.1e}")
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_loads_friction_mode_reads_the_span_tension(fmi):
+    """The torque on the load carries -R_w T (docs/model.md §8), so at rest with bearing friction,
+    inside the gap (psi = 0) and under no torque, the load sticks while R_w T stays within
+    peak_L*tau_c_L and breaks away backward beyond: `sliding_L` is 0 at T = 0 and at half the
+    breakaway tension, -1 at twice it. Its declared dependencies list T, as breakaway_L's do."""
+    fmu = archives.shared(MODEL, fmi=fmi)
+    tau_c, r_w = 0.1, float(fmu.variables["R_w"].start)
+    found = {}
+    for T in (0.0, 0.5 * tau_c / r_w, 2.0 * tau_c / r_w):
+        inst = fmu.co_simulation(f"sliding-T-{T}", {"tau_c_L": tau_c, "T": T, "omega_L": 0.0, "theta_m": 0.0})
+        try:
+            found[T] = inst.integers("sliding_L")[0]
+        finally:
+            inst.free()
+    assert list(found.values()) == [0, 0, -1], found
+    deps = {u.variable.name: {d.name for d in u.dependencies} for u in fmu.md.outputs}
+    assert "T" in deps["sliding_L"], deps["sliding_L"]

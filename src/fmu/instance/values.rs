@@ -285,11 +285,12 @@ impl Instance {
         }
     }
 
-    /// The common case of a set, taken in one pass: every element an input of type `ty` whose
-    /// value its range admits, in a state in which inputs can be set. Anything else goes
+    /// The common case of a set, checked in one pass: at most `MAX_INPUTS` elements, each an
+    /// input of type `ty` whose value its range admits, in a state in which inputs can be set.
+    /// Where each value is stored, in the order of `vrs`; None for anything else, which goes
     /// through `check_settable` and the range's refusal, which give the reason.
     #[inline]
-    fn inputs_admitted(&self, vrs: &[u32], values: &[f64], ty: VarType) -> bool {
+    fn admitted_inputs(&self, vrs: &[u32], values: &[f64], ty: VarType) -> Option<[usize; adapter::MAX_INPUTS]> {
         let takes_inputs = matches!(
             self.phase(),
             Phase::Instantiated
@@ -298,12 +299,18 @@ impl Instance {
                 | Phase::EventMode
                 | Phase::ContinuousTimeMode
         );
-        takes_inputs
-            && vrs.iter().zip(values).all(|(vr, value)| {
-                self.model
-                    .by_vr(*vr)
-                    .is_some_and(|v| (v.causality == Causality::Input) & (v.ty == ty) && v.range.admits(*value))
-            })
+        if !takes_inputs || vrs.len() > adapter::MAX_INPUTS {
+            return None;
+        }
+        let mut at = [0; adapter::MAX_INPUTS];
+        for ((vr, value), at) in vrs.iter().zip(values).zip(&mut at) {
+            let v = self.model.by_vr(*vr)?;
+            if !((v.causality == Causality::Input) & (v.ty == ty) && v.range.admits(*value)) {
+                return None;
+            }
+            *at = v.symbol.index();
+        }
+        Some(at)
     }
 
     /// Whether a continuous-time state can be set by value reference now. FMI 2.0.4 §3.2.3,
@@ -340,13 +347,11 @@ impl Instance {
 
     /// Sets variables of type `ty` (an Integer's value as its f64).
     fn set_values(&mut self, vrs: &[u32], values: &[f64], ty: VarType) -> Result<Status, FmuError> {
-        if self.inputs_admitted(vrs, values, ty) {
+        if let Some(at) = self.admitted_inputs(vrs, values, ty) {
             // Inputs are stored values in every state that takes one (`check_settable`), and a
             // plant's preview does not read them.
-            for (vr, value) in vrs.iter().zip(values) {
-                if let Some(v) = self.model.by_vr(*vr) {
-                    self.values[v.symbol.index()] = *value;
-                }
+            for (value, at) in values.iter().zip(at) {
+                self.values[at] = *value;
             }
             return Ok(Status::Ok);
         }
