@@ -1007,7 +1007,9 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         for i in (0..S).rev() {
             let s = self.chain.stage(i);
             let driven = next.body(i + 1).omega;
-            next.body_mut(i).omega = (next.du[i] + s.c * driven) / s.a;
+            let a_omega = next.du[i] + s.c * driven;
+            // x / 1 is x: the division, whose latency the step waits on, only where a ≠ 1.
+            next.body_mut(i).omega = if s.a == 1.0 { a_omega } else { a_omega / s.a };
         }
         if self.friction {
             self.hold_stuck(next);
