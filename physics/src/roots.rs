@@ -168,6 +168,7 @@ pub const SEARCH_PIECES: usize = 1 << 12;
 /// signal hovers at its threshold through a long step (each piece then gives up early). The
 /// allowance stops growing at `SEARCH_PIECES` pieces: a signal hovering through a million
 /// pieces would otherwise search for minutes.
+#[inline]
 pub fn work_budget(pieces: usize) -> usize {
     4 * MAX_INTERVALS + 64 * pieces.min(SEARCH_PIECES)
 }
