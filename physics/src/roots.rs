@@ -253,8 +253,8 @@ fn search(
     // sup |f'''| on [lo, hi] from the shifted polynomial's higher coefficients.
     let mut c3 = 0.0;
     let mut wp = 1.0;
-    for k in 3..=q.deg {
-        c3 += q.coef[k].abs() * FALLING_CUBE[k] * wp;
+    for (c, falling) in q.coef.iter().zip(FALLING_CUBE).take(q.deg + 1).skip(3) {
+        c3 += c.abs() * falling * wp;
         wp *= w;
     }
     if cubic_clear(f0, f1, f2, c3, w, side.tol) {
