@@ -59,11 +59,18 @@ fn input_lines(models: &[Model]) -> Vec<&'static str> {
 /// state's entry of its symbol (and its derivative that entry's rate); the other Integer
 /// outputs, `contact` (docs/model.md §4), the sign of ψ in the mode in force, and `sliding_m`,
 /// `sliding_L` (§12), each body's friction mode;
-/// every other variable is calculated from the physics, by the `Calculated` of its symbol (a new
-/// one without such a variant does not compile). A controller's inputs are stored and sampled,
+/// every other variable is calculated from the physics, by the `Calculated` of its symbol, or a
+/// gearbox's own by its `GearQuantity` (a new one without such a variant does not compile). A controller's inputs are stored and sampled,
 /// its output is the command it holds.
 fn sources(models: &[Model], controllers: &[Model]) -> Vec<(&'static str, String)> {
     let lines = input_lines(models);
+    // The symbols of the single-gap plants: a gearbox's other calculated symbols are its own
+    // (`Calculated::Gear`).
+    let single_gap: Vec<&str> = models
+        .iter()
+        .filter(|m| matches!(m.kind, Kind::Plant(_)))
+        .flat_map(|m| m.variables.iter().map(|v| v.symbol))
+        .collect();
     let mut out: Vec<(&'static str, String)> = Vec::new();
     for m in models.iter().chain(controllers) {
         for v in &m.variables {
@@ -97,6 +104,8 @@ fn sources(models: &[Model], controllers: &[Model]) -> Vec<(&'static str, String
                     "sliding_i" => "Source::Sliding(2)".to_string(),
                     other => panic!("{}: Integer output {other} has no source", m.identifier),
                 }
+            } else if matches!(m.kind, Kind::TwoStage(_)) && !single_gap.contains(&v.symbol) {
+                format!("Source::Calculated(Calculated::Gear(GearQuantity::{}))", v.symbol)
             } else {
                 format!("Source::Calculated(Calculated::{})", v.symbol)
             };

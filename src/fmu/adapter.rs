@@ -99,8 +99,16 @@ pub enum Calculated {
     /// `bound_T`, `bound_T_sup` of a web line (docs/model.md §8).
     BoundT,
     BoundTSup,
-    /// A two-stage chain's (docs/model.md §10): each stage's ψ, its contact surfaces (as the
-    /// single gap's, stage by stage) and the intermediate shaft's friction surfaces.
+    /// A gearbox's own (`crate::fmu::geared`): never a single gap's.
+    Gear(GearQuantity),
+}
+
+/// The quantities only a two-stage chain has (docs/model.md §10): each stage's ψ, its contact
+/// surfaces (as the single gap's, stage by stage) and the intermediate shaft's friction
+/// surfaces. The generated sources name a symbol's variant here when no single-gap model has
+/// the symbol.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GearQuantity {
     Psi1,
     Psi2,
     UMinusG1,
@@ -240,22 +248,7 @@ impl Calculated {
             Calculated::BoundT => sim.clock.bound.bound_t(sim.trajectory()),
             Calculated::BoundTSup => sim.bound_t_sup_value(),
             // A gearbox's: read from its chain (`crate::fmu::geared`), never from a single gap.
-            Calculated::Psi1
-            | Calculated::Psi2
-            | Calculated::UMinusG1
-            | Calculated::UPlusG1
-            | Calculated::ForceUpper1
-            | Calculated::ForceLower1
-            | Calculated::CapUpper1
-            | Calculated::CapLower1
-            | Calculated::UMinusG2
-            | Calculated::UPlusG2
-            | Calculated::ForceUpper2
-            | Calculated::ForceLower2
-            | Calculated::CapUpper2
-            | Calculated::CapLower2
-            | Calculated::StopI
-            | Calculated::BreakawayI => f64::NAN,
+            Calculated::Gear(_) => f64::NAN,
         }
     }
 
@@ -282,23 +275,7 @@ impl Calculated {
             Calculated::Bound => Some(sim.clock.bound.bound_rate(sim.trajectory())),
             Calculated::BoundPaper => Some(sim.clock.bound.bound_paper_rate()),
             Calculated::BoundT => Some(sim.clock.bound.bound_t_rate(sim.trajectory())),
-            Calculated::BoundSup | Calculated::BoundTSup => None,
-            Calculated::Psi1
-            | Calculated::Psi2
-            | Calculated::UMinusG1
-            | Calculated::UPlusG1
-            | Calculated::ForceUpper1
-            | Calculated::ForceLower1
-            | Calculated::CapUpper1
-            | Calculated::CapLower1
-            | Calculated::UMinusG2
-            | Calculated::UPlusG2
-            | Calculated::ForceUpper2
-            | Calculated::ForceLower2
-            | Calculated::CapUpper2
-            | Calculated::CapLower2
-            | Calculated::StopI
-            | Calculated::BreakawayI => None,
+            Calculated::BoundSup | Calculated::BoundTSup | Calculated::Gear(_) => None,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! `modelDescription.xml` comes from), and the lookups the instance serves get/set with.
 
 // The kinds of variables are those the description is written with: one definition.
-use super::adapter::{Calculated, Source, StateEntry};
+use super::adapter::{Calculated, GearQuantity, Source, StateEntry};
 use super::state_machine::Standard;
 pub use model_description::{Causality, DefaultExperiment, Initial, Kind, Range, Type as VarType, Variability};
 

@@ -6,7 +6,7 @@
 
 use super::lifecycle::Lifecycle;
 use super::Instance;
-use crate::fmu::adapter::{Calculated, Source, StateEntry};
+use crate::fmu::adapter::{Calculated, GearQuantity, Source, StateEntry};
 use crate::fmu::error::{FmuError, Status};
 use crate::fmu::geared::{self, Geared, INDICATORS};
 use crate::fmu::logging::LogCategory;
@@ -19,26 +19,26 @@ use crate::physics::{BoundError, Inputs};
 /// The index of a gearbox's event indicator among [`Geared::indicators`], None for another
 /// quantity.
 pub(crate) fn indicator(quantity: Calculated) -> Option<usize> {
-    use Calculated::*;
+    use GearQuantity::*;
     Some(match quantity {
-        UMinusG1 => 0,
-        UPlusG1 => 1,
-        ForceUpper1 => 2,
-        ForceLower1 => 3,
-        CapUpper1 => 4,
-        CapLower1 => 5,
-        UMinusG2 => 6,
-        UPlusG2 => 7,
-        ForceUpper2 => 8,
-        ForceLower2 => 9,
-        CapUpper2 => 10,
-        CapLower2 => 11,
-        StopM => 12,
-        BreakawayM => 13,
-        StopI => 14,
-        BreakawayI => 15,
-        StopL => 16,
-        BreakawayL => 17,
+        Calculated::Gear(UMinusG1) => 0,
+        Calculated::Gear(UPlusG1) => 1,
+        Calculated::Gear(ForceUpper1) => 2,
+        Calculated::Gear(ForceLower1) => 3,
+        Calculated::Gear(CapUpper1) => 4,
+        Calculated::Gear(CapLower1) => 5,
+        Calculated::Gear(UMinusG2) => 6,
+        Calculated::Gear(UPlusG2) => 7,
+        Calculated::Gear(ForceUpper2) => 8,
+        Calculated::Gear(ForceLower2) => 9,
+        Calculated::Gear(CapUpper2) => 10,
+        Calculated::Gear(CapLower2) => 11,
+        Calculated::StopM => 12,
+        Calculated::BreakawayM => 13,
+        Calculated::Gear(StopI) => 14,
+        Calculated::Gear(BreakawayI) => 15,
+        Calculated::StopL => 16,
+        Calculated::BreakawayL => 17,
         _ => return None,
     })
 }
@@ -123,8 +123,8 @@ impl Instance {
                 let inputs = self.gear_inputs();
                 let g = self.gearbox()?;
                 Ok(match quantity {
-                    Calculated::Psi1 => g.psi(0),
-                    Calculated::Psi2 => g.psi(1),
+                    Calculated::Gear(GearQuantity::Psi1) => g.psi(0),
+                    Calculated::Gear(GearQuantity::Psi2) => g.psi(1),
                     Calculated::Bound => g.bound(),
                     Calculated::BoundSup => g.bound_sup(),
                     q => match indicator(q) {
@@ -288,8 +288,8 @@ impl Instance {
             rows.push(match source {
                 Source::Derivative(e) => Unknown::Derivative(e.chain_index()),
                 Source::State(e) => Unknown::State(e.chain_index()),
-                Source::Calculated(Calculated::Psi1) => Unknown::Psi(0),
-                Source::Calculated(Calculated::Psi2) => Unknown::Psi(1),
+                Source::Calculated(Calculated::Gear(GearQuantity::Psi1)) => Unknown::Psi(0),
+                Source::Calculated(Calculated::Gear(GearQuantity::Psi2)) => Unknown::Psi(1),
                 Source::Calculated(Calculated::Bound) => Unknown::TimeOnly,
                 Source::Calculated(q) if indicator(*q).is_some() => Unknown::Indicator(indicator(*q).unwrap_or(0)),
                 _ => {
@@ -409,8 +409,8 @@ impl Instance {
         let g = self.gearbox()?;
         Ok(match source {
             Source::State(e) => Some(z_dot[e.chain_index()]),
-            Source::Calculated(Calculated::Psi1 | Calculated::Psi2) => {
-                let j = usize::from(source == Source::Calculated(Calculated::Psi2));
+            Source::Calculated(Calculated::Gear(GearQuantity::Psi1 | GearQuantity::Psi2)) => {
+                let j = usize::from(source == Source::Calculated(Calculated::Gear(GearQuantity::Psi2)));
                 let chain = g.chain();
                 let mut full = z_dot.to_vec();
                 full.push(0.0);

@@ -452,24 +452,7 @@ impl Unknown {
                 | Calculated::BreakawayL => quantity.indicator().map(Unknown::Indicator),
                 Calculated::Bound | Calculated::BoundPaper | Calculated::BoundT => Some(Unknown::TimeOnly),
                 // A gearbox's (`super::gearbox`), none a single gap's.
-                Calculated::BoundSup
-                | Calculated::BoundTSup
-                | Calculated::Psi1
-                | Calculated::Psi2
-                | Calculated::UMinusG1
-                | Calculated::UPlusG1
-                | Calculated::ForceUpper1
-                | Calculated::ForceLower1
-                | Calculated::CapUpper1
-                | Calculated::CapLower1
-                | Calculated::UMinusG2
-                | Calculated::UPlusG2
-                | Calculated::ForceUpper2
-                | Calculated::ForceLower2
-                | Calculated::CapUpper2
-                | Calculated::CapLower2
-                | Calculated::StopI
-                | Calculated::BreakawayI => None,
+                Calculated::BoundSup | Calculated::BoundTSup | Calculated::Gear(_) => None,
             },
             Source::Input(_)
             | Source::Parameter
