@@ -6,7 +6,8 @@
   scipy's solve_ivp. It only needs an object with `derivatives`, `indicators` and the importer's
   event hooks, so that the same code integrates the FMU (`backlash_fmu.fmu.ModelExchange`) and,
   in the reference's own tests, the equations of docs/model.md §1 written in Python
-  (`PythonPlant`); `outputs_along` reads the FMU's outputs along a run.
+  (`PythonPlant`) and a gearbox's of §10 (`PythonGearbox`); `outputs_along` reads the FMU's
+  outputs along a run.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from scipy.integrate import solve_ivp
 
 from reference import FREE, MINUS, PLUS, Plant
 from reference_continuous import Hold
+from reference_two_stage import Gearbox
 
 # ---- Co-Simulation ---------------------------------------------------------------------------
 
@@ -84,7 +86,21 @@ def state_with_u(plant: Plant, u: float, theta_m=0.2, omega_m=0.5, omega_L=-0.4)
     return np.array([theta_m, omega_m, (plant.r_m * theta_m - u) / plant.r_L, omega_L])
 
 
-class PythonPlant:
+class EquationsOnly:
+    """The importer's event hooks of a Python double that has no discrete state: nothing to set,
+    no step or event iteration asks for anything."""
+
+    def set_state(self, t, x):
+        pass
+
+    def completed_step(self):
+        return False, False
+
+    def event_iteration(self):
+        return (False, False, False, False, False, 0.0)
+
+
+class PythonPlant(EquationsOnly):
     """The right-hand side and event indicators of docs/model.md §1 written directly in
     Python, with the same interface as backlash_fmu.fmu.ModelExchange: the double that tests
     run_loop itself."""
@@ -106,14 +122,20 @@ class PythonPlant:
         u = self.p.r_m * x[0] - self.p.r_L * x[2]
         return np.array([u - self.p.g, u + self.p.g, *[1.0] * (NZ - 2)])
 
-    def set_state(self, t, x):
-        pass
 
-    def completed_step(self):
-        return False, False
+class PythonGearbox(EquationsOnly):
+    """The gearbox's field and event indicators of docs/model.md §10 written in Python
+    (reference_two_stage.Gearbox) with the interface of a Model Exchange instance over its six
+    states: the double that tests run_loop on a gearbox."""
 
-    def event_iteration(self):
-        return (False, False, False, False, False, 0.0)
+    def __init__(self, box: Gearbox):
+        self.box, self.nx, self.nz = box, 6, 18
+
+    def derivatives(self, t, x, tau_m, tau_L):
+        return self.box.field(np.asarray(x[:6], dtype=float), tau_m, tau_L)
+
+    def indicators(self, t, x):
+        return self.box.indicators(x[:6])
 
 
 @dataclass

@@ -18,9 +18,8 @@ omega_i, theta_L, omega_L].
 
 For Model Exchange (test_model_exchange.py), from the same equations: the field in z's
 coordinates, its exact Jacobian per tuple of modes, the 18 event indicators and the state
-nominals of docs/model.md §6, §10 (`Gearbox`), the continuous-time PI loop closed around the
-equations (`run_pi_loop`), and the equations behind a Model Exchange interface
-(`PythonGearbox`).
+nominals of docs/model.md §6, §10 (`Gearbox`), and the continuous-time PI loop closed around the
+equations (`run_pi_loop`).
 """
 
 from __future__ import annotations
@@ -318,26 +317,3 @@ def run_pi_loop(box: Gearbox, Kp: float, Ki: float, holds, t_out, z0=None, rtol=
     z = np.array([box.to_state(row[:6]) for row in Y])
     return LoopResult(t_out, z, Y[:, 6], Y[:, [2, 4]], switches, rates)
 
-
-class PythonGearbox:
-    """The gearbox's field and event indicators written in Python with the interface of a Model
-    Exchange instance over its six states (backlash_fmu.fmu.ModelExchange): the double that
-    tests the loop integrator the FMU's tests use."""
-
-    def __init__(self, box: Gearbox):
-        self.box, self.nx, self.nz = box, 6, 18
-
-    def derivatives(self, t, x, tau_m, tau_L):
-        return self.box.field(np.asarray(x[:6], dtype=float), tau_m, tau_L)
-
-    def indicators(self, t, x):
-        return self.box.indicators(x[:6])
-
-    def set_state(self, t, x):
-        pass
-
-    def completed_step(self):
-        return False, False
-
-    def event_iteration(self):
-        return (False, False, False, False, False, 0.0)

@@ -32,7 +32,7 @@ import reference
 import reference_continuous as rc
 import reference_two_stage as ref2
 from cvode_check import check_cvode_against_exact
-from loops import DERIVATIVES, LoopRun, PythonPlant, outputs_along, run_loop, state_with_u
+from loops import DERIVATIVES, LoopRun, PythonGearbox, PythonPlant, outputs_along, run_loop, state_with_u
 from reference import FREE, MINUS, PLUS
 from reference_bound import loop_matrices
 from rigs import RIGS, TWO_STAGE_GEARED, plant_of, with_delta
@@ -74,6 +74,20 @@ def loop_holds() -> list[rc.Hold]:
 
     return [rc.Hold(k * LOOP_PERIOD, 0.0, load(k * LOOP_PERIOD), w) for k, w in enumerate(LOOP_REFERENCE)]
 
+
+def held_linear_loop(M: np.ndarray) -> np.ndarray:
+    """y' = M y from y = 0, the last two entries of y being [tau_L, w_ref] held as loop_holds()
+    holds them: the other entries at LOOP_TIMES, one augmented expm per hold."""
+    n = M.shape[0] - 2
+    holds, y = loop_holds(), np.zeros(n + 2)
+    out = np.zeros((len(LOOP_TIMES), n))
+    for k, hold in enumerate(holds):
+        end = holds[k + 1].t if k + 1 < len(holds) else LOOP_TIMES[-1]
+        y[n:] = hold.tau_L, hold.w_ref
+        inside = (LOOP_TIMES >= hold.t) & (LOOP_TIMES <= end)
+        out[inside] = (expm((LOOP_TIMES[inside] - hold.t)[:, None, None] * M) @ y)[:, :n]
+        y = expm(M * (end - hold.t)) @ y
+    return out
 
 @functools.cache
 def exact_loop(model: str, delta: float | None = None) -> rc.Trajectory:
@@ -181,14 +195,7 @@ def test_reference_without_backlash_is_the_linear_loop(model):
     G[:4, 0], G[:4, 1], G[4, 1] = B[:, 1], gains["Kp"] * B[:, 0], 1.0
     M = np.zeros((7, 7))
     M[:5, :5], M[:5, 5:] = A, G
-    holds, y = loop_holds(), np.zeros(7)
-    direct = np.zeros((len(LOOP_TIMES), 5))
-    for k, hold in enumerate(holds):
-        end = holds[k + 1].t if k + 1 < len(holds) else LOOP_TIMES[-1]
-        y[5:] = hold.tau_L, hold.w_ref
-        inside = (LOOP_TIMES >= hold.t) & (LOOP_TIMES <= end)
-        direct[inside] = (expm((LOOP_TIMES[inside] - hold.t)[:, None, None] * M) @ y)[:, :5]
-        y = expm(M * (end - hold.t)) @ y
+    direct = held_linear_loop(M)
     errors = [rel_err(exact.z[:, j], direct[:, j]) for j in range(4)] + [rel_err(exact.xi, direct[:, 4])]
     assert max(errors) <= 1e-12, errors
     assert exact.switches == []
@@ -255,14 +262,7 @@ def test_gearbox_reference_without_backlash_is_the_linear_loop(model):
     M[:6, 6] = Ki * B[:, 0]
     M[6, 1] = -1.0
     M[:6, 7], M[:6, 8], M[6, 8] = B[:, 1], Kp * B[:, 0], 1.0
-    holds, y = loop_holds(), np.zeros(9)
-    direct = np.zeros((len(LOOP_TIMES), 7))
-    for k, hold in enumerate(holds):
-        end = holds[k + 1].t if k + 1 < len(holds) else LOOP_TIMES[-1]
-        y[7:] = hold.tau_L, hold.w_ref
-        inside = (LOOP_TIMES >= hold.t) & (LOOP_TIMES <= end)
-        direct[inside] = (expm((LOOP_TIMES[inside] - hold.t)[:, None, None] * M) @ y)[:, :7]
-        y = expm(M * (end - hold.t)) @ y
+    direct = held_linear_loop(M)
     ref = reference_gear_loop(model, 0.0)
     errors = [rel_err(ref.z[:, j], direct[:, j]) for j in range(6)] + [rel_err(ref.xi, direct[:, 6])]
     assert max(errors) <= 1e-10, errors
@@ -272,12 +272,12 @@ def test_gearbox_reference_without_backlash_is_the_linear_loop(model):
 @pytest.mark.parametrize("model", GEARBOXES)
 def test_gearbox_loop_integrator_matches_the_reference(model):
     """run_loop, the integrator that closes the loop around a gearbox's FMU, around the
-    equations written in Python instead (reference_two_stage.PythonGearbox: Gearbox.field and its
-    18 indicators) against reference_two_stage.run_pi_loop: the loop integrator on a model known
+    equations written in Python instead (loops.PythonGearbox: reference_two_stage's
+    Gearbox.field and its 18 indicators) against reference_two_stage.run_pi_loop: the loop integrator on a model known
     to be right. Tolerance LOOP_TOL relative as for the FMU below, the same switch sequence
     (measured: 1.1e-11, on omega_i; the FMU's 1.4e-11)."""
     params, gains = RIGS[model]
-    model_py = ref2.PythonGearbox(ref2.Gearbox.of(params))
+    model_py = PythonGearbox(ref2.Gearbox.of(params))
     run = run_loop(model_py, gains["Kp"], gains["Ki"], loop_holds(), LOOP_TIMES, np.zeros(6), meshes=2)
     ref = reference_gear_loop(model)
     errors = [rel_err(run.z[:, j], ref.z[:, j]) for j in range(6)] + [rel_err(run.xi, ref.xi)]
