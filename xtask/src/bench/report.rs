@@ -370,8 +370,7 @@ fn drives(plan: &Plan, r: &Results, schedules: &Schedules) -> Result<Drives, Str
     let web_start = stat(r, "web_step_from_start")?;
     let belt_read = stat(r, "belt_step_read_bounds")?;
     let web_read = stat(r, "web_step_read_bounds")?;
-    // Rounded to the microsecond, so that e.g. 20000 steps of 1e-4 s read as 2.
-    let seconds = |steps: f64| (steps * schedules.drive_h * 1e6).round() / 1e6;
+    let seconds = |steps: f64| simulated_seconds(steps, schedules.drive_h);
     Ok(Drives {
         t_web: web_step.0 / belt_step.0,
         t_web_start: web_start.0 / belt_start.0,
@@ -385,6 +384,12 @@ fn drives(plan: &Plan, r: &Results, schedules: &Schedules) -> Result<Drives, Str
         belt_read,
         web_read,
     })
+}
+
+/// `steps` steps of `h` in simulated seconds, rounded to the microsecond, so that e.g. 20000
+/// steps of 1e-4 s read as 2.
+fn simulated_seconds(steps: f64, h: f64) -> f64 {
+    (steps * h * 1e6).round() / 1e6
 }
 
 /// The two-stage gearbox against the shaft, h = 1 ms both: its instance stepped on through the
@@ -403,7 +408,7 @@ struct Gearbox {
 
 fn gearbox(plan: &Plan, r: &Results, schedules: &Schedules) -> Result<Gearbox, String> {
     let step = stat(r, "two_stage_step_event_free")?;
-    let seconds = |steps: f64| (steps * schedules.gearbox_h * 1e6).round() / 1e6;
+    let seconds = |steps: f64| simulated_seconds(steps, schedules.gearbox_h);
     Ok(Gearbox {
         t_step: step.0 / stat(r, "ours_step_event_free")?.0,
         step,

@@ -188,21 +188,19 @@ mod tests {
         format!("@ sample {k} {contact} {switches} {}\r\n", hex.join(" "))
     }
 
-    /// A single gap's outputs, in the host's order (a shaft's description's).
-    fn names(list: &[&str]) -> Vec<String> {
-        list.iter().map(|n| n.to_string()).collect()
+    /// A model's outputs as the host samples them: its description's Real outputs.
+    fn outputs_of(id: &str) -> Vec<String> {
+        let xml = (crate::fmu::STANDARDS[0].description)(id);
+        let doc = roxmltree::Document::parse(&xml).unwrap();
+        super::super::sampled(&doc)
+            .0
+            .into_iter()
+            .map(|(name, _)| name.to_string())
+            .collect()
     }
 
     fn shaft() -> Vec<String> {
-        names(&[
-            "theta_m",
-            "omega_m",
-            "theta_L",
-            "omega_L",
-            "psi",
-            "bound",
-            "bound_paper",
-        ])
+        outputs_of("BacklashShaft")
     }
 
     #[test]
@@ -294,9 +292,7 @@ mod tests {
 
     #[test]
     fn a_gearboxs_samples_carry_each_meshs_contact_and_its_own_outputs() {
-        let outputs = names(&[
-            "theta_m", "omega_m", "theta_i", "omega_i", "theta_L", "omega_L", "psi_1", "psi_2", "bound",
-        ]);
+        let outputs = outputs_of("BacklashTwoStage");
         let mut values = vec![1.0; outputs.len()];
         let reference = samples(&line(5, "1,-1", 3, &values)).unwrap();
         assert_eq!(reference[0].contact, "1,-1");
@@ -308,7 +304,7 @@ mod tests {
             .unwrap_err()
             .contains("contact 1,0"));
 
-        values[outputs.len() - 2] = 1.0 + 1e-9;
+        values[outputs.iter().position(|n| n == "psi_2").unwrap()] = 1.0 + 1e-9;
         let error = agree(&reference, &samples(&line(5, "1,-1", 3, &values)).unwrap(), &outputs).unwrap_err();
         assert!(error.contains("psi_2 after step 5"), "{error}");
 
