@@ -54,7 +54,7 @@ impl Instance {
         };
         let inputs = adapter::inputs(sim.plant(), &self.values, &self.input_slopes);
         let lines = adapter::input_values(&self.values);
-        let Some(lines_end) = accepted_lines(
+        let lines_end = match accepted_lines(
             &lines,
             &self.input_slopes,
             communication_point,
@@ -62,9 +62,9 @@ impl Instance {
             sim.max_step,
             limit,
             at_time,
-        ) else {
-            let lines_end = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
-            return Err(self.step_refusal(communication_point, h, &lines_end));
+        ) {
+            Ok(lines_end) => lines_end,
+            Err(lines_end) => return Err(self.step_refusal(communication_point, h, &lines_end)),
         };
         if !sim.quiet_step(&inputs, h) {
             let stopped = self.general_step(communication_point, &inputs, h, early_return)?;
@@ -128,7 +128,7 @@ impl Instance {
         let (limit, at_time) = (self.step_limit(), self.at_time(communication_point));
         let lines = adapter::input_values(&self.values);
         let max_step = self.max_step();
-        let Some(lines_end) = accepted_lines(
+        let lines_end = match accepted_lines(
             &lines,
             &self.input_slopes,
             communication_point,
@@ -136,9 +136,9 @@ impl Instance {
             max_step,
             limit,
             at_time,
-        ) else {
-            let lines_end = std::array::from_fn(|i| lines[i] + h * self.input_slopes[i]);
-            return Err(self.step_refusal(communication_point, h, &lines_end));
+        ) {
+            Ok(lines_end) => lines_end,
+            Err(lines_end) => return Err(self.step_refusal(communication_point, h, &lines_end)),
         };
         let stopped = self.gear_step(communication_point, h, early_return)?;
         Ok(self.step_taken(communication_point, h, &lines, &lines_end, stopped))
@@ -386,8 +386,8 @@ fn contact_switch(t: f64, from: ContactMode, to: ContactMode, half_gap: f64) -> 
     format!("contact switch at t = {t} s: {from:?} -> {to:?} (g = {half_gap})")
 }
 
-/// The input lines at the end of a step from `communication_point` over `h`, if every argument
-/// is acceptable: a finite point at the instance's time (`at_time`), 0 < h <= `max_step`, an end
+/// The input lines at the end of a step from `communication_point` over `h`: Ok if every
+/// argument is acceptable, Err (the same lines, which the refusal names) if not. Acceptable: a finite point at the instance's time (`at_time`), 0 < h <= `max_step`, an end
 /// that moves time and stays within `limit`, lines that stay in f64 (refused before stepping, so
 /// that a refused step changes nothing). All in one branch (non-short-circuit `&`, each false on
 /// NaN); `step_refusal` sorts out the reason only when one fails.
@@ -400,7 +400,7 @@ fn accepted_lines(
     max_step: f64,
     limit: f64,
     at_time: bool,
-) -> Option<[f64; MAX_INPUTS]> {
+) -> Result<[f64; MAX_INPUTS], [f64; MAX_INPUTS]> {
     let end = communication_point + h;
     let lines_end: [f64; MAX_INPUTS] = std::array::from_fn(|i| lines[i] + h * slopes[i]);
     let accepted = finite(communication_point)
@@ -410,5 +410,9 @@ fn accepted_lines(
         & (end > communication_point)
         & (end <= limit)
         & lines_end.iter().fold(true, |ok, x| ok & finite(*x));
-    accepted.then_some(lines_end)
+    if accepted {
+        Ok(lines_end)
+    } else {
+        Err(lines_end)
+    }
 }
