@@ -99,9 +99,9 @@ impl<const N: usize, const KO: usize> Exact<N, KO> {
         let d = bearings.map(|b| -b.signum());
         // The motor's speed as r_m ω_m = u′ + r_L ω_L (`speed_rows`).
         let r_l = self.plant.r_l();
-        let w0 = [state.du + r_l * state.omega_l, state.omega_l];
         let watched = bearings.map(|b| b != 0.0);
-        self.quiet_step_with(state, &shifted, h, |next, speeds, len| {
+        self.quiet_step_with(state, &shifted, h, |start, next, speeds, len| {
+            let w0 = [start.du + r_l * start.omega_l, start.omega_l];
             let [a0, s] = [[speeds[0], speeds[1]], [speeds[2], speeds[3]]];
             let w1 = [next.du + r_l * next.omega_l, next.omega_l];
             let clear = |j: usize| keeps_sign(d[j] * w0[j], d[j] * a0[j], d[j] * w1[j], s[j], len);
