@@ -578,6 +578,78 @@ fn stepping_from_switch_to_switch_takes_the_same_trajectory() {
     }
 }
 
+/// Every entry of a chain state, as bits.
+fn bits(s: &ChainState<2>) -> Vec<u64> {
+    let bodies = (0..=2).flat_map(|j| [s.body(j).theta, s.body(j).omega]);
+    let stages = s.u.iter().chain(&s.du).chain(&s.variation).copied();
+    let modes = s.mode.stages().iter().map(|m| m.code() as u64);
+    bodies
+        .chain(stages)
+        .chain([s.tension])
+        .map(f64::to_bits)
+        .chain(modes)
+        .collect()
+}
+
+/// `ChainStepper::quiet_step` is `step`'s path through a piece certified clear: wherever it
+/// takes a step it gives `step`'s state bit for bit, with no switch in the step. Over a run in
+/// which a reversing torque drives both meshes across their gaps (with and without dampers) it
+/// takes most steps and declines others; it declines inputs `step` refuses.
+#[test]
+fn the_quiet_step_is_the_steps_clear_path_bit_for_bit() {
+    for drive in [
+        two_stage(),
+        Drive {
+            d: vec![0.5, 1.0],
+            ..two_stage()
+        },
+    ] {
+        let chain = drive.chain::<2>();
+        let mut stepper = TwoStageStepper::new(chain);
+        let mut state = ChainState::new(&chain, Motion::default(), [Motion::default(); 2]);
+        let h = 1e-3;
+        let (mut taken, mut declined) = (0, 0);
+        for k in 0..2000 {
+            let inputs = reversing(5.0, 2.0, -2.0, k as f64 * h, h);
+            let quiet = stepper.quiet_step(&state, &inputs, h);
+            let mut switches = 0;
+            stepper.step(&mut state, &inputs, h, &mut |_| switches += 1).unwrap();
+            let Some(quiet) = quiet else {
+                declined += 1;
+                continue;
+            };
+            taken += 1;
+            assert_eq!(switches, 0, "step {k}");
+            assert_eq!(bits(&quiet), bits(&state), "step {k}");
+        }
+        assert!(taken > 1000 && declined > 10, "{taken} taken, {declined} declined");
+
+        // Held inputs from a state it steps: the same step but for one input not finite.
+        let held = Inputs::held(0.5, 0.0);
+        let mut pressed = state;
+        while stepper.quiet_step(&pressed, &held, h).is_none() {
+            stepper.step(&mut pressed, &held, h, &mut |_| {}).unwrap();
+        }
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let refused = [
+                Inputs { tau_m: bad, ..held },
+                Inputs { tau_l: bad, ..held },
+                Inputs { dtau_m: bad, ..held },
+                Inputs { dtau_l: bad, ..held },
+                Inputs { span: bad, ..held },
+                Inputs { dspan: bad, ..held },
+            ];
+            for inputs in refused {
+                assert!(stepper.quiet_step(&pressed, &inputs, h).is_none(), "{inputs:?}");
+                assert!(
+                    stepper.step(&mut pressed.clone(), &inputs, h, &mut |_| {}).is_err(),
+                    "{inputs:?}"
+                );
+            }
+        }
+    }
+}
+
 /// S = 2: docs/model.md §10's `BacklashTwoStage`.
 #[test]
 fn two_stages_agree_with_an_independent_integrator() {

@@ -283,8 +283,10 @@ impl Geared {
     /// The step of Co-Simulation over `h` under `inputs`, in place: where it stopped (with
     /// `early_return`, at the first switch inside it), each switch passed to `record`. A refused
     /// step leaves the state as it was (the stepper writes it only on success); the bound is
-    /// moved on by [`Geared::lag`] once the step is accepted. Stepping in place spares a copy
-    /// of the state the stepper has just written, whose read-back stalls.
+    /// moved on by [`Geared::lag`] once the step is accepted. An event-free step of the size
+    /// the stepper last took goes its quiet path ([`TwoStageStepper::quiet_step`], the same state
+    /// bit for bit); the general step works in place, which spares a copy of the state the
+    /// stepper has just written, whose read-back stalls.
     pub fn step(
         &mut self,
         inputs: &Inputs,
@@ -292,6 +294,10 @@ impl Geared {
         early_return: bool,
         record: &mut dyn FnMut(ChainEvent),
     ) -> Result<Option<f64>, StepError> {
+        if let Some(next) = self.stepper.quiet_step(&self.state, inputs, h) {
+            self.state = next;
+            return Ok(None);
+        }
         if early_return {
             self.stepper.step_to_first_switch(&mut self.state, inputs, h, record)
         } else {

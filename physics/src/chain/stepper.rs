@@ -511,22 +511,9 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
             let start = piece as f64 * len;
             let index = next.mode.index();
             self.fill(index);
-            let kernel = self.maps[index].as_ref().expect("filled above");
             // The whole piece in one pass, when every stage is certified clear of its
             // thresholds over it: the common case.
-            let at_start = PieceStart::of(&next, inputs, start);
-            let whole_piece = kernel.apply(&at_start);
-            let stages_clear = self.clear_by(&next.mode, &at_start, len, |i| {
-                PieceKernel::<S, N, KO>::certificate(&whole_piece, i)
-            });
-            if stages_clear && (!self.friction || self.bodies_clear_over_piece(&next.mode, &at_start, index)) {
-                for i in self.damped_stages() {
-                    let (d2, c3) = PieceKernel::<S, N, KO>::certificate(&whole_piece, i);
-                    let u_end = whole_piece[Layout::<S>::u(i)];
-                    next.variation[i] +=
-                        variation(next.mode.stages[i], at_start.u[i], at_start.v[i], d2, c3, len, u_end);
-                }
-                self.finish_piece(&mut next, &whole_piece, PieceKernel::<S, N, KO>::tension(&whole_piece));
+            if self.whole_piece(&mut next, inputs, start, index) {
                 continue;
             }
             let mut y = augmented::<S, N>(&next, inputs, start);
@@ -641,6 +628,65 @@ impl<const S: usize, const N: usize, const KO: usize> ChainStepper<S, N, KO> {
         }
         *state = next;
         Ok((switches, None))
+    }
+
+    /// The piece from `start` into the step, from `next` in the mode of map `index` (filled), in
+    /// one pass of its kernel, when every stage (and with friction every body) is certified to
+    /// keep its mode over it: then `next` is moved to the piece end and true returned; else
+    /// `next` is left as it was.
+    #[inline(always)]
+    fn whole_piece(&self, next: &mut ChainState<S>, inputs: &Inputs, start: f64, index: usize) -> bool {
+        let kernel = self.maps[index].as_ref().expect("the mode's map is filled");
+        let at_start = PieceStart::of(next, inputs, start);
+        let whole_piece = kernel.apply(&at_start);
+        let stages_clear = self.clear_by(&next.mode, &at_start, self.len, |i| {
+            PieceKernel::<S, N, KO>::certificate(&whole_piece, i)
+        });
+        if !(stages_clear && (!self.friction || self.bodies_clear_over_piece(&next.mode, &at_start, index))) {
+            return false;
+        }
+        for i in self.damped_stages() {
+            let (d2, c3) = PieceKernel::<S, N, KO>::certificate(&whole_piece, i);
+            let u_end = whole_piece[Layout::<S>::u(i)];
+            next.variation[i] += variation(
+                next.mode.stages[i],
+                at_start.u[i],
+                at_start.v[i],
+                d2,
+                c3,
+                self.len,
+                u_end,
+            );
+        }
+        self.finish_piece(next, &whole_piece, PieceKernel::<S, N, KO>::tension(&whole_piece));
+        true
+    }
+
+    /// The step of a co-simulation in the common case, with nothing to locate: `h` is the step
+    /// size `step` last took, one piece long, the mode's map is filled, no body has friction
+    /// (whose law of stiction a step applies at its start) and the piece is certified clear.
+    /// Returns the state at its end if it and the inputs are finite; else `None`, and `step`
+    /// does the step (or says why not).
+    ///
+    /// Contract: a state it returns is bit for bit the one `step` gives: it is `step`'s path
+    /// through a piece certified clear (`whole_piece`, the same code on the same operands),
+    /// without the step's general machinery around it, which `step` sets up before it knows
+    /// whether the piece needs it.
+    #[inline]
+    pub fn quiet_step(&self, state: &ChainState<S>, inputs: &Inputs, h: f64) -> Option<ChainState<S>> {
+        debug_assert!(state.is_finite());
+        let index = state.mode.index();
+        // `self.h` holds a step size `step` accepted (or NaN, with no pieces).
+        let ready = (self.h.to_bits() == h.to_bits()) & (self.pieces == 1) & !self.friction;
+        if !ready || self.maps[index].is_none() {
+            return None;
+        }
+        let mut next = *state;
+        let taken = self.whole_piece(&mut next, inputs, 0.0, index);
+        // An infinite or NaN entry of the kernel's makes every sum it enters NaN or infinite
+        // (∞·0 is NaN), so that `next` is not finite; `span` and its slope enter the kernel only
+        // with a web span, and `step` refuses them non-finite in any case.
+        (taken & crate::finite(inputs.span) & crate::finite(inputs.dspan) & next.is_finite()).then_some(next)
     }
 
     /// Refuses what the step cannot take: h not finite, ≤ 0 or longer than `max_step`,
