@@ -192,7 +192,9 @@ fn run_seed(run: Run) -> Counts {
     PROGRESS.fetch_add(1, Ordering::SeqCst);
     match result {
         Ok(counts) => counts,
-        Err(e) => std::panic::resume_unwind(Box::new(format!(
+        // A panic, not `resume_unwind`, whose payload the test harness does not print: the seed
+        // and its replay command must reach the log.
+        Err(e) => panic!(
             "fuzz seed {} failed (replay with {}): {}",
             run.seed,
             run.replay_hint(),
@@ -200,7 +202,7 @@ fn run_seed(run: Run) -> Counts {
                 .cloned()
                 .or(e.downcast_ref::<&str>().map(|s| s.to_string()))
                 .unwrap_or_default()
-        ))),
+        ),
     }
 }
 

@@ -107,6 +107,21 @@ const JACOBIAN_UNKNOWNS: [&str; 8] = [
 const WEB_JACOBIAN_KNOWNS: [&str; 3] = ["T", "v_in", "T_in"];
 const WEB_JACOBIAN_UNKNOWNS: [&str; 3] = ["der(T)", "T", "bound_T"];
 
+/// Whether a logged reason is a read's refusal for its bounds: "the bounds at t = …" (a
+/// single-gap plant's two, or bounds out of reach), "the bound at t = …" (the gearbox's one).
+fn names_the_bounds(message: &str) -> bool {
+    message.contains("the bounds at") || message.contains("the bound at")
+}
+
+/// Whether some body with bearing friction (`tau_c_X` > 0) has speed `omega_X` exactly 0.
+fn a_body_with_friction_rests(f: &Fmu) -> bool {
+    let bodies = f.model.variables.iter().filter_map(|v| v.name.strip_prefix("tau_c_"));
+    bodies.into_iter().any(|b| {
+        let (tau_c, omega) = (f.get_real(&format!("tau_c_{b}")), f.get_real(&format!("omega_{b}")));
+        tau_c.0 == fmi2Status::fmi2OK && omega.0 == fmi2Status::fmi2OK && tau_c.1 > 0.0 && omega.1 == 0.0
+    })
+}
+
 /// The knowns and unknowns of `model` the driver mostly picks from.
 fn jacobian_names(model: &backlash_fmu::fmu::ModelInfo) -> (Vec<&'static str>, Vec<&'static str>) {
     let (mut knowns, mut unknowns) = (JACOBIAN_KNOWNS.to_vec(), JACOBIAN_UNKNOWNS.to_vec());
@@ -668,12 +683,19 @@ impl<S: Source> Driver<S> {
                             info.newDiscreteStatesNeeded,
                             info.terminateSimulation,
                             info.nominalsOfContinuousStatesChanged,
-                            info.valuesOfContinuousStatesChanged,
                             info.nextEventTimeDefined,
                         ];
                         assert_eq!(
-                            flags, [fmi2False; 5],
+                            flags, [fmi2False; 4],
                             "fmi2NewDiscreteStates asks for something: {info:?}"
+                        );
+                        // The one change it makes to the continuous states: a body with bearing
+                        // friction that sticks is set at rest (docs/model.md §12).
+                        assert!(
+                            info.valuesOfContinuousStatesChanged == fmi2False
+                                || a_body_with_friction_rests(&self.slots[i].f),
+                            "fmi2NewDiscreteStates changed the continuous states, and no body with \
+                             friction is at rest: {info:?}"
                         );
                     }
                     s
@@ -965,8 +987,9 @@ impl<S: Source> Driver<S> {
         if check_all {
             // Every variable reads, admissible; but the bounds, brought up to the step only
             // when read (docs/model.md §3), may overflow there, or (extreme parameters) lie out
-            // of their reach: then the read is refused with that reason and the instance is in
-            // Error.
+            // of their reach: then the read is refused with that reason ("the bounds at t = …"
+            // of a single-gap plant, "the bound at t = …" of the gearbox, which has one) and
+            // the instance is in Error.
             let before_read = f.log_len();
             let (s, values) = f.all_values();
             match s {
@@ -981,7 +1004,7 @@ impl<S: Source> Driver<S> {
                         !self.slots[i].errors_logged
                             || read
                                 .iter()
-                                .any(|e| e.category == "logErrors" && e.message.contains("the bounds at")),
+                                .any(|e| e.category == "logErrors" && names_the_bounds(&e.message)),
                         "reading every variable: {s:?}, log {read:?} after {}",
                         context()
                     );
