@@ -63,8 +63,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
 
     step("building the FMUs");
     fmu::package_all()?;
-    python::ensure_venv()?;
-    python::install_package()?;
+    python::venv_with_package()?;
 
     step("the demonstration (python -m backlash_fmu.demo)");
     let results = util::repo_root().join("results");

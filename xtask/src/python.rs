@@ -16,10 +16,16 @@ pub fn run(args: &[String]) -> Result<(), String> {
     if let Some(arg) = args.first() {
         return Err(format!("`cargo xtask pytest` takes no arguments, got `{arg}`"));
     }
-    ensure_venv()?;
-    install_package()?;
+    venv_with_package()?;
     run_pytest()?;
     run_readme_example()
+}
+
+/// The venv ([`ensure_venv`]) with the package installed into it ([`install_package`]): what
+/// every command that runs the package's Python needs.
+pub fn venv_with_package() -> Result<(), String> {
+    ensure_venv()?;
+    install_package()
 }
 
 /// [`install_package_for`] linux64.

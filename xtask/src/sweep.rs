@@ -97,8 +97,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
 
     step("building the FMUs");
     fmu::package_all()?;
-    python::ensure_venv()?;
-    python::install_package()?;
+    python::venv_with_package()?;
 
     step("tolerance sweep (python -m backlash_fmu.sweep)");
     let mut cmd = Command::new(python::venv_python());

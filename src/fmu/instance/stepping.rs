@@ -387,9 +387,10 @@ fn contact_switch(t: f64, from: ContactMode, to: ContactMode, half_gap: f64) -> 
 }
 
 /// The input lines at the end of a step from `communication_point` over `h`: Ok if every
-/// argument is acceptable, Err (the same lines, which the refusal names) if not. Acceptable: a finite point at the instance's time (`at_time`), 0 < h <= `max_step`, an end
-/// that moves time and stays within `limit`, lines that stay in f64 (refused before stepping, so
-/// that a refused step changes nothing). All in one branch (non-short-circuit `&`, each false on
+/// argument is acceptable, Err (the same lines, which the refusal names) if not. Acceptable: a
+/// finite point at the instance's time (`at_time`), 0 < h <= `max_step`, an end that moves time
+/// and stays within `limit`, lines that stay in f64 (refused before stepping, so that a refused
+/// step changes nothing). All in one branch (non-short-circuit `&`, each false on
 /// NaN); `step_refusal` sorts out the reason only when one fails.
 #[inline(always)]
 fn accepted_lines(

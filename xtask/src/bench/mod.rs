@@ -116,9 +116,8 @@ pub fn run(args: &[String]) -> Result<(), String> {
     let load_start = run::read_trimmed("/proc/loadavg");
 
     fmu::package_all()?;
-    python::ensure_venv()?;
     // The Python benches drive the archives through the package, installed as a user does.
-    python::install_package()?;
+    python::venv_with_package()?;
 
     step("compiling the native host (benches/native_host.c)");
     let work = util::target_dir().join("bench");
